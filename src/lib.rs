@@ -1,0 +1,12 @@
+//! Nimbus: a heterogeneous-volume renderer built around the free-path samplers of
+//! Kutz et al. 2017 ("Spectral and Decomposition Tracking").
+//!
+//! The module tree follows the data flow:
+//! USD stage → [`scene`] → [`volume`] grids → majorant structure → [`track`]ers →
+//! [`render`] integrator → film/AOVs → [`output`] EXR.
+
+pub mod output;
+pub mod render;
+pub mod scene;
+pub mod track;
+pub mod volume;

@@ -1,0 +1,171 @@
+//! USD stage → [`Scene`]: everything the renderer needs, in plain Rust types, with
+//! world-space transforms already evaluated and asset paths already resolved.
+//!
+//! Loading lives in [`stage`]; Nimbus' codeless schema (see `schemas/`) is registered
+//! by [`schema`].
+
+pub mod schema;
+pub mod stage;
+
+use glam::DMat4;
+use std::path::PathBuf;
+
+pub use stage::{load_stage, LoadOptions, SceneError};
+
+/// A composed, evaluated scene at one time code.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// The stage file this scene was loaded from.
+    pub stage_path: PathBuf,
+    /// The time code the scene was evaluated at.
+    pub time: f64,
+    pub camera: Camera,
+    pub distant_lights: Vec<DistantLight>,
+    pub dome_lights: Vec<DomeLight>,
+    pub volumes: Vec<Volume>,
+    pub settings: RenderSettings,
+}
+
+/// A pinhole camera (UsdGeomCamera). Lengths in the stage's units as USD defines them:
+/// focal length and apertures in tenths of a scene unit ("mm" when the unit is cm);
+/// only their ratios matter to a pinhole camera.
+#[derive(Clone, Debug)]
+pub struct Camera {
+    pub prim_path: String,
+    /// Camera → world. The camera looks down its local −Z with +Y up.
+    pub camera_to_world: DMat4,
+    pub focal_length: f64,
+    pub horizontal_aperture: f64,
+    pub vertical_aperture: f64,
+    pub horizontal_aperture_offset: f64,
+    pub vertical_aperture_offset: f64,
+    /// (near, far) clipping range.
+    pub clipping_range: (f64, f64),
+}
+
+/// UsdLuxDistantLight. Radiance arriving from the light is
+/// `intensity · 2^exposure · color` (spread over the cone of half-angle `angle/2`).
+#[derive(Clone, Debug)]
+pub struct DistantLight {
+    pub prim_path: String,
+    /// Unit world-space direction *towards* the light (the light shines along its local −Z,
+    /// so this is the light's world +Z axis).
+    pub direction: [f64; 3],
+    pub intensity: f64,
+    pub exposure: f64,
+    pub color: [f64; 3],
+    /// Angular diameter in degrees (`inputs:angle`).
+    pub angle_degrees: f64,
+}
+
+/// UsdLuxDomeLight with a constant colour (textures come later).
+#[derive(Clone, Debug)]
+pub struct DomeLight {
+    pub prim_path: String,
+    pub intensity: f64,
+    pub exposure: f64,
+    pub color: [f64; 3],
+    /// `inputs:texture:file`, if authored (not yet supported by the renderer: a warning).
+    pub texture_file: Option<String>,
+}
+
+/// A UsdVolVolume with Nimbus' volume parameters resolved (schema fallbacks applied).
+#[derive(Clone, Debug)]
+pub struct Volume {
+    pub prim_path: String,
+    /// Volume → world (the prim's local-to-world transform at the scene's time).
+    pub volume_to_world: DMat4,
+    /// The field the density is read from (the relationship `field:<density_field>`).
+    pub density: Field,
+    /// `nimbus:densityScale`: extinction per unit density is scaled by this.
+    pub density_scale: f64,
+    /// σa per unit density, per channel (`nimbus:absorption`).
+    pub absorption: [f64; 3],
+    /// σs per unit density, per channel (`nimbus:scattering`).
+    pub scattering: [f64; 3],
+    /// Henyey–Greenstein g (`nimbus:anisotropy`).
+    pub anisotropy: f64,
+    /// All `field:*` relationships of the volume, for `nimbus info`.
+    pub fields: Vec<(String, Field)>,
+}
+
+/// A UsdVolOpenVDBAsset prim, resolved.
+#[derive(Clone, Debug)]
+pub struct Field {
+    pub prim_path: String,
+    /// The resolved file path (absolute or relative to the working directory).
+    /// For assets inside a .usdz, the package path and the member path.
+    pub file: AssetLocation,
+    /// `fieldName` (the grid name), empty when not authored.
+    pub field_name: String,
+    /// `fieldIndex`, when authored: which of the grids with that name (or, with no
+    /// name, which grid of the file).
+    pub field_index: Option<i32>,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum AssetLocation {
+    File(PathBuf),
+    /// A member of a .usdz package, with its bytes already read through the resolver.
+    Packaged {
+        package: PathBuf,
+        member: String,
+        bytes: std::sync::Arc<Vec<u8>>,
+    },
+}
+
+impl std::fmt::Display for AssetLocation {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            AssetLocation::File(p) => write!(f, "{}", p.display()),
+            AssetLocation::Packaged { package, member, .. } => {
+                write!(f, "{}[{}]", package.display(), member)
+            }
+        }
+    }
+}
+
+/// Render settings: UsdRenderSettings plus Nimbus' render-settings schema.
+#[derive(Clone, Debug)]
+pub struct RenderSettings {
+    /// The UsdRenderSettings prim these came from, if any.
+    pub prim_path: Option<String>,
+    pub resolution: (u32, u32),
+    /// Samples per pixel (`nimbus:samples`).
+    pub samples: u32,
+    /// Maximum scattering depth (`nimbus:maxDepth`).
+    pub max_depth: u32,
+    /// Random seed (`nimbus:seed`).
+    pub seed: u64,
+    /// Render products with their render vars (AOVs).
+    pub products: Vec<RenderProduct>,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        RenderSettings {
+            prim_path: None,
+            resolution: (640, 480),
+            samples: 16,
+            max_depth: 64,
+            seed: 0,
+            products: Vec::new(),
+        }
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct RenderProduct {
+    pub prim_path: String,
+    /// `productName`, when authored.
+    pub product_name: Option<String>,
+    pub vars: Vec<RenderVar>,
+}
+
+#[derive(Clone, Debug)]
+pub struct RenderVar {
+    pub prim_path: String,
+    /// `sourceName` (e.g. "color", "lookups").
+    pub source_name: String,
+    pub data_type: String,
+}

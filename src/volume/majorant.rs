@@ -1,0 +1,1 @@
+//! Per-cell majorant structure (to be written).
