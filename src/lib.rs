@@ -5,6 +5,7 @@
 //! USD stage → [`scene`] → [`volume`] grids → majorant structure → [`track`]ers →
 //! [`render`] integrator → film/AOVs → [`output`] EXR.
 
+pub mod cli;
 pub mod output;
 pub mod render;
 pub mod scene;

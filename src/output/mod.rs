@@ -1,1 +1,75 @@
-//! (to be written)
+//! Writing results: the EXR image with its AOV channels, and the stats JSON. Both are
+//! written to a temporary file beside the target and renamed into place, so a failed
+//! render never leaves a partial file or clobbers an existing one.
+
+pub mod exr;
+pub mod stats;
+
+use std::io::Write;
+use std::path::Path;
+
+#[derive(Debug, thiserror::Error)]
+pub enum OutputError {
+    #[error("cannot write {path}: {message}")]
+    Write { path: String, message: String },
+}
+
+/// Writes `path` atomically: `fill` writes into a temporary file in the same folder,
+/// which is then renamed over `path` only if everything succeeded.
+pub fn write_atomically(
+    path: &Path,
+    fill: impl FnOnce(&mut std::fs::File) -> Result<(), String>,
+) -> Result<(), OutputError> {
+    let err = |message: String| OutputError::Write {
+        path: path.display().to_string(),
+        message,
+    };
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if path.is_dir() {
+        return Err(err("it is a directory".into()));
+    }
+    let mut tmp = tempfile::Builder::new()
+        .prefix(".nimbus-")
+        .suffix(".tmp")
+        .tempfile_in(dir)
+        .map_err(|e| {
+            err(format!(
+                "cannot create a temporary file in {}: {e}",
+                dir.display()
+            ))
+        })?;
+    fill(tmp.as_file_mut()).map_err(err)?;
+    tmp.as_file_mut().flush().map_err(|e| err(e.to_string()))?;
+    tmp.as_file().sync_all().map_err(|e| err(e.to_string()))?;
+    tmp.persist(path).map_err(|e| err(e.error.to_string()))?;
+    Ok(())
+}
+
+/// Checks up front that `path` can be written (its folder exists and accepts a file),
+/// so a long render does not fail only at the end.
+pub fn check_writable(path: &Path) -> Result<(), OutputError> {
+    let err = |message: String| OutputError::Write {
+        path: path.display().to_string(),
+        message,
+    };
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if path.is_dir() {
+        return Err(err("it is a directory".into()));
+    }
+    tempfile::Builder::new()
+        .prefix(".nimbus-check-")
+        .tempfile_in(dir)
+        .map(drop)
+        .map_err(|e| {
+            err(format!(
+                "the folder {} does not accept new files: {e}",
+                dir.display()
+            ))
+        })
+}

@@ -1,1 +1,9 @@
-//! (to be written)
+//! The integrator and everything a sample needs: camera rays, the sampler, the phase
+//! function, lights, and the film that accumulates pixels and AOVs.
+
+pub mod camera;
+pub mod film;
+pub mod integrator;
+pub mod lights;
+pub mod phase;
+pub mod sampler;

@@ -21,5 +21,8 @@ pub enum SceneError {
 }
 
 pub fn load_stage(path: &Path, _opts: &LoadOptions) -> Result<Scene, SceneError> {
-    Err(SceneError::Stage { path: path.display().to_string(), message: "not implemented".into() })
+    Err(SceneError::Stage {
+        path: path.display().to_string(),
+        message: "not implemented".into(),
+    })
 }

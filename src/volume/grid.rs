@@ -87,9 +87,9 @@ impl RawGrid {
             }
         }
         for t in self.tiles.iter().filter(|t| t.active) {
-            sum = sum.wrapping_add(mix(
-                key(t.origin) ^ mix(((t.dim as u64) << 32) | t.value.to_bits() as u64) ^ 0xA5A5,
-            ));
+            sum = sum.wrapping_add(mix(key(t.origin)
+                ^ mix(((t.dim as u64) << 32) | t.value.to_bits() as u64)
+                ^ 0xA5A5));
         }
         sum
     }
@@ -138,5 +138,272 @@ impl RawGrid {
             whi = whi.max(w);
         }
         Some((wlo, whi))
+    }
+}
+
+/// Marker in the brick index for "no brick here: the background value".
+const NO_BRICK: u32 = u32::MAX;
+
+/// Largest dense brick index we accept (entries). 2^27 entries = 512 MiB of index,
+/// far beyond any grid a CPU renderer should see; beyond it the grid is refused with
+/// a clear error rather than exhausting memory.
+const MAX_INDEX_ENTRIES: u64 = 1 << 27;
+
+/// Errors turning a [`RawGrid`] into a renderable [`Grid`].
+#[derive(Debug, thiserror::Error)]
+pub enum GridError {
+    #[error("grid '{grid}': {message}")]
+    Unsupported { grid: String, message: String },
+}
+
+/// A sparse float grid laid out for lookups: a dense index over brick coordinates
+/// (covering the active bounds plus one brick of apron) into a pool of 8³ bricks.
+///
+/// Non-finite and negative voxel values are replaced by 0 when the grid is built (a
+/// density must be a finite non-negative number; the count is kept in
+/// [`Grid::sanitized_voxels`]) so that nothing downstream can propagate NaN.
+pub struct Grid {
+    pub name: String,
+    pub background: f32,
+    /// Brick coordinate of index entry 0.
+    brick_min: [i32; 3],
+    brick_dims: [i32; 3],
+    index: Vec<u32>,
+    bricks: Vec<[f32; BRICK_VOXELS]>,
+    /// Index → world (column-vector convention).
+    pub index_to_world: DMat4,
+    /// Inclusive index-space bounds of the stored data (voxel centres), or `None` if empty.
+    pub index_bounds: Option<([i32; 3], [i32; 3])>,
+    /// Number of voxels whose value was NaN, ±Inf or negative and was replaced by 0.
+    pub sanitized_voxels: u64,
+    pub active_voxels: u64,
+}
+
+fn sanitize(v: f32, count: &mut u64) -> f32 {
+    if v.is_finite() && v >= 0.0 {
+        v
+    } else {
+        *count += 1;
+        0.0
+    }
+}
+
+impl Grid {
+    /// Builds the lookup layout from a reader's grid.
+    pub fn from_raw(raw: &RawGrid) -> Result<Grid, GridError> {
+        let mut sanitized = 0u64;
+        let background = sanitize(raw.background, &mut sanitized);
+        let bounds = raw.active_index_bounds();
+        let (brick_min, brick_dims) = match bounds {
+            Some((lo, hi)) => {
+                // One brick of apron on each side: trilinear reconstruction reads one
+                // voxel beyond the active region.
+                let bmin = [0, 1, 2].map(|a| lo[a].div_euclid(BRICK) - 1);
+                let bmax = [0, 1, 2].map(|a| hi[a].div_euclid(BRICK) + 1);
+                (bmin, [0, 1, 2].map(|a| bmax[a] - bmin[a] + 1))
+            }
+            None => ([0; 3], [0; 3]),
+        };
+        let entries = brick_dims.iter().map(|&d| d.max(0) as u64).product::<u64>();
+        if entries > MAX_INDEX_ENTRIES {
+            return Err(GridError::Unsupported {
+                grid: raw.name.clone(),
+                message: format!(
+                    "active region spans {}x{}x{} bricks of 8³ voxels; more than Nimbus' limit of {} bricks",
+                    brick_dims[0], brick_dims[1], brick_dims[2], MAX_INDEX_ENTRIES
+                ),
+            });
+        }
+        let mut grid = Grid {
+            name: raw.name.clone(),
+            background,
+            brick_min,
+            brick_dims,
+            index: vec![NO_BRICK; entries as usize],
+            bricks: Vec::new(),
+            index_to_world: raw.index_to_world,
+            index_bounds: bounds,
+            sanitized_voxels: 0,
+            active_voxels: raw.active_voxel_count(),
+        };
+        if entries == 0 {
+            grid.sanitized_voxels = sanitized;
+            return Ok(grid);
+        }
+        // Tiles first (largest regions), then leaves overwrite: in OpenVDB a leaf and a
+        // tile never overlap, so the order only matters for robustness against odd input.
+        for tile in &raw.tiles {
+            let value = sanitize(tile.value, &mut sanitized);
+            if value == background {
+                continue;
+            }
+            let brick = grid.bricks.len() as u32;
+            grid.bricks.push([value; BRICK_VOXELS]);
+            let tdim_b = (tile.dim / BRICK).max(1);
+            let tb = tile.origin.map(|c| c.div_euclid(BRICK));
+            for bz in tb[2].max(brick_min[2])..(tb[2] + tdim_b).min(brick_min[2] + brick_dims[2]) {
+                for by in
+                    tb[1].max(brick_min[1])..(tb[1] + tdim_b).min(brick_min[1] + brick_dims[1])
+                {
+                    for bx in
+                        tb[0].max(brick_min[0])..(tb[0] + tdim_b).min(brick_min[0] + brick_dims[0])
+                    {
+                        let e = grid
+                            .entry([bx, by, bz])
+                            .expect("clamped to the index range");
+                        grid.index[e] = brick;
+                    }
+                }
+            }
+        }
+        for leaf in &raw.leaves {
+            let b = leaf.origin.map(|c| c.div_euclid(BRICK));
+            let Some(e) = grid.entry(b) else { continue };
+            let mut values = [0f32; BRICK_VOXELS];
+            for (dst, &src) in values.iter_mut().zip(leaf.values.iter()) {
+                *dst = sanitize(src, &mut sanitized);
+            }
+            // Fewer than 512 values means a reader bug; the missing ones read as background.
+            for dst in values.iter_mut().skip(leaf.values.len()) {
+                *dst = background;
+            }
+            grid.index[e] = grid.bricks.len() as u32;
+            grid.bricks.push(values);
+        }
+        grid.sanitized_voxels = sanitized;
+        Ok(grid)
+    }
+
+    #[inline(always)]
+    fn entry(&self, b: [i32; 3]) -> Option<usize> {
+        let r = [
+            b[0] - self.brick_min[0],
+            b[1] - self.brick_min[1],
+            b[2] - self.brick_min[2],
+        ];
+        if (r[0] as u32) < self.brick_dims[0] as u32
+            && (r[1] as u32) < self.brick_dims[1] as u32
+            && (r[2] as u32) < self.brick_dims[2] as u32
+        {
+            Some(((r[2] * self.brick_dims[1] + r[1]) * self.brick_dims[0] + r[0]) as usize)
+        } else {
+            None
+        }
+    }
+
+    /// The value of voxel `ijk`.
+    #[inline(always)]
+    pub fn voxel(&self, ijk: [i32; 3]) -> f32 {
+        match self.entry([ijk[0] >> 3, ijk[1] >> 3, ijk[2] >> 3]) {
+            Some(e) => {
+                let b = self.index[e];
+                if b == NO_BRICK {
+                    self.background
+                } else {
+                    let off = (((ijk[0] & 7) << 6) | ((ijk[1] & 7) << 3) | (ijk[2] & 7)) as usize;
+                    self.bricks[b as usize][off]
+                }
+            }
+            None => self.background,
+        }
+    }
+
+    /// Trilinear reconstruction at a continuous index-space point (voxel centres at
+    /// integer coordinates, as in OpenVDB's `BoxSampler`).
+    #[inline]
+    pub fn sample_trilinear(&self, p: [f32; 3]) -> f32 {
+        let fl = [p[0].floor(), p[1].floor(), p[2].floor()];
+        let f = [p[0] - fl[0], p[1] - fl[1], p[2] - fl[2]];
+        // Far outside the index range a cast would saturate; the background answers.
+        if !(fl[0].abs() < 1.0e9 && fl[1].abs() < 1.0e9 && fl[2].abs() < 1.0e9) {
+            return self.background;
+        }
+        let i = [fl[0] as i32, fl[1] as i32, fl[2] as i32];
+        let mut c = [0f32; 8];
+        // Fast path: the 2×2×2 stencil lies inside one brick (7 of 8 positions per axis).
+        if (i[0] & 7) != 7 && (i[1] & 7) != 7 && (i[2] & 7) != 7 {
+            let brick = self
+                .entry([i[0] >> 3, i[1] >> 3, i[2] >> 3])
+                .map(|e| self.index[e]);
+            match brick {
+                Some(b) if b != NO_BRICK => {
+                    let v = &self.bricks[b as usize];
+                    let o = (((i[0] & 7) << 6) | ((i[1] & 7) << 3) | (i[2] & 7)) as usize;
+                    c = [
+                        v[o],
+                        v[o + 1],
+                        v[o + 8],
+                        v[o + 9],
+                        v[o + 64],
+                        v[o + 65],
+                        v[o + 72],
+                        v[o + 73],
+                    ];
+                }
+                _ => return self.background,
+            }
+        } else {
+            for (n, cn) in c.iter_mut().enumerate() {
+                let dx = (n >> 2) as i32;
+                let dy = ((n >> 1) & 1) as i32;
+                let dz = (n & 1) as i32;
+                *cn = self.voxel([i[0] + dx, i[1] + dy, i[2] + dz]);
+            }
+        }
+        // c[n] with n = dx*4 + dy*2 + dz.
+        let lz = |a: f32, b: f32| a + (b - a) * f[2];
+        let c00 = lz(c[0], c[1]);
+        let c01 = lz(c[2], c[3]);
+        let c10 = lz(c[4], c[5]);
+        let c11 = lz(c[6], c[7]);
+        let c0 = c00 + (c01 - c00) * f[1];
+        let c1 = c10 + (c11 - c10) * f[1];
+        c0 + (c1 - c0) * f[0]
+    }
+
+    /// Minimum and maximum voxel value over the inclusive voxel box `[lo, hi]`: the
+    /// bounds of the trilinear reconstruction over the box `[lo, hi - 1]` of cells.
+    /// Whole-brick shortcuts keep this fast for majorant construction.
+    pub fn value_range(&self, lo: [i32; 3], hi: [i32; 3]) -> (f32, f32) {
+        let mut mn = f32::INFINITY;
+        let mut mx = f32::NEG_INFINITY;
+        for bz in lo[2] >> 3..=hi[2] >> 3 {
+            for by in lo[1] >> 3..=hi[1] >> 3 {
+                for bx in lo[0] >> 3..=hi[0] >> 3 {
+                    let brick = self.entry([bx, by, bz]).map(|e| self.index[e]);
+                    let v = match brick {
+                        Some(b) if b != NO_BRICK => &self.bricks[b as usize],
+                        _ => {
+                            mn = mn.min(self.background);
+                            mx = mx.max(self.background);
+                            continue;
+                        }
+                    };
+                    let base = [bx << 3, by << 3, bz << 3];
+                    let r0 = [0, 1, 2].map(|a| (lo[a] - base[a]).max(0));
+                    let r1 = [0, 1, 2].map(|a| (hi[a] - base[a]).min(7));
+                    for x in r0[0]..=r1[0] {
+                        for y in r0[1]..=r1[1] {
+                            for z in r0[2]..=r1[2] {
+                                let s = v[((x << 6) | (y << 3) | z) as usize];
+                                mn = mn.min(s);
+                                mx = mx.max(s);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        (mn, mx)
+    }
+
+    /// Number of bricks held (leaves plus one per distinct non-background tile).
+    pub fn brick_count(&self) -> usize {
+        self.bricks.len()
+    }
+
+    /// Bytes used by the lookup layout.
+    pub fn memory_bytes(&self) -> usize {
+        self.index.len() * 4 + self.bricks.len() * BRICK_VOXELS * 4
     }
 }

@@ -1,1 +1,174 @@
-//! Media (to be written).
+//! A density-driven participating medium: μa(x,λ) = d(x)·σa(λ), μs(x,λ) = d(x)·σs(λ),
+//! with d(x) the trilinearly reconstructed density field times the density scale.
+//!
+//! The medium owns the ray ↔ grid mapping: trackers work with a world-space distance
+//! `t` along a world-space ray and index-space positions `o + t·d` (the index-space
+//! direction is *not* normalised, so `t` keeps world units and the coefficients stay
+//! per world unit length, whatever the grid's voxel size or the volume's transform).
+
+use crate::volume::grid::Grid;
+use crate::volume::majorant::MajorantGrid;
+use glam::{DMat4, DVec3, Vec3};
+
+/// RGB coefficients, one per channel.
+pub type Spectrum = [f32; 3];
+
+/// Counters the trackers keep per sample: plain integers on the worker's stack,
+/// summed per pixel and per tile, never atomics.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Counters {
+    /// Evaluations of the density field (every trilinear reconstruction).
+    pub density_lookups: u64,
+    pub real_collisions: u64,
+    pub null_collisions: u64,
+    /// Majorant cells entered by the traversal.
+    pub cells_visited: u64,
+    /// Tentative collisions where the density exceeded the cell's majorant.
+    pub majorant_violations: u64,
+}
+
+impl Counters {
+    pub fn add(&mut self, o: &Counters) {
+        self.density_lookups += o.density_lookups;
+        self.real_collisions += o.real_collisions;
+        self.null_collisions += o.null_collisions;
+        self.cells_visited += o.cells_visited;
+        self.majorant_violations += o.majorant_violations;
+    }
+}
+
+/// A ray mapped into a medium's index space.
+#[derive(Clone, Copy, Debug)]
+pub struct IndexRay {
+    pub o: Vec3,
+    /// Index-space displacement per world unit of `t`.
+    pub d: Vec3,
+}
+
+impl IndexRay {
+    #[inline(always)]
+    pub fn at(&self, t: f32) -> Vec3 {
+        self.o + self.d * t
+    }
+}
+
+pub struct Medium {
+    /// The prim this medium comes from (for messages).
+    pub prim_path: String,
+    pub density: Grid,
+    /// World → index, the inverse of volume_to_world · index_to_world.
+    world_to_index: DMat4,
+    /// σa, σs per unit density (density scale folded in).
+    pub sigma_a: Spectrum,
+    pub sigma_s: Spectrum,
+    pub sigma_t: Spectrum,
+    /// max over channels of σt: turns a density majorant into an extinction majorant.
+    pub sigma_t_max: f32,
+    /// Henyey–Greenstein asymmetry.
+    pub g: f32,
+    pub majorants: MajorantGrid,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum MediumError {
+    #[error("volume {prim}: {message}")]
+    Invalid { prim: String, message: String },
+}
+
+impl Medium {
+    /// Builds a medium. `cell_voxels` is the edge of a majorant cell in voxels
+    /// (0 = one cell for the whole volume, i.e. a global majorant).
+    pub fn new(
+        prim_path: &str,
+        density: Grid,
+        volume_to_world: DMat4,
+        density_scale: f64,
+        absorption: [f64; 3],
+        scattering: [f64; 3],
+        anisotropy: f64,
+        cell_voxels: u32,
+    ) -> Result<Medium, MediumError> {
+        let invalid = |message: String| MediumError::Invalid {
+            prim: prim_path.to_string(),
+            message,
+        };
+        let index_to_world = volume_to_world * density.index_to_world;
+        let det = index_to_world.determinant();
+        if !det.is_finite() || det.abs() < 1e-300 {
+            return Err(invalid(format!(
+                "the volume's transform times the grid's index-to-world transform is singular (determinant {det:e}); cannot map rays into the grid"
+            )));
+        }
+        let check = |name: &str, v: f64| -> Result<f32, MediumError> {
+            if v.is_finite() && v >= 0.0 && v < f32::MAX as f64 {
+                Ok(v as f32)
+            } else {
+                Err(invalid(format!(
+                    "{name} must be finite and non-negative, got {v}"
+                )))
+            }
+        };
+        let scale = check("nimbus:densityScale", density_scale)?;
+        let mut sigma_a = [0f32; 3];
+        let mut sigma_s = [0f32; 3];
+        for c in 0..3 {
+            sigma_a[c] = check("nimbus:absorption", absorption[c])? * scale;
+            sigma_s[c] = check("nimbus:scattering", scattering[c])? * scale;
+        }
+        if !(anisotropy.is_finite() && anisotropy > -1.0 && anisotropy < 1.0) {
+            return Err(invalid(format!(
+                "nimbus:anisotropy must lie in (-1, 1), got {anisotropy}"
+            )));
+        }
+        let sigma_t = [0, 1, 2].map(|c| sigma_a[c] + sigma_s[c]);
+        let majorants = MajorantGrid::build(&density, cell_voxels);
+        Ok(Medium {
+            prim_path: prim_path.to_string(),
+            density,
+            world_to_index: index_to_world.inverse(),
+            sigma_a,
+            sigma_s,
+            sigma_t,
+            sigma_t_max: sigma_t[0].max(sigma_t[1]).max(sigma_t[2]),
+            g: anisotropy as f32,
+            majorants,
+        })
+    }
+
+    /// Maps a world-space ray (any direction length; `t` is measured in units of it).
+    pub fn index_ray(&self, origin: DVec3, dir: DVec3) -> IndexRay {
+        let o = self.world_to_index.transform_point3(origin);
+        let d = self.world_to_index.transform_vector3(dir);
+        IndexRay {
+            o: o.as_vec3(),
+            d: d.as_vec3(),
+        }
+    }
+
+    /// Density (already scaled into extinction units by σ) at an index-space point.
+    /// Every call is one density lookup.
+    #[inline(always)]
+    pub fn density(&self, p: Vec3, counters: &mut Counters) -> f32 {
+        counters.density_lookups += 1;
+        self.density.sample_trilinear(p.to_array())
+    }
+
+    /// World-space bounds of the region the majorant structure covers.
+    pub fn world_bounds(&self) -> Option<(DVec3, DVec3)> {
+        let (lo, hi) = self.majorants.index_region()?;
+        let m = self.world_to_index.inverse();
+        let mut wlo = DVec3::splat(f64::INFINITY);
+        let mut whi = DVec3::splat(f64::NEG_INFINITY);
+        for c in 0..8 {
+            let p = DVec3::new(
+                if c & 1 == 0 { lo.x } else { hi.x } as f64,
+                if c & 2 == 0 { lo.y } else { hi.y } as f64,
+                if c & 4 == 0 { lo.z } else { hi.z } as f64,
+            );
+            let w = m.transform_point3(p);
+            wlo = wlo.min(w);
+            whi = whi.max(w);
+        }
+        Some((wlo, whi))
+    }
+}

@@ -46,7 +46,10 @@ pub fn active_reader() -> Reader {
 
 /// Lists the grids of a file.
 pub fn list_grids(loc: &AssetLocation) -> Result<Vec<GridInfo>, VdbError> {
-    Err(VdbError::Invalid { file: loc.to_string(), message: "not implemented".into() })
+    Err(VdbError::Invalid {
+        file: loc.to_string(),
+        message: "not implemented".into(),
+    })
 }
 
 /// Reads one float grid: by name (empty = any), and by index among the grids with
@@ -66,5 +69,8 @@ pub fn read_float_grid_with(
     _name: &str,
     _index: Option<i32>,
 ) -> Result<RawGrid, VdbError> {
-    Err(VdbError::Invalid { file: loc.to_string(), message: "not implemented".into() })
+    Err(VdbError::Invalid {
+        file: loc.to_string(),
+        message: "not implemented".into(),
+    })
 }

@@ -1,0 +1,130 @@
+//! `nimbus info`: what Nimbus reads from a stage.
+
+use crate::scene::{load_stage, LoadOptions};
+use crate::volume::grid::Grid;
+use crate::volume::vdb;
+use anyhow::Result;
+use clap::Args;
+use std::path::PathBuf;
+
+#[derive(Args, Debug)]
+pub struct InfoArgs {
+    /// The USD stage.
+    pub stage: PathBuf,
+    /// Time code to evaluate the stage at.
+    #[arg(long)]
+    pub frame: Option<f64>,
+}
+
+pub fn run(args: InfoArgs) -> Result<()> {
+    let scene = load_stage(
+        &args.stage,
+        &LoadOptions {
+            frame: args.frame,
+            camera: None,
+        },
+    )?;
+    println!(
+        "stage: {} (time {})",
+        scene.stage_path.display(),
+        scene.time
+    );
+    println!("vdb reader: {}", vdb::active_reader().name());
+    let c = &scene.camera;
+    println!(
+        "camera: {} focal {} aperture {}x{} clipping {:?}",
+        c.prim_path, c.focal_length, c.horizontal_aperture, c.vertical_aperture, c.clipping_range
+    );
+    for l in &scene.distant_lights {
+        println!(
+            "distant light: {} direction {:?} intensity {} exposure {} color {:?} angle {}",
+            l.prim_path, l.direction, l.intensity, l.exposure, l.color, l.angle_degrees
+        );
+    }
+    for l in &scene.dome_lights {
+        println!(
+            "dome light: {} intensity {} exposure {} color {:?}{}",
+            l.prim_path,
+            l.intensity,
+            l.exposure,
+            l.color,
+            l.texture_file
+                .as_ref()
+                .map(|t| format!(" texture {t} (not supported yet)"))
+                .unwrap_or_default()
+        );
+    }
+    let s = &scene.settings;
+    println!(
+        "render settings: {} resolution {}x{} samples {} maxDepth {} seed {}",
+        s.prim_path.as_deref().unwrap_or("(none)"),
+        s.resolution.0,
+        s.resolution.1,
+        s.samples,
+        s.max_depth,
+        s.seed
+    );
+    for p in &s.products {
+        let vars: Vec<_> = p.vars.iter().map(|v| v.source_name.as_str()).collect();
+        println!(
+            "  product {} {:?} vars {:?}",
+            p.prim_path, p.product_name, vars
+        );
+    }
+    for v in &scene.volumes {
+        println!(
+            "volume: {} densityField {} densityScale {} absorption {:?} scattering {:?} anisotropy {}",
+            v.prim_path, v.density.prim_path, v.density_scale, v.absorption, v.scattering, v.anisotropy
+        );
+        for (name, f) in &v.fields {
+            println!(
+                "  field:{name} -> {} file {} fieldName '{}' fieldIndex {:?}",
+                f.prim_path, f.file, f.field_name, f.field_index
+            );
+            match vdb::list_grids(&f.file) {
+                Ok(grids) => {
+                    for g in grids {
+                        println!(
+                            "    grid '{}' type {} active voxels {}",
+                            g.name,
+                            g.value_type,
+                            g.active_voxels
+                                .map(|n| n.to_string())
+                                .unwrap_or_else(|| "?".into())
+                        );
+                    }
+                }
+                Err(e) => println!("    cannot list grids: {e}"),
+            }
+            match vdb::read_float_grid(&f.file, &f.field_name, f.field_index)
+                .map_err(anyhow::Error::from)
+                .and_then(|raw| {
+                    let g = Grid::from_raw(&raw)?;
+                    Ok((raw, g))
+                }) {
+                Ok((raw, g)) => {
+                    let wb = raw.world_bounds().map(|(lo, hi)| {
+                        let m = v.volume_to_world;
+                        (m.transform_point3(lo), m.transform_point3(hi))
+                    });
+                    println!(
+                        "    loaded '{}': {} active voxels, {} leaves, {} tiles, background {}, {} bricks ({:.1} MiB), sanitized voxels {}",
+                        raw.name,
+                        raw.active_voxel_count(),
+                        raw.leaves.len(),
+                        raw.tiles.len(),
+                        raw.background,
+                        g.brick_count(),
+                        g.memory_bytes() as f64 / 1048576.0,
+                        g.sanitized_voxels
+                    );
+                    if let Some((lo, hi)) = wb {
+                        println!("    world bounds (approx., volume transform applied to corners): {lo:?} .. {hi:?}");
+                    }
+                }
+                Err(e) => println!("    cannot load: {e:#}"),
+            }
+        }
+    }
+    Ok(())
+}

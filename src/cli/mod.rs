@@ -1,0 +1,52 @@
+//! Command-line subcommands: `render` and `info`.
+
+mod info;
+mod render;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "nimbus",
+    version,
+    about = "Render heterogeneous volumes from USD stages with OpenVDB fields"
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Render a USD stage to an EXR.
+    Render(render::RenderArgs),
+    /// Describe a stage: volumes, fields, grids, camera, lights, render settings.
+    Info(info::InfoArgs),
+}
+
+/// Runs the CLI; errors are printed as `nimbus: error: …` with a non-zero exit.
+pub fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            let _ = e.print();
+            return if e.use_stderr() {
+                ExitCode::from(2)
+            } else {
+                ExitCode::SUCCESS
+            };
+        }
+    };
+    let result = match cli.command {
+        Command::Render(a) => render::run(a),
+        Command::Info(a) => info::run(a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("nimbus: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

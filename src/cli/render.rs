@@ -1,0 +1,240 @@
+//! `nimbus render`.
+
+use crate::output::exr::{write_exr, ExrMetadata};
+use crate::output::stats::RenderStats;
+use crate::output::{check_writable, write_atomically};
+use crate::render::camera::CameraRays;
+use crate::render::film::Aov;
+use crate::render::integrator::Integrator;
+use crate::render::lights::Lights;
+use crate::scene::{load_stage, LoadOptions, Scene};
+use crate::volume::grid::Grid;
+use crate::volume::medium::Medium;
+use crate::volume::vdb;
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Args, Debug)]
+pub struct RenderArgs {
+    /// The USD stage (.usda, .usdc, .usdz).
+    pub stage: PathBuf,
+    /// Output EXR path.
+    #[arg(short = 'o', long = "output")]
+    pub output: PathBuf,
+    /// Samples per pixel (overrides the stage's nimbus:samples).
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Resolution WxH (overrides the render settings).
+    #[arg(long, value_parser = parse_resolution)]
+    pub res: Option<(u32, u32)>,
+    /// Camera prim path (overrides the render settings' camera).
+    #[arg(long)]
+    pub camera: Option<String>,
+    /// Time code to evaluate the stage at.
+    #[arg(long)]
+    pub frame: Option<f64>,
+    /// Random seed (overrides nimbus:seed).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Worker threads (default: all cores). The image does not depend on it.
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Write render statistics as JSON to this file.
+    #[arg(long)]
+    pub stats: Option<PathBuf>,
+    /// Maximum scattering depth (overrides nimbus:maxDepth).
+    #[arg(long)]
+    pub max_depth: Option<u32>,
+    /// Edge of a majorant cell in voxels; 0 = one global majorant for the volume.
+    #[arg(long, default_value_t = 8)]
+    pub majorant_cell: u32,
+}
+
+/// Parses "WxH" with both sides positive.
+pub fn parse_resolution(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("resolution '{s}' is not of the form WIDTHxHEIGHT, e.g. 640x480"))?;
+    let parse = |v: &str| {
+        v.trim()
+            .parse::<u32>()
+            .map_err(|_| format!("'{v}' in resolution '{s}' is not a whole number"))
+    };
+    let (w, h) = (parse(w)?, parse(h)?);
+    if w == 0 || h == 0 {
+        return Err(format!("resolution '{s}' has a zero side"));
+    }
+    Ok((w, h))
+}
+
+/// Memory Nimbus may use for the film (bytes per pixel of accumulators), checked before
+/// rendering so an absurd resolution is refused with a message instead of an abort.
+const MAX_FILM_BYTES: u64 = 8 << 30;
+
+pub fn run(args: RenderArgs) -> Result<()> {
+    let wall = Instant::now();
+    check_writable(&args.output)?;
+    if let Some(s) = &args.stats {
+        check_writable(s)?;
+    }
+    let opts = LoadOptions {
+        frame: args.frame,
+        camera: args.camera.clone(),
+    };
+    let scene = load_stage(&args.stage, &opts)?;
+    let settings = &scene.settings;
+    let (width, height) = args.res.unwrap_or(settings.resolution);
+    let spp = args.spp.unwrap_or(settings.samples);
+    let max_depth = args.max_depth.unwrap_or(settings.max_depth);
+    let seed = args.seed.unwrap_or(settings.seed);
+    if width == 0 || height == 0 {
+        bail!(
+            "{}: render resolution {width}x{height} has a zero side",
+            args.stage.display()
+        );
+    }
+    if spp == 0 {
+        bail!("samples per pixel must be at least 1");
+    }
+    let film_bytes =
+        width as u64 * height as u64 * std::mem::size_of::<crate::render::film::Pixel>() as u64;
+    if film_bytes > MAX_FILM_BYTES {
+        bail!(
+            "resolution {width}x{height} needs {:.1} GiB of film memory, more than the {} GiB limit",
+            film_bytes as f64 / (1u64 << 30) as f64,
+            MAX_FILM_BYTES >> 30
+        );
+    }
+    let medium = build_medium(&scene, args.majorant_cell)?;
+    let load_seconds = wall.elapsed().as_secs_f64();
+
+    let lights = Lights::from_scene(&scene);
+    for d in &scene.dome_lights {
+        if let Some(tex) = &d.texture_file {
+            eprintln!(
+                "nimbus: warning: {}: dome texture '{tex}' is not supported yet; using its constant colour",
+                d.prim_path
+            );
+        }
+    }
+    let camera = CameraRays::new(&scene.camera, width, height);
+    let integrator = Integrator {
+        medium: &medium,
+        lights: &lights,
+        camera: &camera,
+        width,
+        height,
+        spp,
+        max_depth,
+        seed,
+    };
+
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(args.threads.unwrap_or(0))
+        .build()
+        .context("cannot start worker threads")?;
+    let bar = indicatif::ProgressBar::new(height as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{spinner} rendering [{bar:40}] {pos}/{len} rows, {elapsed} elapsed, ETA {eta}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let render_start = Instant::now();
+    let film = pool.install(|| integrator.render(&|| bar.inc(1)));
+    let render_seconds = render_start.elapsed().as_secs_f64();
+    bar.finish_and_clear();
+
+    let (totals, _samples, nonfinite) = film.totals();
+    let tracker = "delta".to_string();
+    write_exr(
+        &args.output,
+        &film,
+        &Aov::ALL,
+        &ExrMetadata {
+            stage: args.stage.display().to_string(),
+            tracker: tracker.clone(),
+            spp,
+            render_seconds,
+        },
+    )?;
+    if nonfinite > 0 {
+        eprintln!("nimbus: warning: {nonfinite} samples were NaN or infinite and were dropped");
+    }
+    if let Some(path) = &args.stats {
+        let stats = RenderStats {
+            stage: args.stage.display().to_string(),
+            samples_per_pixel: spp,
+            width,
+            height,
+            wall_seconds: wall.elapsed().as_secs_f64(),
+            load_seconds,
+            render_seconds,
+            threads: pool.current_num_threads(),
+            seed,
+            tracker,
+            transmittance: "ratio".into(),
+            density_lookups: totals.density_lookups,
+            real_collisions: totals.real_collisions,
+            null_collisions: totals.null_collisions,
+            cells_visited: totals.cells_visited,
+            majorant_violations: totals.majorant_violations,
+            nonfinite_samples: nonfinite,
+            sanitized_voxels: medium.density.sanitized_voxels,
+            majorant_cells: medium.majorants.cell_count(),
+            vdb_reader: vdb::active_reader().name().into(),
+        };
+        let json = serde_json::to_string_pretty(&stats)?;
+        write_atomically(path, |f| {
+            use std::io::Write;
+            f.write_all(json.as_bytes()).map_err(|e| e.to_string())
+        })?;
+    }
+    eprintln!(
+        "nimbus: wrote {} ({width}x{height}, {spp} spp, {:.2} s, {:.1} lookups/sample)",
+        args.output.display(),
+        render_seconds,
+        totals.density_lookups as f64 / (width as f64 * height as f64 * spp as f64)
+    );
+    Ok(())
+}
+
+/// Loads the density grid of the scene's volume and builds its medium.
+pub fn build_medium(scene: &Scene, cell_voxels: u32) -> Result<Medium> {
+    let Some(volume) = scene.volumes.first() else {
+        bail!(
+            "{}: the stage has no visible UsdVolVolume prim to render",
+            scene.stage_path.display()
+        );
+    };
+    if scene.volumes.len() > 1 {
+        eprintln!(
+            "nimbus: warning: the stage has {} volumes; this version renders only the first ({}), the others are ignored",
+            scene.volumes.len(),
+            volume.prim_path
+        );
+    }
+    let field = &volume.density;
+    let raw = vdb::read_float_grid(&field.file, &field.field_name, field.field_index)
+        .with_context(|| format!("volume {}: field {}", volume.prim_path, field.prim_path))?;
+    let grid =
+        Grid::from_raw(&raw).with_context(|| format!("{}: {}", field.file, field.prim_path))?;
+    if grid.sanitized_voxels > 0 {
+        eprintln!(
+            "nimbus: warning: {}: grid '{}' has {} NaN, infinite or negative voxels; they are treated as 0",
+            field.file, grid.name, grid.sanitized_voxels
+        );
+    }
+    Ok(Medium::new(
+        &volume.prim_path,
+        grid,
+        volume.volume_to_world,
+        volume.density_scale,
+        volume.absorption,
+        volume.scattering,
+        volume.anisotropy,
+        cell_voxels,
+    )?)
+}

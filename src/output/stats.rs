@@ -1,0 +1,27 @@
+//! The stats JSON written by `--stats`.
+
+use serde::Serialize;
+
+#[derive(Serialize, Debug, Clone)]
+pub struct RenderStats {
+    pub stage: String,
+    pub samples_per_pixel: u32,
+    pub width: u32,
+    pub height: u32,
+    pub wall_seconds: f64,
+    pub load_seconds: f64,
+    pub render_seconds: f64,
+    pub threads: usize,
+    pub seed: u64,
+    pub tracker: String,
+    pub transmittance: String,
+    pub density_lookups: u64,
+    pub real_collisions: u64,
+    pub null_collisions: u64,
+    pub cells_visited: u64,
+    pub majorant_violations: u64,
+    pub nonfinite_samples: u64,
+    pub sanitized_voxels: u64,
+    pub majorant_cells: usize,
+    pub vdb_reader: String,
+}

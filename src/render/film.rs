@@ -1,0 +1,112 @@
+//! The film: per-pixel accumulators (f64 sums, integer counters) and the AOVs derived
+//! from them.
+
+use crate::volume::medium::Counters;
+
+/// Everything accumulated for one pixel over its samples.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Pixel {
+    pub rgb: [f64; 3],
+    pub alpha: f64,
+    /// Σ luminance and Σ luminance², for the per-pixel sample variance.
+    pub lum: f64,
+    pub lum_sq: f64,
+    pub samples: u32,
+    /// Samples whose estimate was NaN or infinite: dropped from the sums and counted.
+    pub nonfinite: u32,
+    pub counters: Counters,
+}
+
+/// Rec. 709 luminance.
+pub fn luminance(c: [f64; 3]) -> f64 {
+    0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
+}
+
+impl Pixel {
+    pub fn add_sample(&mut self, rgb: [f64; 3], alpha: f64) {
+        self.samples += 1;
+        if !(rgb.iter().all(|v| v.is_finite()) && alpha.is_finite()) {
+            self.nonfinite += 1;
+            return;
+        }
+        for c in 0..3 {
+            self.rgb[c] += rgb[c];
+        }
+        self.alpha += alpha;
+        let l = luminance(rgb);
+        self.lum += l;
+        self.lum_sq += l * l;
+    }
+
+    fn per_sample(&self, v: f64) -> f32 {
+        if self.samples == 0 {
+            0.0
+        } else {
+            (v / self.samples as f64) as f32
+        }
+    }
+}
+
+/// An AOV: one EXR channel computed from the film.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Aov {
+    R,
+    G,
+    B,
+    A,
+    /// Mean density lookups per sample.
+    Lookups,
+}
+
+impl Aov {
+    pub const ALL: [Aov; 5] = [Aov::R, Aov::G, Aov::B, Aov::A, Aov::Lookups];
+
+    /// The EXR channel name, also the RenderVar `sourceName`.
+    pub fn channel_name(self) -> &'static str {
+        match self {
+            Aov::R => "R",
+            Aov::G => "G",
+            Aov::B => "B",
+            Aov::A => "A",
+            Aov::Lookups => "lookups",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<Aov> {
+        Aov::ALL.into_iter().find(|a| a.channel_name() == name)
+    }
+
+    fn value(self, p: &Pixel) -> f32 {
+        match self {
+            Aov::R => p.per_sample(p.rgb[0]),
+            Aov::G => p.per_sample(p.rgb[1]),
+            Aov::B => p.per_sample(p.rgb[2]),
+            Aov::A => p.per_sample(p.alpha),
+            Aov::Lookups => p.per_sample(p.counters.density_lookups as f64),
+        }
+    }
+}
+
+pub struct Film {
+    pub width: u32,
+    pub height: u32,
+    /// Row-major, y down.
+    pub pixels: Vec<Pixel>,
+}
+
+impl Film {
+    pub fn channel(&self, aov: Aov) -> Vec<f32> {
+        self.pixels.iter().map(|p| aov.value(p)).collect()
+    }
+
+    pub fn totals(&self) -> (Counters, u64, u64) {
+        let mut c = Counters::default();
+        let (mut samples, mut nonfinite) = (0u64, 0u64);
+        for p in &self.pixels {
+            c.add(&p.counters);
+            samples += p.samples as u64;
+            nonfinite += p.nonfinite as u64;
+        }
+        (c, samples, nonfinite)
+    }
+}

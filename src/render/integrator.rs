@@ -1,0 +1,212 @@
+//! The volumetric path tracer: delta tracking for free paths, Henyey–Greenstein
+//! scattering up to a maximum depth, next-event estimation to suns and to the
+//! environment (dome) with ratio-tracking transmittance, MIS between environment NEE and
+//! phase sampling.
+
+use crate::render::camera::CameraRays;
+use crate::render::film::{Film, Pixel};
+use crate::render::lights::Lights;
+use crate::render::phase::{hg, sample_hg, sample_sphere, INV_4PI};
+use crate::render::sampler::{pixel_sampler, Sampler};
+use crate::track::{self, FreePath};
+use crate::volume::medium::{Counters, Medium};
+use glam::DVec3;
+use rand::Rng;
+use rayon::prelude::*;
+
+/// Path Russian roulette starts after this many scattering events.
+const RR_DEPTH: u32 = 3;
+
+pub struct Integrator<'a> {
+    pub medium: &'a Medium,
+    pub lights: &'a Lights,
+    pub camera: &'a CameraRays,
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub max_depth: u32,
+    pub seed: u64,
+}
+
+/// One sample's result: radiance and alpha (1 − camera-ray transmittance estimate).
+pub struct SampleResult {
+    pub rgb: [f64; 3],
+    pub alpha: f64,
+}
+
+impl Integrator<'_> {
+    /// Renders all pixels; `progress` is called once per finished row (from any thread).
+    pub fn render(&self, progress: &(dyn Fn() + Sync)) -> Film {
+        let w = self.width as usize;
+        let mut pixels = vec![Pixel::default(); w * self.height as usize];
+        pixels.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+            for (x, px) in row.iter_mut().enumerate() {
+                *px = self.render_pixel(x as u32, y as u32);
+            }
+            progress();
+        });
+        Film {
+            width: self.width,
+            height: self.height,
+            pixels,
+        }
+    }
+
+    pub fn render_pixel(&self, x: u32, y: u32) -> Pixel {
+        let index = y as u64 * self.width as u64 + x as u64;
+        let mut rng = pixel_sampler(self.seed, index);
+        let mut px = Pixel::default();
+        for _ in 0..self.spp {
+            let mut counters = Counters::default();
+            let jx: f64 = rng.gen();
+            let jy: f64 = rng.gen();
+            let s = self.sample(x as f64 + jx, y as f64 + jy, &mut rng, &mut counters);
+            px.add_sample(s.rgb, s.alpha);
+            px.counters.add(&counters);
+        }
+        px
+    }
+
+    /// One path through image position (`fx`, `fy`).
+    pub fn sample(
+        &self,
+        fx: f64,
+        fy: f64,
+        rng: &mut Sampler,
+        counters: &mut Counters,
+    ) -> SampleResult {
+        let ray = self.camera.ray(fx, fy);
+        let medium = self.medium;
+        let g = medium.g as f64;
+        let mut origin = ray.origin;
+        let mut dir = ray.dir;
+        let (mut tmin, mut tmax) = (ray.tmin as f32, ray.tmax as f32);
+        let mut throughput = [1f32; 3];
+        let mut radiance = [0f64; 3];
+        let mut alpha = 0.0;
+        let mut depth = 0u32;
+        // Cosine of the last phase-sampled turn, for the MIS weight of an escaping ray.
+        let mut last_cos = 1.0f64;
+        loop {
+            let iray = medium.index_ray(origin, dir);
+            let event = track::delta::sample_free_path(
+                medium,
+                &iray,
+                tmin,
+                tmax,
+                &mut throughput,
+                rng,
+                counters,
+            );
+            match event {
+                FreePath::Escape => {
+                    if depth == 0 {
+                        alpha = 1.0 - track::avg(throughput) as f64;
+                        self.add(&mut radiance, throughput, self.lights.environment, 1.0);
+                    } else if self.lights.has_environment() {
+                        // MIS with environment NEE (uniform sphere, pdf 1/4π); the phase
+                        // sample's weight phase/pdf is 1.
+                        let pdf_phase = hg(g, last_cos);
+                        let w = power_heuristic(pdf_phase, INV_4PI);
+                        self.add(&mut radiance, throughput, self.lights.environment, w);
+                    }
+                    break;
+                }
+                FreePath::Absorb { .. } => {
+                    if depth == 0 {
+                        alpha = 1.0;
+                    }
+                    break;
+                }
+                FreePath::Scatter { t } => {
+                    if depth == 0 {
+                        alpha = 1.0;
+                    }
+                    depth += 1;
+                    let p = origin + dir * t as f64;
+                    self.next_event(p, dir, throughput, &mut radiance, rng, counters);
+                    if depth >= self.max_depth {
+                        break;
+                    }
+                    if depth >= RR_DEPTH {
+                        let q = track::max3(throughput).min(1.0);
+                        if !(rng.gen::<f32>() < q) {
+                            break;
+                        }
+                        throughput = throughput.map(|v| v / q);
+                    }
+                    let new_dir = sample_hg(g, dir, rng.gen(), rng.gen());
+                    last_cos = dir.dot(new_dir);
+                    origin = p;
+                    dir = new_dir;
+                    tmin = 0.0;
+                    tmax = f32::INFINITY;
+                }
+            }
+        }
+        SampleResult {
+            rgb: radiance,
+            alpha,
+        }
+    }
+
+    fn add(&self, radiance: &mut [f64; 3], throughput: [f32; 3], l: [f64; 3], w: f64) {
+        for c in 0..3 {
+            radiance[c] += throughput[c] as f64 * l[c] * w;
+        }
+    }
+
+    /// Next-event estimation from scattering vertex `p` (arrived along `dir`).
+    fn next_event(
+        &self,
+        p: DVec3,
+        dir: DVec3,
+        throughput: [f32; 3],
+        radiance: &mut [f64; 3],
+        rng: &mut Sampler,
+        counters: &mut Counters,
+    ) {
+        let medium = self.medium;
+        let g = medium.g as f64;
+        for sun in &self.lights.suns {
+            let wi = sun.sample_direction(rng.gen(), rng.gen());
+            let tr = self.transmittance(p, wi, rng, counters);
+            let f = hg(g, dir.dot(wi));
+            for c in 0..3 {
+                radiance[c] += (throughput[c] * tr[c]) as f64 * sun.irradiance[c] * f;
+            }
+        }
+        if self.lights.has_environment() {
+            let wi = sample_sphere(rng.gen(), rng.gen());
+            let f = hg(g, dir.dot(wi));
+            let w = power_heuristic(INV_4PI, f);
+            let tr = self.transmittance(p, wi, rng, counters);
+            for c in 0..3 {
+                radiance[c] +=
+                    (throughput[c] * tr[c]) as f64 * self.lights.environment[c] * f / INV_4PI * w;
+            }
+        }
+    }
+
+    fn transmittance(
+        &self,
+        p: DVec3,
+        wi: DVec3,
+        rng: &mut Sampler,
+        counters: &mut Counters,
+    ) -> [f32; 3] {
+        let iray = self.medium.index_ray(p, wi);
+        track::ratio::transmittance(self.medium, &iray, 0.0, f32::INFINITY, rng, counters)
+    }
+}
+
+/// Power heuristic (β = 2) weight of the strategy with density `a` against `b`.
+#[inline]
+pub fn power_heuristic(a: f64, b: f64) -> f64 {
+    let (a2, b2) = (a * a, b * b);
+    if a2 + b2 == 0.0 {
+        0.0
+    } else {
+        a2 / (a2 + b2)
+    }
+}
