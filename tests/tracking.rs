@@ -16,10 +16,25 @@ use rand_pcg::Pcg32;
 
 const N: i32 = 32;
 
-fn medium_from(f: impl Fn(f64) -> f64 + Sync, sigma_a: [f64; 3], sigma_s: [f64; 3], cell: u32) -> Medium {
+fn medium_from(
+    f: impl Fn(f64) -> f64 + Sync,
+    sigma_a: [f64; 3],
+    sigma_s: [f64; 3],
+    cell: u32,
+) -> Medium {
     let raw = grid_from_fn("density", [N, N, N], DVec3::ZERO, 1.0, |p| f(p.x));
     let grid = Grid::from_raw(&raw).unwrap();
-    Medium::new("/test", grid, DMat4::IDENTITY, 1.0, sigma_a, sigma_s, 0.0, cell).unwrap()
+    Medium::new(
+        "/test",
+        grid,
+        DMat4::IDENTITY,
+        1.0,
+        sigma_a,
+        sigma_s,
+        0.0,
+        cell,
+    )
+    .unwrap()
 }
 
 /// Optical depth of the piecewise-linear interpolant of `f` sampled at integer x, from
@@ -41,7 +56,18 @@ fn fields() -> Vec<(&'static str, Box<dyn Fn(f64) -> f64 + Sync>)> {
     vec![
         ("constant", Box::new(|_x| 0.5)),
         ("ramp", Box::new(|x| 0.05 + 0.03 * x)),
-        ("piecewise", Box::new(|x| if x < 12.0 { 0.2 } else if x < 20.0 { 1.1 } else { 0.05 })),
+        (
+            "piecewise",
+            Box::new(|x| {
+                if x < 12.0 {
+                    0.2
+                } else if x < 20.0 {
+                    1.1
+                } else {
+                    0.05
+                }
+            }),
+        ),
         ("sine", Box::new(|x| 0.6 + 0.5 * (x * 0.7).sin())),
     ]
 }
@@ -81,7 +107,10 @@ fn ratio_tracking_transmittance_is_unbiased() {
                 let expected = (-(sigma_a[ch] + sigma_s[ch]) * tau).exp();
                 let (mean, se) = mean_se(&samples[ch]);
                 let z = (mean - expected) / se.max(1e-12);
-                assert!(z.abs() < 4.0, "{name} cell {cell} ch {ch}: mean {mean} expected {expected} z {z}");
+                assert!(
+                    z.abs() < 4.0,
+                    "{name} cell {cell} ch {ch}: mean {mean} expected {expected} z {z}"
+                );
             }
         }
     }
@@ -104,14 +133,28 @@ fn delta_tracking_free_path_matches_analytic_cdf() {
             let mut ts: Vec<f64> = (0..n)
                 .map(|_| {
                     let mut thr = [1f32; 3];
-                    match delta::sample_free_path(&m, &ray, 0.0, (x1 - x0) as f32, &mut thr, &mut rng, &mut c) {
+                    match delta::sample_free_path(
+                        &m,
+                        &ray,
+                        0.0,
+                        (x1 - x0) as f32,
+                        &mut thr,
+                        &mut rng,
+                        &mut c,
+                    ) {
                         FreePath::Scatter { t } | FreePath::Absorb { t } => t as f64,
                         FreePath::Escape => x1 - x0,
                     }
                 })
                 .collect();
             ts.sort_by(|a, b| a.partial_cmp(b).unwrap());
-            let cdf = |t: f64| if t >= x1 - x0 { 1.0 } else { 1.0 - (-optical_depth(&f, x0, x0 + t)).exp() };
+            let cdf = |t: f64| {
+                if t >= x1 - x0 {
+                    1.0
+                } else {
+                    1.0 - (-optical_depth(&f, x0, x0 + t)).exp()
+                }
+            };
             let mut d: f64 = 0.0;
             for (i, &t) in ts.iter().enumerate() {
                 let fi = cdf(t);
@@ -143,9 +186,21 @@ fn chromatic_delta_escape_weight_estimates_transmittance() {
         let mut samples = vec![Vec::with_capacity(n); 3];
         for _ in 0..n {
             let mut thr = [1f32; 3];
-            let e = delta::sample_free_path(&m, &ray, 0.0, (x1 - x0) as f32, &mut thr, &mut rng, &mut c);
+            let e = delta::sample_free_path(
+                &m,
+                &ray,
+                0.0,
+                (x1 - x0) as f32,
+                &mut thr,
+                &mut rng,
+                &mut c,
+            );
             for ch in 0..3 {
-                samples[ch].push(if e == FreePath::Escape { thr[ch] as f64 } else { 0.0 });
+                samples[ch].push(if e == FreePath::Escape {
+                    thr[ch] as f64
+                } else {
+                    0.0
+                });
             }
         }
         let tau = optical_depth(&f, x0, x1);
@@ -153,7 +208,10 @@ fn chromatic_delta_escape_weight_estimates_transmittance() {
             let expected = (-(sigma_a[ch] + sigma_s[ch]) * tau).exp();
             let (mean, se) = mean_se(&samples[ch]);
             let z = (mean - expected) / se.max(1e-12);
-            assert!(z.abs() < 4.0, "{name} ch {ch}: mean {mean} expected {expected} z {z}");
+            assert!(
+                z.abs() < 4.0,
+                "{name} ch {ch}: mean {mean} expected {expected} z {z}"
+            );
         }
     }
 }
@@ -164,7 +222,12 @@ fn chromatic_delta_escape_weight_estimates_transmittance() {
 /// x = 14.5 visits exactly those two cells and makes no lookup (exact counts).
 #[test]
 fn empty_cells_are_skipped_without_lookups() {
-    let m = medium_from(|x| if x <= 3.0 || x >= 20.0 { 1.0 } else { 0.0 }, [0.1; 3], [0.9; 3], 4);
+    let m = medium_from(
+        |x| if x <= 3.0 || x >= 20.0 { 1.0 } else { 0.0 },
+        [0.1; 3],
+        [0.9; 3],
+        4,
+    );
     let ray = m.index_ray(DVec3::new(8.0, 16.0, 16.0), DVec3::X);
     let mut rng = Pcg32::seed_from_u64(4);
     let mut c = Counters::default();

@@ -31,7 +31,8 @@ pub fn grid_from_fn(
                 if ijk[0] >= dims[0] || ijk[1] >= dims[1] || ijk[2] >= dims[2] {
                     continue;
                 }
-                let p = origin + DVec3::new(ijk[0] as f64, ijk[1] as f64, ijk[2] as f64) * voxel_size;
+                let p =
+                    origin + DVec3::new(ijk[0] as f64, ijk[1] as f64, ijk[2] as f64) * voxel_size;
                 let v = density(p) as f32;
                 if v != 0.0 {
                     values[off] = v;
@@ -39,7 +40,11 @@ pub fn grid_from_fn(
                     any = true;
                 }
             }
-            any.then_some(RawLeaf { origin: bo, values, active })
+            any.then_some(RawLeaf {
+                origin: bo,
+                values,
+                active,
+            })
         })
         .collect();
     RawGrid {
@@ -48,7 +53,8 @@ pub fn grid_from_fn(
         background: 0.0,
         leaves,
         tiles: Vec::new(),
-        index_to_world: DMat4::from_translation(origin) * DMat4::from_scale(DVec3::splat(voxel_size)),
+        index_to_world: DMat4::from_translation(origin)
+            * DMat4::from_scale(DVec3::splat(voxel_size)),
     }
 }
 
