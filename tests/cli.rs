@@ -1,0 +1,299 @@
+//! End-to-end tests of the `nimbus` binary: rendering the shipped scenes, the same stage
+//! in .usda/.usdc/.usdz, a stage authored with Pixar's USD, and bad input.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn nimbus(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_nimbus")).args(args).output().expect("run nimbus")
+}
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Asserts a clean failure: non-zero exit, no panic, an error message containing `needle`.
+fn assert_clean_error(o: &Output, needle: &str) {
+    let e = stderr(o);
+    assert!(!o.status.success(), "expected failure, got success; stderr: {e}");
+    assert_eq!(o.status.code(), Some(1), "exit code; stderr: {e}");
+    assert!(!e.contains("panicked"), "panic: {e}");
+    assert!(e.contains("nimbus: error:"), "no error line: {e}");
+    assert!(e.contains(needle), "error does not mention '{needle}': {e}");
+}
+
+fn channels(path: &Path) -> Vec<(String, Vec<f32>)> {
+    nimbus::output::exr::read_channels(path).expect("read exr").2
+}
+
+fn channel<'a>(chans: &'a [(String, Vec<f32>)], name: &str) -> &'a [f32] {
+    &chans.iter().find(|c| c.0 == name).unwrap_or_else(|| panic!("no channel {name}")).1
+}
+
+fn has_pxr() -> bool {
+    Command::new("python3").args(["-c", "import pxr"]).output().map(|o| o.status.success()).unwrap_or(false)
+}
+
+#[test]
+fn renders_example_scenes_with_rgba_and_lookups() {
+    let dir = tempfile::tempdir().unwrap();
+    for scene in ["cloud", "chromatic"] {
+        let stage = root().join(format!("scenes/{scene}/{scene}.usda"));
+        let out = dir.path().join(format!("{scene}.exr"));
+        let stats = dir.path().join(format!("{scene}.json"));
+        let o = nimbus(&[
+            "render",
+            stage.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--res",
+            "32x24",
+            "--spp",
+            "4",
+            "--stats",
+            stats.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let chans = channels(&out);
+        for name in ["R", "G", "B", "A", "lookups"] {
+            let c = channel(&chans, name);
+            assert_eq!(c.len(), 32 * 24);
+            assert!(c.iter().all(|v| v.is_finite()), "{scene}: non-finite {name}");
+        }
+        // The volume is in view: some pixels are (partly) opaque and made lookups.
+        assert!(channel(&chans, "A").iter().any(|&a| a > 0.5), "{scene}: no opaque pixel");
+        assert!(channel(&chans, "lookups").iter().any(|&l| l > 0.0));
+        let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+        for key in [
+            "samples_per_pixel",
+            "width",
+            "height",
+            "wall_seconds",
+            "density_lookups",
+            "real_collisions",
+            "null_collisions",
+            "nonfinite_samples",
+            "vdb_reader",
+        ] {
+            assert!(json.get(key).is_some(), "stats lack {key}");
+        }
+        assert_eq!(json["samples_per_pixel"], 4);
+        assert_eq!(json["width"], 32);
+        // The lookups AOV is the per-sample mean: its pixel sum times spp is the total.
+        let aov_total: f64 = channel(&chans, "lookups").iter().map(|&v| v as f64 * 4.0).sum();
+        let total = json["density_lookups"].as_f64().unwrap();
+        assert!((aov_total - total).abs() <= 1e-4 * total, "AOV {aov_total} vs stats {total}");
+    }
+}
+
+#[test]
+fn info_describes_the_stage() {
+    let o = Command::new(env!("CARGO_BIN_EXE_nimbus"))
+        .args(["info", root().join("scenes/cloud/cloud.usda").to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let s = String::from_utf8_lossy(&o.stdout);
+    for needle in ["/World/Cloud", "/World/Camera", "/World/Sun", "/World/Sky", "vdb reader", "density", "320x240"] {
+        assert!(s.contains(needle), "info lacks {needle}: {s}");
+    }
+}
+
+/// Runs `python3 -c script args...` and asserts success.
+fn python(script: &str, args: &[&str]) {
+    let o = Command::new("python3")
+        .arg("-c")
+        .arg(script)
+        .args(args)
+        .env("PXR_PLUGINPATH_NAME", root().join("schemas"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "python failed: {}", String::from_utf8_lossy(&o.stderr));
+}
+
+/// The same stage as .usda, .usdc (exported by Pixar's USD) and .usdz (packaged with its
+/// VDB by UsdUtils) renders to the same image: identical bits, since the scene is the same
+/// and rendering is deterministic.
+#[test]
+fn usda_usdc_usdz_render_identically() {
+    if !has_pxr() {
+        eprintln!("SKIP: python3 cannot import pxr (pip install usd-core)");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::copy(root().join("scenes/cloud/cloud.usda"), d.join("cloud.usda")).unwrap();
+    std::fs::copy(root().join("scenes/cloud/cloud.vdb"), d.join("cloud.vdb")).unwrap();
+    python(
+        "import sys\nfrom pxr import Usd, UsdUtils\nd=sys.argv[1]\nUsd.Stage.Open(d+'/cloud.usda').Export(d+'/cloud.usdc')\nassert UsdUtils.CreateNewUsdzPackage(d+'/cloud.usda', d+'/cloud.usdz')\n",
+        &[d.to_str().unwrap()],
+    );
+    let mut images = Vec::new();
+    for ext in ["usda", "usdc", "usdz"] {
+        let out = d.join(format!("out_{ext}.exr"));
+        let o = nimbus(&[
+            "render",
+            d.join(format!("cloud.{ext}")).to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--res",
+            "24x18",
+            "--spp",
+            "2",
+        ]);
+        assert!(o.status.success(), "{ext}: {}", stderr(&o));
+        images.push(channels(&out));
+    }
+    assert_eq!(images[0], images[1], "usda vs usdc");
+    assert_eq!(images[0], images[2], "usda vs usdz");
+}
+
+/// A stage authored with Pixar's USD, applying Nimbus' schemas through the plugin in
+/// schemas/, renders with nimbus; the schema's fallbacks are what pxr reports.
+#[test]
+fn stage_authored_with_pxr_and_nimbus_schema_renders() {
+    if !has_pxr() {
+        eprintln!("SKIP: python3 cannot import pxr (pip install usd-core)");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::copy(root().join("scenes/chromatic/chromatic.vdb"), d.join("puff.vdb")).unwrap();
+    python(
+        r#"
+import sys
+from pxr import Usd, UsdGeom, UsdVol, UsdLux, UsdRender, Sdf, Gf
+d = sys.argv[1]
+reg = Usd.SchemaRegistry()
+vdef = reg.FindAppliedAPIPrimDefinition('NimbusVolumeAPI')
+assert vdef is not None, 'pxr does not know NimbusVolumeAPI'
+assert abs(vdef.GetAttributeFallbackValue('nimbus:densityScale') - 1.0) < 1e-6
+stage = Usd.Stage.CreateNew(d + '/pxr.usda')
+UsdGeom.Xform.Define(stage, '/W')
+vol = UsdVol.Volume.Define(stage, '/W/Vol')
+vol.GetPrim().ApplyAPI('NimbusVolumeAPI')
+vol.GetPrim().GetAttribute('nimbus:densityScale').Set(3.0)
+asset = UsdVol.OpenVDBAsset.Define(stage, '/W/Vol/density')
+asset.CreateFilePathAttr(Sdf.AssetPath('./puff.vdb'))
+asset.CreateFieldNameAttr('density')
+vol.CreateFieldRelationship('density', asset.GetPath())
+cam = UsdGeom.Camera.Define(stage, '/W/Cam')
+cam.AddTranslateOp().Set(Gf.Vec3d(0, 0, 5))
+UsdLux.DomeLight.Define(stage, '/W/Dome')
+rs = UsdRender.Settings.Define(stage, '/Render/Settings')
+rs.GetPrim().ApplyAPI('NimbusRenderSettingsAPI')
+rs.GetPrim().GetAttribute('nimbus:samples').Set(3)
+rs.CreateResolutionAttr(Gf.Vec2i(16, 12))
+rs.CreateCameraRel().SetTargets([cam.GetPath()])
+stage.GetRootLayer().Save()
+"#,
+        &[d.to_str().unwrap()],
+    );
+    let out = d.join("pxr.exr");
+    let stats = d.join("pxr.json");
+    let o = nimbus(&[
+        "render",
+        d.join("pxr.usda").to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--stats",
+        stats.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    assert_eq!(json["samples_per_pixel"], 3, "nimbus:samples authored with pxr");
+    assert_eq!(json["width"], 16);
+    assert!(channel(&channels(&out), "A").iter().any(|&a| a > 0.1));
+}
+
+/// Writes a stage whose density field points at `file` with grid name `grid`.
+fn stage_with_field(dir: &Path, file: &str, grid: &str) -> PathBuf {
+    let text = std::fs::read_to_string(root().join("scenes/cloud/cloud.usda"))
+        .unwrap()
+        .replace("@./cloud.vdb@", &format!("@./{file}@"))
+        .replace("token fieldName = \"density\"", &format!("token fieldName = \"{grid}\""));
+    let path = dir.join("stage.usda");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+fn render_args<'a>(stage: &'a str, out: &'a str) -> Vec<&'a str> {
+    vec!["render", stage, "-o", out, "--res", "8x6", "--spp", "1"]
+}
+
+#[test]
+fn bad_input_fails_cleanly_and_leaves_existing_output_untouched() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = d.join("keep.exr");
+    std::fs::write(&out, b"precious").unwrap();
+    let out_s = out.to_str().unwrap();
+    let check_untouched = || assert_eq!(std::fs::read(&out).unwrap(), b"precious");
+
+    // Missing stage.
+    let missing = d.join("nope.usda");
+    assert_clean_error(&nimbus(&render_args(missing.to_str().unwrap(), out_s)), "nope.usda");
+    check_untouched();
+
+    // Malformed stage text.
+    let bad = d.join("bad.usda");
+    std::fs::write(&bad, "#usda 1.0\ndef Xform \"W\" {\n  float x = \n").unwrap();
+    assert_clean_error(&nimbus(&render_args(bad.to_str().unwrap(), out_s)), "bad.usda");
+    check_untouched();
+
+    // Missing VDB file.
+    let s = stage_with_field(d, "missing.vdb", "density");
+    assert_clean_error(&nimbus(&render_args(s.to_str().unwrap(), out_s)), "missing.vdb");
+    check_untouched();
+
+    // Wrong grid name.
+    std::fs::copy(root().join("scenes/cloud/cloud.vdb"), d.join("good.vdb")).unwrap();
+    let s = stage_with_field(d, "good.vdb", "nosuchgrid");
+    assert_clean_error(&nimbus(&render_args(s.to_str().unwrap(), out_s)), "nosuchgrid");
+    check_untouched();
+
+    // Corrupt VDBs: zero bytes, text, truncated.
+    let good = std::fs::read(root().join("scenes/cloud/cloud.vdb")).unwrap();
+    for (name, bytes) in [
+        ("zero.vdb", Vec::new()),
+        ("text.vdb", b"this is not a vdb file at all, just some text\n".to_vec()),
+        ("truncated.vdb", good[..good.len() / 2].to_vec()),
+        ("header.vdb", good[..40.min(good.len())].to_vec()),
+    ] {
+        std::fs::write(d.join(name), bytes).unwrap();
+        let s = stage_with_field(d, name, "density");
+        assert_clean_error(&nimbus(&render_args(s.to_str().unwrap(), out_s)), name);
+        check_untouched();
+    }
+
+    // Unwritable output path (a folder that does not exist).
+    let stage = root().join("scenes/cloud/cloud.usda");
+    let o = nimbus(&render_args(stage.to_str().unwrap(), d.join("no/such/dir/out.exr").to_str().unwrap()));
+    assert_clean_error(&o, "no/such/dir");
+
+    // Resolution 0 and absurd resolutions are refused before rendering.
+    let mut a = render_args(stage.to_str().unwrap(), out_s);
+    a[5] = "0x10";
+    let o = nimbus(&a);
+    assert!(!o.status.success() && !stderr(&o).contains("panicked"));
+    a[5] = "4000000x4000000";
+    assert_clean_error(&nimbus(&a), "memory");
+    check_untouched();
+
+    // Negative spp is rejected by the argument parser.
+    let o = nimbus(&["render", stage.to_str().unwrap(), "-o", out_s, "--spp", "-3"]);
+    assert!(!o.status.success() && !stderr(&o).contains("panicked"));
+    check_untouched();
+
+    // No temporary files are left behind.
+    let leftovers: Vec<_> = std::fs::read_dir(d)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().starts_with(".nimbus-"))
+        .collect();
+    assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
+}
