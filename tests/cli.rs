@@ -5,7 +5,10 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 fn nimbus(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_nimbus")).args(args).output().expect("run nimbus")
+    Command::new(env!("CARGO_BIN_EXE_nimbus"))
+        .args(args)
+        .output()
+        .expect("run nimbus")
 }
 
 fn root() -> PathBuf {
@@ -19,7 +22,10 @@ fn stderr(o: &Output) -> String {
 /// Asserts a clean failure: non-zero exit, no panic, an error message containing `needle`.
 fn assert_clean_error(o: &Output, needle: &str) {
     let e = stderr(o);
-    assert!(!o.status.success(), "expected failure, got success; stderr: {e}");
+    assert!(
+        !o.status.success(),
+        "expected failure, got success; stderr: {e}"
+    );
     assert_eq!(o.status.code(), Some(1), "exit code; stderr: {e}");
     assert!(!e.contains("panicked"), "panic: {e}");
     assert!(e.contains("nimbus: error:"), "no error line: {e}");
@@ -27,15 +33,25 @@ fn assert_clean_error(o: &Output, needle: &str) {
 }
 
 fn channels(path: &Path) -> Vec<(String, Vec<f32>)> {
-    nimbus::output::exr::read_channels(path).expect("read exr").2
+    nimbus::output::exr::read_channels(path)
+        .expect("read exr")
+        .2
 }
 
 fn channel<'a>(chans: &'a [(String, Vec<f32>)], name: &str) -> &'a [f32] {
-    &chans.iter().find(|c| c.0 == name).unwrap_or_else(|| panic!("no channel {name}")).1
+    &chans
+        .iter()
+        .find(|c| c.0 == name)
+        .unwrap_or_else(|| panic!("no channel {name}"))
+        .1
 }
 
 fn has_pxr() -> bool {
-    Command::new("python3").args(["-c", "import pxr"]).output().map(|o| o.status.success()).unwrap_or(false)
+    Command::new("python3")
+        .args(["-c", "import pxr"])
+        .output()
+        .map(|o| o.status.success())
+        .unwrap_or(false)
 }
 
 #[test]
@@ -62,12 +78,19 @@ fn renders_example_scenes_with_rgba_and_lookups() {
         for name in ["R", "G", "B", "A", "lookups"] {
             let c = channel(&chans, name);
             assert_eq!(c.len(), 32 * 24);
-            assert!(c.iter().all(|v| v.is_finite()), "{scene}: non-finite {name}");
+            assert!(
+                c.iter().all(|v| v.is_finite()),
+                "{scene}: non-finite {name}"
+            );
         }
         // The volume is in view: some pixels are (partly) opaque and made lookups.
-        assert!(channel(&chans, "A").iter().any(|&a| a > 0.5), "{scene}: no opaque pixel");
+        assert!(
+            channel(&chans, "A").iter().any(|&a| a > 0.5),
+            "{scene}: no opaque pixel"
+        );
         assert!(channel(&chans, "lookups").iter().any(|&l| l > 0.0));
-        let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
         for key in [
             "samples_per_pixel",
             "width",
@@ -84,21 +107,38 @@ fn renders_example_scenes_with_rgba_and_lookups() {
         assert_eq!(json["samples_per_pixel"], 4);
         assert_eq!(json["width"], 32);
         // The lookups AOV is the per-sample mean: its pixel sum times spp is the total.
-        let aov_total: f64 = channel(&chans, "lookups").iter().map(|&v| v as f64 * 4.0).sum();
+        let aov_total: f64 = channel(&chans, "lookups")
+            .iter()
+            .map(|&v| v as f64 * 4.0)
+            .sum();
         let total = json["density_lookups"].as_f64().unwrap();
-        assert!((aov_total - total).abs() <= 1e-4 * total, "AOV {aov_total} vs stats {total}");
+        assert!(
+            (aov_total - total).abs() <= 1e-4 * total,
+            "AOV {aov_total} vs stats {total}"
+        );
     }
 }
 
 #[test]
 fn info_describes_the_stage() {
     let o = Command::new(env!("CARGO_BIN_EXE_nimbus"))
-        .args(["info", root().join("scenes/cloud/cloud.usda").to_str().unwrap()])
+        .args([
+            "info",
+            root().join("scenes/cloud/cloud.usda").to_str().unwrap(),
+        ])
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", stderr(&o));
     let s = String::from_utf8_lossy(&o.stdout);
-    for needle in ["/World/Cloud", "/World/Camera", "/World/Sun", "/World/Sky", "vdb reader", "density", "320x240"] {
+    for needle in [
+        "/World/Cloud",
+        "/World/Camera",
+        "/World/Sun",
+        "/World/Sky",
+        "vdb reader",
+        "density",
+        "320x240",
+    ] {
         assert!(s.contains(needle), "info lacks {needle}: {s}");
     }
 }
@@ -112,7 +152,11 @@ fn python(script: &str, args: &[&str]) {
         .env("PXR_PLUGINPATH_NAME", root().join("schemas"))
         .output()
         .unwrap();
-    assert!(o.status.success(), "python failed: {}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        o.status.success(),
+        "python failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
 }
 
 /// The same stage as .usda, .usdc (exported by Pixar's USD) and .usdz (packaged with its
@@ -162,7 +206,11 @@ fn stage_authored_with_pxr_and_nimbus_schema_renders() {
     }
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    std::fs::copy(root().join("scenes/chromatic/chromatic.vdb"), d.join("puff.vdb")).unwrap();
+    std::fs::copy(
+        root().join("scenes/chromatic/chromatic.vdb"),
+        d.join("puff.vdb"),
+    )
+    .unwrap();
     python(
         r#"
 import sys
@@ -204,8 +252,12 @@ stage.GetRootLayer().Save()
         stats.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
-    assert_eq!(json["samples_per_pixel"], 3, "nimbus:samples authored with pxr");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    assert_eq!(
+        json["samples_per_pixel"], 3,
+        "nimbus:samples authored with pxr"
+    );
     assert_eq!(json["width"], 16);
     assert!(channel(&channels(&out), "A").iter().any(|&a| a > 0.1));
 }
@@ -215,7 +267,10 @@ fn stage_with_field(dir: &Path, file: &str, grid: &str) -> PathBuf {
     let text = std::fs::read_to_string(root().join("scenes/cloud/cloud.usda"))
         .unwrap()
         .replace("@./cloud.vdb@", &format!("@./{file}@"))
-        .replace("token fieldName = \"density\"", &format!("token fieldName = \"{grid}\""));
+        .replace(
+            "token fieldName = \"density\"",
+            &format!("token fieldName = \"{grid}\""),
+        );
     let path = dir.join("stage.usda");
     std::fs::write(&path, text).unwrap();
     path
@@ -236,31 +291,46 @@ fn bad_input_fails_cleanly_and_leaves_existing_output_untouched() {
 
     // Missing stage.
     let missing = d.join("nope.usda");
-    assert_clean_error(&nimbus(&render_args(missing.to_str().unwrap(), out_s)), "nope.usda");
+    assert_clean_error(
+        &nimbus(&render_args(missing.to_str().unwrap(), out_s)),
+        "nope.usda",
+    );
     check_untouched();
 
     // Malformed stage text.
     let bad = d.join("bad.usda");
     std::fs::write(&bad, "#usda 1.0\ndef Xform \"W\" {\n  float x = \n").unwrap();
-    assert_clean_error(&nimbus(&render_args(bad.to_str().unwrap(), out_s)), "bad.usda");
+    assert_clean_error(
+        &nimbus(&render_args(bad.to_str().unwrap(), out_s)),
+        "bad.usda",
+    );
     check_untouched();
 
     // Missing VDB file.
     let s = stage_with_field(d, "missing.vdb", "density");
-    assert_clean_error(&nimbus(&render_args(s.to_str().unwrap(), out_s)), "missing.vdb");
+    assert_clean_error(
+        &nimbus(&render_args(s.to_str().unwrap(), out_s)),
+        "missing.vdb",
+    );
     check_untouched();
 
     // Wrong grid name.
     std::fs::copy(root().join("scenes/cloud/cloud.vdb"), d.join("good.vdb")).unwrap();
     let s = stage_with_field(d, "good.vdb", "nosuchgrid");
-    assert_clean_error(&nimbus(&render_args(s.to_str().unwrap(), out_s)), "nosuchgrid");
+    assert_clean_error(
+        &nimbus(&render_args(s.to_str().unwrap(), out_s)),
+        "nosuchgrid",
+    );
     check_untouched();
 
     // Corrupt VDBs: zero bytes, text, truncated.
     let good = std::fs::read(root().join("scenes/cloud/cloud.vdb")).unwrap();
     for (name, bytes) in [
         ("zero.vdb", Vec::new()),
-        ("text.vdb", b"this is not a vdb file at all, just some text\n".to_vec()),
+        (
+            "text.vdb",
+            b"this is not a vdb file at all, just some text\n".to_vec(),
+        ),
         ("truncated.vdb", good[..good.len() / 2].to_vec()),
         ("header.vdb", good[..40.min(good.len())].to_vec()),
     ] {
@@ -272,7 +342,10 @@ fn bad_input_fails_cleanly_and_leaves_existing_output_untouched() {
 
     // Unwritable output path (a folder that does not exist).
     let stage = root().join("scenes/cloud/cloud.usda");
-    let o = nimbus(&render_args(stage.to_str().unwrap(), d.join("no/such/dir/out.exr").to_str().unwrap()));
+    let o = nimbus(&render_args(
+        stage.to_str().unwrap(),
+        d.join("no/such/dir/out.exr").to_str().unwrap(),
+    ));
     assert_clean_error(&o, "no/such/dir");
 
     // Resolution 0 and absurd resolutions are refused before rendering.
@@ -285,7 +358,14 @@ fn bad_input_fails_cleanly_and_leaves_existing_output_untouched() {
     check_untouched();
 
     // Negative spp is rejected by the argument parser.
-    let o = nimbus(&["render", stage.to_str().unwrap(), "-o", out_s, "--spp", "-3"]);
+    let o = nimbus(&[
+        "render",
+        stage.to_str().unwrap(),
+        "-o",
+        out_s,
+        "--spp",
+        "-3",
+    ]);
     assert!(!o.status.success() && !stderr(&o).contains("panicked"));
     check_untouched();
 

@@ -7,6 +7,8 @@ use nimbus::render::integrator::Integrator;
 use nimbus::render::lights::Lights;
 use nimbus::render::sampler::pixel_sampler;
 use nimbus::scene::Camera;
+use nimbus::track::delta::Delta;
+use nimbus::track::ratio::Ratio;
 use nimbus::volume::grid::Grid;
 use nimbus::volume::medium::{Counters, Medium};
 use nimbus::volume::procedural::grid_from_fn;
@@ -56,6 +58,10 @@ fn camera() -> CameraRays {
 fn samples(medium: &Medium, lights: &Lights, max_depth: u32, n: usize) -> Vec<[f64; 3]> {
     let cam = camera();
     let it = Integrator {
+        free_path: Delta,
+        transmittance: Ratio,
+        single_channel: false,
+        majorant_scale: 1.0,
         medium,
         lights,
         camera: &cam,
@@ -126,6 +132,10 @@ fn render_is_deterministic_across_thread_counts() {
     };
     let cam = camera();
     let it = Integrator {
+        free_path: Delta,
+        transmittance: Ratio,
+        single_channel: false,
+        majorant_scale: 1.0,
         medium: &m,
         lights: &lights,
         camera: &cam,

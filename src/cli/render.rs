@@ -5,9 +5,12 @@ use crate::output::stats::RenderStats;
 use crate::output::{check_writable, write_atomically};
 use crate::render::camera::CameraRays;
 use crate::render::film::Aov;
-use crate::render::integrator::Integrator;
+use crate::render::job::RenderJob;
 use crate::render::lights::Lights;
 use crate::scene::{load_stage, LoadOptions, Scene};
+use crate::track::{
+    scheme::SchemeOptions, SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind,
+};
 use crate::volume::grid::Grid;
 use crate::volume::medium::Medium;
 use crate::volume::vdb;
@@ -50,6 +53,34 @@ pub struct RenderArgs {
     /// Edge of a majorant cell in voxels; 0 = one global majorant for the volume.
     #[arg(long, default_value_t = 8)]
     pub majorant_cell: u32,
+    /// Free-path sampler.
+    #[arg(long, value_enum, default_value_t = TrackerKind::Delta)]
+    pub tracker: TrackerKind,
+    /// Event probabilities for `spectral` and `spectral-decomposition`.
+    #[arg(long, value_enum, default_value_t = SchemeKind::HistAvg)]
+    pub scheme: SchemeKind,
+    /// Shadow-ray transmittance estimator.
+    #[arg(long, value_enum, default_value_t = TransmittanceKind::Ratio)]
+    pub transmittance: TransmittanceKind,
+    /// Control of `decomposition-weighted`, from 0 (cell minimum) to 1 (cell maximum).
+    #[arg(long, default_value_t = 0.5)]
+    pub control: f32,
+    /// Reduced termination rates: scattering and null take their maximum proportions,
+    /// absorption the rest (spectral schemes).
+    #[arg(long)]
+    pub reduced_termination: bool,
+    /// Never sample absorption events; absorption lives in the weights (non-emissive
+    /// media only).
+    #[arg(long)]
+    pub no_absorption_events: bool,
+    /// Multiplies every majorant; below 1 makes them non-bounding (for testing the
+    /// weighted trackers: others report `majorant_violations`).
+    #[arg(long, default_value_t = 1.0)]
+    pub majorant_scale: f32,
+    /// AOVs to write besides R, G, B, A (comma-separated): lookups, residual_lookups,
+    /// real_collisions, null_collisions, control_collisions, max_throughput, variance.
+    #[arg(long, value_delimiter = ',')]
+    pub aovs: Vec<String>,
 }
 
 /// Parses "WxH" with both sides positive.
@@ -75,6 +106,8 @@ const MAX_FILM_BYTES: u64 = 8 << 30;
 
 pub fn run(args: RenderArgs) -> Result<()> {
     let wall = Instant::now();
+    let tracking = tracker_settings(&args)?;
+    let aovs = requested_aovs(&args.aovs)?;
     check_writable(&args.output)?;
     if let Some(s) = &args.stats {
         check_writable(s)?;
@@ -120,7 +153,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         }
     }
     let camera = CameraRays::new(&scene.camera, width, height);
-    let integrator = Integrator {
+    let job = RenderJob {
         medium: &medium,
         lights: &lights,
         camera: &camera,
@@ -129,6 +162,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         spp,
         max_depth,
         seed,
+        tracking,
     };
 
     let pool = rayon::ThreadPoolBuilder::new()
@@ -143,16 +177,16 @@ pub fn run(args: RenderArgs) -> Result<()> {
         .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
     let render_start = Instant::now();
-    let film = pool.install(|| integrator.render(&|| bar.inc(1)));
+    let film = pool.install(|| job.render(&|| bar.inc(1)));
     let render_seconds = render_start.elapsed().as_secs_f64();
     bar.finish_and_clear();
 
     let (totals, _samples, nonfinite) = film.totals();
-    let tracker = "delta".to_string();
+    let tracker = tracking.tracker.name().to_string();
     write_exr(
         &args.output,
         &film,
-        &Aov::ALL,
+        &aovs,
         &ExrMetadata {
             stage: args.stage.display().to_string(),
             tracker: tracker.clone(),
@@ -175,7 +209,12 @@ pub fn run(args: RenderArgs) -> Result<()> {
             threads: pool.current_num_threads(),
             seed,
             tracker,
-            transmittance: "ratio".into(),
+            scheme: tracking.scheme.name().into(),
+            transmittance: tracking.transmittance.name().into(),
+            residual_lookups: totals.residual_lookups,
+            control_collisions: totals.control_collisions,
+            max_throughput_mean: totals.max_throughput
+                / (width as f64 * height as f64 * spp as f64),
             density_lookups: totals.density_lookups,
             real_collisions: totals.real_collisions,
             null_collisions: totals.null_collisions,
@@ -237,4 +276,42 @@ pub fn build_medium(scene: &Scene, cell_voxels: u32) -> Result<Medium> {
         volume.anisotropy,
         cell_voxels,
     )?)
+}
+
+fn tracker_settings(args: &RenderArgs) -> Result<TrackerSettings> {
+    if !(args.control.is_finite() && (0.0..=1.0).contains(&args.control)) {
+        bail!("--control must lie in [0, 1], got {}", args.control);
+    }
+    if !(args.majorant_scale.is_finite() && args.majorant_scale > 0.0) {
+        bail!(
+            "--majorant-scale must be positive, got {}",
+            args.majorant_scale
+        );
+    }
+    Ok(TrackerSettings {
+        tracker: args.tracker,
+        scheme: args.scheme,
+        transmittance: args.transmittance,
+        control: args.control,
+        options: SchemeOptions {
+            reduced_termination: args.reduced_termination,
+            no_absorption_events: args.no_absorption_events,
+        },
+        majorant_scale: args.majorant_scale,
+    })
+}
+
+/// R, G, B, A and `lookups` always, plus what `--aovs` names.
+fn requested_aovs(names: &[String]) -> Result<Vec<Aov>> {
+    let mut aovs = Aov::DEFAULT.to_vec();
+    for n in names.iter().map(|n| n.trim()).filter(|n| !n.is_empty()) {
+        let Some(a) = Aov::from_name(n) else {
+            let known: Vec<_> = Aov::ALL.iter().map(|a| a.channel_name()).collect();
+            bail!("unknown AOV '{n}'; known AOVs: {}", known.join(", "));
+        };
+        if !aovs.contains(&a) {
+            aovs.push(a);
+        }
+    }
+    Ok(aovs)
 }

@@ -14,7 +14,12 @@ pub struct RenderStats {
     pub threads: usize,
     pub seed: u64,
     pub tracker: String,
+    pub scheme: String,
     pub transmittance: String,
+    pub residual_lookups: u64,
+    pub control_collisions: u64,
+    /// Mean over samples of the largest channel throughput along the path.
+    pub max_throughput_mean: f64,
     pub density_lookups: u64,
     pub real_collisions: u64,
     pub null_collisions: u64,

@@ -38,6 +38,15 @@ impl Pixel {
         self.lum_sq += l * l;
     }
 
+    /// Unbiased sample variance of the per-sample luminance (0 with fewer than 2 samples).
+    pub fn luminance_variance(&self) -> f64 {
+        let n = (self.samples - self.nonfinite) as f64;
+        if n < 2.0 {
+            return 0.0;
+        }
+        ((self.lum_sq - self.lum * self.lum / n) / (n - 1.0)).max(0.0)
+    }
+
     fn per_sample(&self, v: f64) -> f32 {
         if self.samples == 0 {
             0.0
@@ -56,10 +65,33 @@ pub enum Aov {
     A,
     /// Mean density lookups per sample.
     Lookups,
+    /// Mean lookups made by residual tracking per sample.
+    ResidualLookups,
+    RealCollisions,
+    NullCollisions,
+    ControlCollisions,
+    /// Mean over samples of the largest channel throughput seen along the path.
+    MaxThroughput,
+    /// Sample variance of the luminance estimate in this pixel.
+    Variance,
 }
 
 impl Aov {
-    pub const ALL: [Aov; 5] = [Aov::R, Aov::G, Aov::B, Aov::A, Aov::Lookups];
+    pub const ALL: [Aov; 11] = [
+        Aov::R,
+        Aov::G,
+        Aov::B,
+        Aov::A,
+        Aov::Lookups,
+        Aov::ResidualLookups,
+        Aov::RealCollisions,
+        Aov::NullCollisions,
+        Aov::ControlCollisions,
+        Aov::MaxThroughput,
+        Aov::Variance,
+    ];
+    /// What a render writes unless asked otherwise.
+    pub const DEFAULT: [Aov; 5] = [Aov::R, Aov::G, Aov::B, Aov::A, Aov::Lookups];
 
     /// The EXR channel name, also the RenderVar `sourceName`.
     pub fn channel_name(self) -> &'static str {
@@ -69,6 +101,12 @@ impl Aov {
             Aov::B => "B",
             Aov::A => "A",
             Aov::Lookups => "lookups",
+            Aov::ResidualLookups => "residual_lookups",
+            Aov::RealCollisions => "real_collisions",
+            Aov::NullCollisions => "null_collisions",
+            Aov::ControlCollisions => "control_collisions",
+            Aov::MaxThroughput => "max_throughput",
+            Aov::Variance => "variance",
         }
     }
 
@@ -83,6 +121,12 @@ impl Aov {
             Aov::B => p.per_sample(p.rgb[2]),
             Aov::A => p.per_sample(p.alpha),
             Aov::Lookups => p.per_sample(p.counters.density_lookups as f64),
+            Aov::ResidualLookups => p.per_sample(p.counters.residual_lookups as f64),
+            Aov::RealCollisions => p.per_sample(p.counters.real_collisions as f64),
+            Aov::NullCollisions => p.per_sample(p.counters.null_collisions as f64),
+            Aov::ControlCollisions => p.per_sample(p.counters.control_collisions as f64),
+            Aov::MaxThroughput => p.per_sample(p.counters.max_throughput),
+            Aov::Variance => p.luminance_variance() as f32,
         }
     }
 }

@@ -8,8 +8,8 @@ use crate::render::film::{Film, Pixel};
 use crate::render::lights::Lights;
 use crate::render::phase::{hg, sample_hg, sample_sphere, INV_4PI};
 use crate::render::sampler::{pixel_sampler, Sampler};
-use crate::track::{self, FreePath};
-use crate::volume::medium::{Counters, Medium};
+use crate::track::{self, FreePath, FreePathSampler, Query, TransmittanceEstimator};
+use crate::volume::medium::{Counters, Medium, Sigma};
 use glam::DVec3;
 use rand::Rng;
 use rayon::prelude::*;
@@ -17,7 +17,13 @@ use rayon::prelude::*;
 /// Path Russian roulette starts after this many scattering events.
 const RR_DEPTH: u32 = 3;
 
-pub struct Integrator<'a> {
+pub struct Integrator<'a, F: FreePathSampler, E: TransmittanceEstimator> {
+    pub free_path: F,
+    pub transmittance: E,
+    /// Naive delta tracking: one channel per path, chosen uniformly, weighted 3×.
+    pub single_channel: bool,
+    /// Multiplies every majorant (1 = the medium's bounds).
+    pub majorant_scale: f32,
     pub medium: &'a Medium,
     pub lights: &'a Lights,
     pub camera: &'a CameraRays,
@@ -34,7 +40,7 @@ pub struct SampleResult {
     pub alpha: f64,
 }
 
-impl Integrator<'_> {
+impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
     /// Renders all pixels; `progress` is called once per finished row (from any thread).
     pub fn render(&self, progress: &(dyn Fn() + Sync)) -> Film {
         let w = self.width as usize;
@@ -81,7 +87,15 @@ impl Integrator<'_> {
         let mut origin = ray.origin;
         let mut dir = ray.dir;
         let (mut tmin, mut tmax) = (ray.tmin as f32, ray.tmax as f32);
-        let mut throughput = [1f32; 3];
+        // Naive delta: track one channel's grey medium, and carry 3× in that channel only.
+        let (sigma, mut throughput) = if self.single_channel {
+            let ch = ((rng.gen::<u32>() as u64 * 3) >> 32) as usize;
+            let mut w = [0f32; 3];
+            w[ch] = 3.0;
+            (medium.sigma.channel(ch), w)
+        } else {
+            (medium.sigma, [1f32; 3])
+        };
         let mut radiance = [0f64; 3];
         let mut alpha = 0.0;
         let mut depth = 0u32;
@@ -89,15 +103,15 @@ impl Integrator<'_> {
         let mut last_cos = 1.0f64;
         loop {
             let iray = medium.index_ray(origin, dir);
-            let event = track::delta::sample_free_path(
+            let q = Query {
                 medium,
-                &iray,
+                sigma: &sigma,
+                ray: &iray,
                 tmin,
                 tmax,
-                &mut throughput,
-                rng,
-                counters,
-            );
+                majorant_scale: self.majorant_scale,
+            };
+            let event = self.free_path.sample(&q, &mut throughput, rng, counters);
             match event {
                 FreePath::Escape => {
                     if depth == 0 {
@@ -124,7 +138,7 @@ impl Integrator<'_> {
                     }
                     depth += 1;
                     let p = origin + dir * t as f64;
-                    self.next_event(p, dir, throughput, &mut radiance, rng, counters);
+                    self.next_event(p, dir, &sigma, throughput, &mut radiance, rng, counters);
                     if depth >= self.max_depth {
                         break;
                     }
@@ -161,6 +175,7 @@ impl Integrator<'_> {
         &self,
         p: DVec3,
         dir: DVec3,
+        sigma: &Sigma,
         throughput: [f32; 3],
         radiance: &mut [f64; 3],
         rng: &mut Sampler,
@@ -170,7 +185,7 @@ impl Integrator<'_> {
         let g = medium.g as f64;
         for sun in &self.lights.suns {
             let wi = sun.sample_direction(rng.gen(), rng.gen());
-            let tr = self.transmittance(p, wi, rng, counters);
+            let tr = self.shadow(p, wi, sigma, rng, counters);
             let f = hg(g, dir.dot(wi));
             for c in 0..3 {
                 radiance[c] += (throughput[c] * tr[c]) as f64 * sun.irradiance[c] * f;
@@ -180,7 +195,7 @@ impl Integrator<'_> {
             let wi = sample_sphere(rng.gen(), rng.gen());
             let f = hg(g, dir.dot(wi));
             let w = power_heuristic(INV_4PI, f);
-            let tr = self.transmittance(p, wi, rng, counters);
+            let tr = self.shadow(p, wi, sigma, rng, counters);
             for c in 0..3 {
                 radiance[c] +=
                     (throughput[c] * tr[c]) as f64 * self.lights.environment[c] * f / INV_4PI * w;
@@ -188,15 +203,24 @@ impl Integrator<'_> {
         }
     }
 
-    fn transmittance(
+    fn shadow(
         &self,
         p: DVec3,
         wi: DVec3,
+        sigma: &Sigma,
         rng: &mut Sampler,
         counters: &mut Counters,
     ) -> [f32; 3] {
         let iray = self.medium.index_ray(p, wi);
-        track::ratio::transmittance(self.medium, &iray, 0.0, f32::INFINITY, rng, counters)
+        let q = Query {
+            medium: self.medium,
+            sigma,
+            ray: &iray,
+            tmin: 0.0,
+            tmax: f32::INFINITY,
+            majorant_scale: self.majorant_scale,
+        };
+        self.transmittance.transmittance(&q, rng, counters)
     }
 }
 

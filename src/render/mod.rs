@@ -4,6 +4,7 @@
 pub mod camera;
 pub mod film;
 pub mod integrator;
+pub mod job;
 pub mod lights;
 pub mod phase;
 pub mod sampler;

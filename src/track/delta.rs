@@ -1,69 +1,78 @@
-//! Delta tracking with an achromatic majorant.
+//! Delta tracking with an achromatic majorant μ̄ = d_max·max_λ σt(λ).
 //!
-//! For grey media this is analog delta tracking (all collision weights are 1). For
-//! chromatic media the events are chosen by the per-channel average of each
-//! coefficient (the paper's "avg" probabilities), and the throughput is multiplied by
-//! the local collision weights w★(λ) = μ★(λ)/(μ̄·P★) so the estimate stays unbiased.
+//! For grey media this is analog delta tracking: every collision weight is 1. For
+//! chromatic media the events are chosen by the per-channel average of each coefficient
+//! (the paper's "avg" probabilities) and the throughput takes the collision weights
+//! w★(λ) = μ★(λ)/(μ̄·P★), so the estimate stays unbiased.
+//!
+//! Delta tracking needs μ̄ ≥ μt. Where the density exceeds the majorant the null
+//! probability would be negative: the collision is counted in `majorant_violations`
+//! and treated as a null collision with unit weight (biased, and reported, never
+//! silent). `weighted-delta` is the estimator that stays unbiased there.
 
-use super::{avg, exp_step, FreePath, Spectrum};
-use crate::volume::medium::{Counters, IndexRay, Medium};
+use super::{exp_step, FreePath, FreePathSampler, Query, Spectrum};
+use crate::volume::medium::Counters;
 use rand::Rng;
 
-/// Samples the first real collision along `ray` in `[tmin, tmax)`, updating `throughput`
-/// with the collision weights of the null collisions (and of the real one).
-pub fn sample_free_path<R: Rng>(
-    medium: &Medium,
-    ray: &IndexRay,
-    tmin: f32,
-    tmax: f32,
-    throughput: &mut Spectrum,
-    rng: &mut R,
-    counters: &mut Counters,
-) -> FreePath {
-    let sa = medium.sigma_a;
-    let ss = medium.sigma_s;
-    let st = medium.sigma_t;
-    let (avg_sa, avg_ss) = (avg(sa), avg(ss));
-    for seg in medium.majorants.walk(ray.o, ray.d, tmin, tmax) {
-        counters.cells_visited += 1;
-        let mu_bar = seg.dmax * medium.sigma_t_max;
-        if !(mu_bar > 0.0) {
-            continue; // empty cell: skipped without a lookup
-        }
-        let mut t = seg.t0;
-        loop {
-            t += exp_step(rng, mu_bar);
-            if t >= seg.t1 {
-                break;
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Delta;
+
+impl FreePathSampler for Delta {
+    #[inline]
+    fn sample<R: Rng>(
+        &self,
+        q: &Query,
+        throughput: &mut Spectrum,
+        rng: &mut R,
+        c: &mut Counters,
+    ) -> FreePath {
+        let sg = q.sigma;
+        let avg_a = super::avg(sg.a);
+        let avg_s = super::avg(sg.s);
+        for seg in q.medium.majorants.walk(q.ray.o, q.ray.d, q.tmin, q.tmax) {
+            c.cells_visited += 1;
+            let mu_bar = seg.dmax * sg.t_max * q.majorant_scale;
+            if !(mu_bar > 0.0) {
+                continue; // empty cell: skipped without a lookup
             }
-            let d = medium.density(ray.at(t), counters);
-            // P★ = avg_λ μ★(λ) / μ̄.
-            let pa = d * avg_sa / mu_bar;
-            let ps = d * avg_ss / mu_bar;
-            let pn = 1.0 - pa - ps;
-            let u: f32 = rng.gen();
-            if u < pa {
-                counters.real_collisions += 1;
-                return FreePath::Absorb { t };
-            }
-            if u < pa + ps {
-                counters.real_collisions += 1;
-                for c in 0..3 {
-                    throughput[c] *= d * ss[c] / (mu_bar * ps);
+            let mut t = seg.t0;
+            loop {
+                t += exp_step(rng, mu_bar);
+                if t >= seg.t1 {
+                    break;
                 }
-                return FreePath::Scatter { t };
-            }
-            counters.null_collisions += 1;
-            if pn < 0.0 {
-                // The majorant does not bound the extinction here: delta tracking is
-                // biased. Counted, so it is never silent.
-                counters.majorant_violations += 1;
-                continue;
-            }
-            for c in 0..3 {
-                throughput[c] *= (mu_bar - d * st[c]) / (mu_bar * pn);
+                let d = q.medium.density(q.ray.at(t), c);
+                // P★ = avg_λ μ★(λ) / μ̄.
+                let pa = d * avg_a / mu_bar;
+                let ps = d * avg_s / mu_bar;
+                let pn = 1.0 - pa - ps;
+                // A tolerance for rounding where the density equals the majorant.
+                if pn < -1e-5 {
+                    c.majorant_violations += 1;
+                }
+                let u: f32 = rng.gen();
+                if u < pa {
+                    c.real_collisions += 1;
+                    return FreePath::Absorb { t };
+                }
+                if u < pa + ps {
+                    c.real_collisions += 1;
+                    for ch in 0..3 {
+                        throughput[ch] *= d * sg.s[ch] / (mu_bar * ps);
+                    }
+                    c.observe_throughput(*throughput);
+                    return FreePath::Scatter { t };
+                }
+                c.null_collisions += 1;
+                if pn <= 0.0 {
+                    continue;
+                }
+                for ch in 0..3 {
+                    throughput[ch] *= (mu_bar - d * sg.t[ch]) / (mu_bar * pn);
+                }
+                c.observe_throughput(*throughput);
             }
         }
+        FreePath::Escape
     }
-    FreePath::Escape
 }

@@ -4,12 +4,17 @@
 //! Every tracker walks the [`Segment`](crate::volume::majorant::Segment)s the majorant
 //! structure hands out (the exponential is memoryless, so sampling restarts at every
 //! cell boundary) and decides at each tentative collision between absorption,
-//! scattering and a null collision. Trackers are plain functions over concrete types:
-//! no dynamic dispatch per collision.
+//! scattering and a null collision. Trackers implement [`FreePathSampler`], shadow-ray
+//! estimators [`TransmittanceEstimator`]; the integrator is generic over both and is
+//! instantiated once per render, so the collision loops have no dynamic dispatch.
 
+pub mod decomposition;
 pub mod delta;
 pub mod ratio;
+pub mod scheme;
+pub mod spectral;
 
+use crate::volume::medium::{Counters, IndexRay, Medium, Sigma};
 use rand::Rng;
 
 pub use crate::volume::medium::Spectrum;
@@ -23,6 +28,35 @@ pub enum FreePath {
     Absorb { t: f32 },
     /// The ray left the medium (or reached `tmax`) without a real collision.
     Escape,
+}
+
+/// What a tracker is handed for one free-path query.
+pub struct Query<'a> {
+    pub medium: &'a Medium,
+    /// The cross-sections to track (the medium's, or one channel's for naive delta).
+    pub sigma: &'a Sigma,
+    pub ray: &'a IndexRay,
+    pub tmin: f32,
+    pub tmax: f32,
+    /// Multiplies every majorant: 1 for the medium's bounds; below 1 to test trackers
+    /// with non-bounding majorants.
+    pub majorant_scale: f32,
+}
+
+/// Samples the first real collision, multiplying `throughput` by collision weights.
+pub trait FreePathSampler: Sync {
+    fn sample<R: Rng>(
+        &self,
+        q: &Query,
+        throughput: &mut Spectrum,
+        rng: &mut R,
+        c: &mut Counters,
+    ) -> FreePath;
+}
+
+/// Estimates transmittance along a shadow ray.
+pub trait TransmittanceEstimator: Sync {
+    fn transmittance<R: Rng>(&self, q: &Query, rng: &mut R, c: &mut Counters) -> Spectrum;
 }
 
 /// An exponential step with rate `mu` (`mu > 0`): −ln(1 − u)/μ. `1 − u` lies in (0, 1],
@@ -41,4 +75,164 @@ pub fn avg(s: Spectrum) -> f32 {
 #[inline(always)]
 pub fn max3(s: Spectrum) -> f32 {
     s[0].max(s[1]).max(s[2])
+}
+
+#[inline(always)]
+pub fn mul(a: &mut Spectrum, w: Spectrum) {
+    a[0] *= w[0];
+    a[1] *= w[1];
+    a[2] *= w[2];
+}
+
+/// The trackers a render can use (`--tracker`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum TrackerKind {
+    /// One channel per path, analog delta tracking in it, 3× that channel (the paper's ND).
+    NaiveDelta,
+    /// Delta tracking, achromatic majorant, avg event probabilities.
+    Delta,
+    /// Delta tracking tolerating non-bounding majorants (signed weights).
+    WeightedDelta,
+    /// Analog decomposition tracking: control = the cell's minimum.
+    Decomposition,
+    /// Decomposition with the control above the minimum (`--control`), weighted residual.
+    DecompositionWeighted,
+    /// Spectral tracking with `--scheme`.
+    Spectral,
+    /// Spectral tracking of an achromatic control and a chromatic residual.
+    SpectralDecomposition,
+}
+
+impl TrackerKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            TrackerKind::NaiveDelta => "naive-delta",
+            TrackerKind::Delta => "delta",
+            TrackerKind::WeightedDelta => "weighted-delta",
+            TrackerKind::Decomposition => "decomposition",
+            TrackerKind::DecompositionWeighted => "decomposition-weighted",
+            TrackerKind::Spectral => "spectral",
+            TrackerKind::SpectralDecomposition => "spectral-decomposition",
+        }
+    }
+
+    /// Whether `--scheme` matters for this tracker.
+    pub fn uses_scheme(self) -> bool {
+        matches!(
+            self,
+            TrackerKind::Spectral | TrackerKind::SpectralDecomposition
+        )
+    }
+}
+
+/// Spectral probability schemes (`--scheme`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SchemeKind {
+    Max,
+    Avg,
+    HistMax,
+    HistAvg,
+}
+
+impl SchemeKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            SchemeKind::Max => "max",
+            SchemeKind::Avg => "avg",
+            SchemeKind::HistMax => "hist-max",
+            SchemeKind::HistAvg => "hist-avg",
+        }
+    }
+}
+
+/// Shadow-ray estimators (`--transmittance`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum TransmittanceKind {
+    Ratio,
+    ResidualRatio,
+}
+
+impl TransmittanceKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            TransmittanceKind::Ratio => "ratio",
+            TransmittanceKind::ResidualRatio => "residual-ratio",
+        }
+    }
+}
+
+/// Everything that selects and parameterises the estimators of a render.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TrackerSettings {
+    pub tracker: TrackerKind,
+    pub scheme: SchemeKind,
+    pub transmittance: TransmittanceKind,
+    /// Control position for `decomposition-weighted`: 0 = cell minimum, 1 = maximum.
+    pub control: f32,
+    pub options: scheme::SchemeOptions,
+    pub majorant_scale: f32,
+}
+
+impl Default for TrackerSettings {
+    fn default() -> Self {
+        TrackerSettings {
+            tracker: TrackerKind::Delta,
+            scheme: SchemeKind::HistAvg,
+            transmittance: TransmittanceKind::Ratio,
+            control: 0.0,
+            options: scheme::SchemeOptions::default(),
+            majorant_scale: 1.0,
+        }
+    }
+}
+
+/// Calls `f` with the free-path sampler and transmittance estimator the settings
+/// select, as concrete types: the one place where the choice is turned into a type.
+pub fn dispatch<T>(s: &TrackerSettings, f: impl Dispatch<T>) -> T {
+    let o = s.options;
+    match s.transmittance {
+        TransmittanceKind::Ratio => dispatch_free_path(s, o, ratio::Ratio, f),
+        TransmittanceKind::ResidualRatio => dispatch_free_path(s, o, ratio::ResidualRatio, f),
+    }
+}
+
+fn dispatch_free_path<T, E: TransmittanceEstimator>(
+    s: &TrackerSettings,
+    o: scheme::SchemeOptions,
+    e: E,
+    f: impl Dispatch<T>,
+) -> T {
+    use decomposition::Decomposition;
+    use scheme::{Avg, HistAvg, HistMax, Max};
+    use spectral::Spectral;
+    match s.tracker {
+        TrackerKind::NaiveDelta | TrackerKind::Delta => f.run(delta::Delta, e),
+        TrackerKind::WeightedDelta => f.run(Spectral::<Avg>::new(o), e),
+        TrackerKind::Decomposition => f.run(Decomposition::<Avg>::new(0.0, o), e),
+        TrackerKind::DecompositionWeighted => f.run(Decomposition::<Avg>::new(s.control, o), e),
+        TrackerKind::Spectral => match s.scheme {
+            SchemeKind::Max => f.run(Spectral::<Max>::new(o), e),
+            SchemeKind::Avg => f.run(Spectral::<Avg>::new(o), e),
+            SchemeKind::HistMax => f.run(Spectral::<HistMax>::new(o), e),
+            SchemeKind::HistAvg => f.run(Spectral::<HistAvg>::new(o), e),
+        },
+        TrackerKind::SpectralDecomposition => match s.scheme {
+            SchemeKind::Max => f.run(Decomposition::<Max>::new(0.0, o), e),
+            SchemeKind::Avg => f.run(Decomposition::<Avg>::new(0.0, o), e),
+            SchemeKind::HistMax => f.run(Decomposition::<HistMax>::new(0.0, o), e),
+            SchemeKind::HistAvg => f.run(Decomposition::<HistAvg>::new(0.0, o), e),
+        },
+    }
+}
+
+/// A computation generic over the estimators (a closure cannot be generic).
+pub trait Dispatch<T> {
+    fn run<F: FreePathSampler, E: TransmittanceEstimator>(
+        self,
+        free_path: F,
+        transmittance: E,
+    ) -> T;
 }

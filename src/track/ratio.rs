@@ -1,53 +1,108 @@
-//! Ratio tracking (Novák et al. 2014): an unbiased transmittance estimate
-//! T̂(λ) = Π (1 − μt(x_i,λ)/μ̄) over tentative collisions, for shadow rays.
+//! Transmittance estimators for shadow rays.
+//!
+//! - Ratio tracking (Novák et al. 2014): T̂(λ) = Π (1 − μt(x_i,λ)/μ̄) over tentative
+//!   collisions drawn at rate μ̄.
+//! - Residual ratio tracking: the cell's minimum density is a control whose
+//!   transmittance exp(−d_min·σt·Δt) is known in closed form; only the residual
+//!   (d − d_min)·σt is ratio-tracked, under μ̄r = (d_max − d_min)·max σt, so lookups
+//!   happen at rate μ̄r instead of μ̄.
 //!
 //! Russian roulette on small estimates keeps long shadow rays cheap: once the largest
-//! channel drops below [`RR_THRESHOLD`], the estimate survives with probability
-//! `RR_SURVIVAL` and is divided by it, which keeps it unbiased.
+//! channel magnitude drops below [`RR_THRESHOLD`], the estimate survives with
+//! probability [`RR_SURVIVAL`] and is divided by it, which keeps it unbiased.
 
-use super::{exp_step, max3, Spectrum};
-use crate::volume::medium::{Counters, IndexRay, Medium};
+use super::{exp_step, Query, Spectrum, TransmittanceEstimator};
+use crate::volume::medium::Counters;
 use rand::Rng;
 
 pub const RR_THRESHOLD: f32 = 0.1;
 pub const RR_SURVIVAL: f32 = 0.5;
 
-pub fn transmittance<R: Rng>(
-    medium: &Medium,
-    ray: &IndexRay,
-    tmin: f32,
-    tmax: f32,
-    rng: &mut R,
-    counters: &mut Counters,
-) -> Spectrum {
-    let st = medium.sigma_t;
-    let mut tr = [1f32; 3];
-    for seg in medium.majorants.walk(ray.o, ray.d, tmin, tmax) {
-        counters.cells_visited += 1;
-        let mu_bar = seg.dmax * medium.sigma_t_max;
-        if !(mu_bar > 0.0) {
-            continue;
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Ratio;
+
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ResidualRatio;
+
+/// Applies Russian roulette to `tr`; returns false when the estimate was killed.
+#[inline(always)]
+fn roulette<R: Rng>(tr: &mut Spectrum, rng: &mut R) -> bool {
+    let m = tr[0].abs().max(tr[1].abs()).max(tr[2].abs());
+    if m < RR_THRESHOLD {
+        if rng.gen::<f32>() >= RR_SURVIVAL {
+            *tr = [0.0; 3];
+            return false;
         }
-        let mut t = seg.t0;
-        loop {
-            t += exp_step(rng, mu_bar);
-            if t >= seg.t1 {
-                break;
-            }
-            let d = medium.density(ray.at(t), counters);
-            counters.null_collisions += 1;
-            for c in 0..3 {
-                tr[c] *= 1.0 - d * st[c] / mu_bar;
-            }
-            if max3(tr) < RR_THRESHOLD {
-                if rng.gen::<f32>() >= RR_SURVIVAL {
-                    return [0.0; 3];
-                }
-                for v in tr.iter_mut() {
-                    *v /= RR_SURVIVAL;
-                }
-            }
+        for v in tr.iter_mut() {
+            *v /= RR_SURVIVAL;
         }
     }
-    tr
+    true
+}
+
+impl TransmittanceEstimator for Ratio {
+    fn transmittance<R: Rng>(&self, q: &Query, rng: &mut R, c: &mut Counters) -> Spectrum {
+        let sg = q.sigma;
+        let mut tr = [1f32; 3];
+        for seg in q.medium.majorants.walk(q.ray.o, q.ray.d, q.tmin, q.tmax) {
+            c.cells_visited += 1;
+            let mu_bar = seg.dmax * sg.t_max * q.majorant_scale;
+            if !(mu_bar > 0.0) {
+                continue;
+            }
+            let mut t = seg.t0;
+            loop {
+                t += exp_step(rng, mu_bar);
+                if t >= seg.t1 {
+                    break;
+                }
+                let d = q.medium.density(q.ray.at(t), c);
+                c.null_collisions += 1;
+                for ch in 0..3 {
+                    tr[ch] *= 1.0 - d * sg.t[ch] / mu_bar;
+                }
+                if !roulette(&mut tr, rng) {
+                    return tr;
+                }
+            }
+        }
+        tr
+    }
+}
+
+impl TransmittanceEstimator for ResidualRatio {
+    fn transmittance<R: Rng>(&self, q: &Query, rng: &mut R, c: &mut Counters) -> Spectrum {
+        let sg = q.sigma;
+        let mut tr = [1f32; 3];
+        for seg in q.medium.majorants.walk(q.ray.o, q.ray.d, q.tmin, q.tmax) {
+            c.cells_visited += 1;
+            if seg.dmin > 0.0 {
+                let len = seg.t1 - seg.t0;
+                for ch in 0..3 {
+                    tr[ch] *= (-seg.dmin * sg.t[ch] * len).exp();
+                }
+            }
+            let mu_r = (seg.dmax - seg.dmin) * sg.t_max * q.majorant_scale;
+            if !(mu_r > 0.0) {
+                continue;
+            }
+            let mut t = seg.t0;
+            loop {
+                t += exp_step(rng, mu_r);
+                if t >= seg.t1 {
+                    break;
+                }
+                let d = q.medium.density(q.ray.at(t), c);
+                c.residual_lookups += 1;
+                c.null_collisions += 1;
+                for ch in 0..3 {
+                    tr[ch] *= 1.0 - (d - seg.dmin) * sg.t[ch] / mu_r;
+                }
+                if !roulette(&mut tr, rng) {
+                    return tr;
+                }
+            }
+        }
+        tr
+    }
 }

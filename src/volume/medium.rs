@@ -25,6 +25,13 @@ pub struct Counters {
     pub cells_visited: u64,
     /// Tentative collisions where the density exceeded the cell's majorant.
     pub majorant_violations: u64,
+    /// Density lookups made by residual tracking (a subset of `density_lookups`).
+    pub residual_lookups: u64,
+    /// Collisions of the control process of decomposition tracking (no lookup).
+    pub control_collisions: u64,
+    /// Largest channel throughput seen along the path (per sample a maximum; summed
+    /// over samples in a pixel, so the pixel's AOV is its mean).
+    pub max_throughput: f64,
 }
 
 impl Counters {
@@ -34,6 +41,18 @@ impl Counters {
         self.null_collisions += o.null_collisions;
         self.cells_visited += o.cells_visited;
         self.majorant_violations += o.majorant_violations;
+        self.residual_lookups += o.residual_lookups;
+        self.control_collisions += o.control_collisions;
+        self.max_throughput += o.max_throughput;
+    }
+
+    /// Records a path throughput for the `max_throughput` statistic.
+    #[inline(always)]
+    pub fn observe_throughput(&mut self, w: Spectrum) {
+        let m = w[0].abs().max(w[1].abs()).max(w[2].abs()) as f64;
+        if m > self.max_throughput {
+            self.max_throughput = m;
+        }
     }
 }
 
@@ -52,18 +71,50 @@ impl IndexRay {
     }
 }
 
+/// Cross-sections per unit density: μ★(x, λ) = d(x)·σ★(λ).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sigma {
+    pub a: Spectrum,
+    pub s: Spectrum,
+    pub t: Spectrum,
+    /// max over channels of σt: turns a density majorant into an achromatic extinction
+    /// majorant.
+    pub t_max: f32,
+}
+
+impl Sigma {
+    pub fn new(a: Spectrum, s: Spectrum) -> Sigma {
+        let t = [a[0] + s[0], a[1] + s[1], a[2] + s[2]];
+        Sigma {
+            a,
+            s,
+            t,
+            t_max: t[0].max(t[1]).max(t[2]),
+        }
+    }
+
+    /// The grey medium of one channel (naive delta tracking tracks one channel per path).
+    pub fn channel(&self, c: usize) -> Sigma {
+        Sigma::new([self.a[c]; 3], [self.s[c]; 3])
+    }
+
+    /// All channels equal: grey tracking is exact with unit weights.
+    pub fn is_grey(&self) -> bool {
+        self.t[0] == self.t[1]
+            && self.t[1] == self.t[2]
+            && self.s[0] == self.s[1]
+            && self.s[1] == self.s[2]
+    }
+}
+
 pub struct Medium {
     /// The prim this medium comes from (for messages).
     pub prim_path: String,
     pub density: Grid,
     /// World → index, the inverse of volume_to_world · index_to_world.
     world_to_index: DMat4,
-    /// σa, σs per unit density (density scale folded in).
-    pub sigma_a: Spectrum,
-    pub sigma_s: Spectrum,
-    pub sigma_t: Spectrum,
-    /// max over channels of σt: turns a density majorant into an extinction majorant.
-    pub sigma_t_max: f32,
+    /// σa, σs, σt per unit density (density scale folded in).
+    pub sigma: Sigma,
     /// Henyey–Greenstein asymmetry.
     pub g: f32,
     pub majorants: MajorantGrid,
@@ -120,16 +171,12 @@ impl Medium {
                 "nimbus:anisotropy must lie in (-1, 1), got {anisotropy}"
             )));
         }
-        let sigma_t = [0, 1, 2].map(|c| sigma_a[c] + sigma_s[c]);
         let majorants = MajorantGrid::build(&density, cell_voxels);
         Ok(Medium {
             prim_path: prim_path.to_string(),
             density,
             world_to_index: index_to_world.inverse(),
-            sigma_a,
-            sigma_s,
-            sigma_t,
-            sigma_t_max: sigma_t[0].max(sigma_t[1]).max(sigma_t[2]),
+            sigma: Sigma::new(sigma_a, sigma_s),
             g: anisotropy as f32,
             majorants,
         })
