@@ -64,7 +64,10 @@ fn find_openvdb() -> Result<OpenVdb, String> {
         .find(|d| d.join("openvdb/openvdb.h").is_file())
         .cloned()
         .ok_or_else(|| {
-            format!("no openvdb/openvdb.h in {}", join_paths(&include_candidates))
+            format!(
+                "no openvdb/openvdb.h in {}",
+                join_paths(&include_candidates)
+            )
         })?;
 
     let mut lib_candidates: Vec<PathBuf> = Vec::new();
@@ -74,10 +77,22 @@ fn find_openvdb() -> Result<OpenVdb, String> {
     let arch = env::var("CARGO_CFG_TARGET_ARCH").unwrap_or_default();
     let os = env::var("CARGO_CFG_TARGET_OS").unwrap_or_default();
     lib_candidates.push(format!("/usr/lib/{arch}-{os}-gnu").into());
-    lib_candidates.extend(["/usr/lib", "/usr/lib64", "/usr/local/lib", "/usr/local/lib64"].map(PathBuf::from));
+    lib_candidates.extend(
+        [
+            "/usr/lib",
+            "/usr/lib64",
+            "/usr/local/lib",
+            "/usr/local/lib64",
+        ]
+        .map(PathBuf::from),
+    );
     let lib_dir = lib_candidates
         .iter()
-        .find(|d| d.join("libopenvdb.so").exists() || d.join("libopenvdb.a").exists() || d.join("libopenvdb.dylib").exists())
+        .find(|d| {
+            d.join("libopenvdb.so").exists()
+                || d.join("libopenvdb.a").exists()
+                || d.join("libopenvdb.dylib").exists()
+        })
         .cloned()
         .ok_or_else(|| format!("no libopenvdb in {}", join_paths(&lib_candidates)))?;
 
@@ -87,16 +102,26 @@ fn find_openvdb() -> Result<OpenVdb, String> {
     if imath.is_dir() {
         include_dirs.push(imath);
     }
-    Ok(OpenVdb { include_dirs, lib_dir })
+    Ok(OpenVdb {
+        include_dirs,
+        lib_dir,
+    })
 }
 
 fn join_paths(paths: &[PathBuf]) -> String {
-    paths.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")
+    paths
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 fn build_bridge(found: &OpenVdb) {
     let mut build = cxx_build::bridge("src/volume/vdb/bridge.rs");
-    build.file("cpp/vdb_bridge.cc").std("c++17").flag_if_supported("-Wno-deprecated-declarations");
+    build
+        .file("cpp/vdb_bridge.cc")
+        .std("c++17")
+        .flag_if_supported("-Wno-deprecated-declarations");
     for dir in &found.include_dirs {
         build.include(dir);
     }

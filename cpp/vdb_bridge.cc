@@ -69,14 +69,22 @@ void push_tile(FloatGridData& out, const openvdb::Coord& origin, int32_t dim, fl
 
 rust::Vec<GridListEntry> list_grids(rust::Str path) {
     return guarded([&] {
-        openvdb::io::File file(std::string(path));
+        openvdb::io::File file{std::string(path)};
         open_file(file);
         rust::Vec<GridListEntry> out;
         openvdb::GridPtrVecPtr grids = file.readAllGridMetadata();
+        // Both iterate the file's descriptor table in the same order; the iterator
+        // supplies names for grids whose metadata lacks a "name" entry.
+        auto names = file.beginName();
         for (const auto& g : *grids) {
+            std::string fallback;
+            if (names != file.endName()) {
+                fallback = names.gridName();
+                ++names;
+            }
             if (!g) continue;
             GridListEntry e;
-            e.name = g->getName();
+            e.name = g->getName().empty() ? fallback : g->getName();
             e.value_type = g->type();
             e.active_voxels = -1;
             if (auto m = g->getMetadata<openvdb::Int64Metadata>(openvdb::GridBase::META_FILE_VOXEL_COUNT)) {
@@ -92,7 +100,7 @@ rust::Vec<GridListEntry> list_grids(rust::Str path) {
 FloatGridData read_float_grid(rust::Str path, rust::Str lookup_name) {
     return guarded([&] {
         const std::string name(lookup_name);
-        openvdb::io::File file(std::string(path));
+        openvdb::io::File file{std::string(path)};
         open_file(file);
         if (!file.hasGrid(name)) {
             throw std::runtime_error("grid " + name + " not found");

@@ -65,7 +65,11 @@ pub(crate) fn to_raw_grid(d: ffi::FloatGridData) -> Result<RawGrid, String> {
             let mut active = [0u64; 8];
             active.copy_from_slice(&d.leaf_masks[i * 8..i * 8 + 8]);
             RawLeaf {
-                origin: [d.leaf_origins[i * 3], d.leaf_origins[i * 3 + 1], d.leaf_origins[i * 3 + 2]],
+                origin: [
+                    d.leaf_origins[i * 3],
+                    d.leaf_origins[i * 3 + 1],
+                    d.leaf_origins[i * 3 + 2],
+                ],
                 values: d.leaf_values[i * BRICK_VOXELS..(i + 1) * BRICK_VOXELS].to_vec(),
                 active,
             }
@@ -73,7 +77,11 @@ pub(crate) fn to_raw_grid(d: ffi::FloatGridData) -> Result<RawGrid, String> {
         .collect();
     let tiles = (0..tile_count)
         .map(|i| RawTile {
-            origin: [d.tile_origins[i * 3], d.tile_origins[i * 3 + 1], d.tile_origins[i * 3 + 2]],
+            origin: [
+                d.tile_origins[i * 3],
+                d.tile_origins[i * 3 + 1],
+                d.tile_origins[i * 3 + 2],
+            ],
             dim: d.tile_dims[i],
             value: d.tile_values[i],
             active: d.tile_active[i] != 0,

@@ -65,16 +65,28 @@ pub enum VdbError {
     Io { file: String, message: String },
     /// No grid matches the requested name / index.
     #[error("{file}: grid {wanted} not found; available grids: {}", list_or_none(.available))]
-    GridNotFound { file: String, wanted: String, available: Vec<String> },
+    GridNotFound {
+        file: String,
+        wanted: String,
+        available: Vec<String>,
+    },
     /// The grid exists but does not hold floats.
     #[error("{file}: grid {grid:?} is {found}, expected float")]
-    WrongType { file: String, grid: String, found: String },
+    WrongType {
+        file: String,
+        grid: String,
+        found: String,
+    },
     /// The chosen reader cannot read this (valid) file; the message says what to do.
     #[error("{file}: {message}")]
     Unsupported { file: String, message: String },
     /// The reader failed on a file that passed validation.
     #[error("{file}: {reader} failed: {message}")]
-    Reader { file: String, reader: &'static str, message: String },
+    Reader {
+        file: String,
+        reader: &'static str,
+        message: String,
+    },
     /// Writing a VDB file failed.
     #[error("{file}: cannot write VDB: {message}")]
     Write { file: String, message: String },
@@ -84,7 +96,11 @@ fn list_or_none(names: &[String]) -> String {
     if names.is_empty() {
         "(none)".into()
     } else {
-        names.iter().map(|n| format!("{n:?}")).collect::<Vec<_>>().join(", ")
+        names
+            .iter()
+            .map(|n| format!("{n:?}"))
+            .collect::<Vec<_>>()
+            .join(", ")
     }
 }
 
@@ -157,15 +173,21 @@ pub fn read_float_grid_with(
             }
             let result = match loc {
                 AssetLocation::File(path) => {
-                    let f = std::fs::File::open(path)
-                        .map_err(|e| VdbError::Io { file: file.clone(), message: e.to_string() })?;
+                    let f = std::fs::File::open(path).map_err(|e| VdbError::Io {
+                        file: file.clone(),
+                        message: e.to_string(),
+                    })?;
                     vdbrs::read_float_grid(std::io::BufReader::new(f), &info, desc)
                 }
                 AssetLocation::Packaged { bytes, .. } => {
                     vdbrs::read_float_grid(Cursor::new(bytes.as_slice()), &info, desc)
                 }
             };
-            result.map_err(|message| VdbError::Reader { file, reader: "vdb-rs", message })
+            result.map_err(|message| VdbError::Reader {
+                file,
+                reader: "vdb-rs",
+                message,
+            })
         }
         Reader::OpenVdb => openvdb_read(loc, desc),
     }
@@ -176,11 +198,16 @@ fn validate_location(loc: &AssetLocation) -> Result<FileInfo, VdbError> {
     let file = loc.to_string();
     let result = match loc {
         AssetLocation::File(path) => {
-            let f = std::fs::File::open(path)
-                .map_err(|e| VdbError::Io { file: file.clone(), message: e.to_string() })?;
+            let f = std::fs::File::open(path).map_err(|e| VdbError::Io {
+                file: file.clone(),
+                message: e.to_string(),
+            })?;
             let len = f
                 .metadata()
-                .map_err(|e| VdbError::Io { file: file.clone(), message: e.to_string() })?
+                .map_err(|e| VdbError::Io {
+                    file: file.clone(),
+                    message: e.to_string(),
+                })?
                 .len();
             validate::validate(&mut std::io::BufReader::new(f), len)
         }
@@ -205,10 +232,22 @@ fn select<'a>(
                 available.push(g.name.clone());
             }
         }
-        VdbError::GridNotFound { file: file.to_string(), wanted, available }
+        VdbError::GridNotFound {
+            file: file.to_string(),
+            wanted,
+            available,
+        }
     };
-    let candidates: Vec<&GridDesc> = info.grids.iter().filter(|g| name.is_empty() || g.name == name).collect();
-    let label = if name.is_empty() { "(any)".to_string() } else { format!("{name:?}") };
+    let candidates: Vec<&GridDesc> = info
+        .grids
+        .iter()
+        .filter(|g| name.is_empty() || g.name == name)
+        .collect();
+    let label = if name.is_empty() {
+        "(any)".to_string()
+    } else {
+        format!("{name:?}")
+    };
     match index {
         Some(i) => usize::try_from(i)
             .ok()
@@ -232,7 +271,10 @@ fn with_openvdb_path<T>(
     f: impl FnOnce(&str) -> Result<T, VdbError>,
 ) -> Result<T, VdbError> {
     let file = loc.to_string();
-    let io_err = |e: std::io::Error| VdbError::Io { file: file.clone(), message: e.to_string() };
+    let io_err = |e: std::io::Error| VdbError::Io {
+        file: file.clone(),
+        message: e.to_string(),
+    };
     match loc {
         AssetLocation::File(path) => {
             let p = path.to_str().ok_or_else(|| VdbError::Io {
@@ -244,8 +286,14 @@ fn with_openvdb_path<T>(
         // OpenVDB reads files, so a package member goes through a temporary file.
         AssetLocation::Packaged { bytes, .. } => {
             use std::io::Write;
-            let mut tmp = tempfile::Builder::new().prefix("nimbus-").suffix(".vdb").tempfile().map_err(io_err)?;
-            tmp.write_all(bytes).and_then(|_| tmp.flush()).map_err(io_err)?;
+            let mut tmp = tempfile::Builder::new()
+                .prefix("nimbus-")
+                .suffix(".vdb")
+                .tempfile()
+                .map_err(io_err)?;
+            tmp.write_all(bytes)
+                .and_then(|_| tmp.flush())
+                .map_err(io_err)?;
             let p = tmp.path().to_str().ok_or_else(|| VdbError::Io {
                 file: file.clone(),
                 message: "temporary path is not valid UTF-8".into(),
@@ -258,9 +306,14 @@ fn with_openvdb_path<T>(
 #[cfg(nimbus_openvdb)]
 fn openvdb_read(loc: &AssetLocation, desc: &GridDesc) -> Result<RawGrid, VdbError> {
     let file = loc.to_string();
-    let err = |message: String| VdbError::Reader { file: file.clone(), reader: "openvdb", message };
+    let err = |message: String| VdbError::Reader {
+        file: file.clone(),
+        reader: "openvdb",
+        message,
+    };
     let data = with_openvdb_path(loc, |p| {
-        bridge::ffi::read_float_grid(p, &desc.openvdb_lookup_name()).map_err(|e| err(e.what().to_string()))
+        bridge::ffi::read_float_grid(p, &desc.openvdb_lookup_name())
+            .map_err(|e| err(e.what().to_string()))
     })?;
     let mut grid = bridge::to_raw_grid(data).map_err(err)?;
     grid.name = desc.name.clone();

@@ -40,7 +40,6 @@ const HALF_FLOAT_SUFFIX: &str = "_HalfFloat";
 #[derive(Clone, Debug)]
 pub(crate) struct FileInfo {
     pub file_version: u32,
-    pub library_version: (u32, u32),
     pub grids: Vec<GridDesc>,
 }
 
@@ -56,9 +55,6 @@ pub(crate) struct GridDesc {
     /// Values are stored as 16-bit halves (type suffix or `is_saved_as_half_float`).
     pub half_float: bool,
     pub instance_parent: String,
-    pub grid_pos: u64,
-    pub block_pos: u64,
-    pub end_pos: u64,
     /// Per-grid compression flags (file version >= 222).
     pub compression: Option<u32>,
     /// `class` metadata ("fog volume", "level set", ...), "unknown" if absent.
@@ -85,12 +81,12 @@ impl GridDesc {
     pub fn is_float(&self) -> bool {
         self.grid_type == "Tree_float_5_4_3"
     }
-    pub fn is_vec3s(&self) -> bool {
-        self.grid_type == "Tree_vec3s_5_4_3"
-    }
     /// A short human name of the value type for error messages.
     pub fn value_type_label(&self) -> String {
-        let t = self.grid_type.strip_prefix("Tree_").unwrap_or(&self.grid_type);
+        let t = self
+            .grid_type
+            .strip_prefix("Tree_")
+            .unwrap_or(&self.grid_type);
         let t = t.strip_suffix("_5_4_3").unwrap_or(t);
         match t {
             "vec3s" => "Vec3s".into(),
@@ -163,7 +159,9 @@ impl<'a, R: Read + Seek> Src<'a, R> {
                 self.len
             ));
         }
-        self.r.seek(SeekFrom::Start(to)).map_err(|e| format!("seek error ({what}): {e}"))?;
+        self.r
+            .seek(SeekFrom::Start(to))
+            .map_err(|e| format!("seek error ({what}): {e}"))?;
         self.pos = to;
         Ok(())
     }
@@ -187,7 +185,11 @@ impl<'a, R: Read + Seek> Src<'a, R> {
         Ok(f64::from_le_bytes(self.array(what)?))
     }
     fn dvec3(&mut self, what: &str) -> Result<DVec3, String> {
-        Ok(DVec3::new(self.f64(what)?, self.f64(what)?, self.f64(what)?))
+        Ok(DVec3::new(
+            self.f64(what)?,
+            self.f64(what)?,
+            self.f64(what)?,
+        ))
     }
 
     /// A `u32` length followed by that many bytes, capped at `cap`.
@@ -207,7 +209,7 @@ impl<'a, R: Read + Seek> Src<'a, R> {
     fn checked_count(&self, n: u64, cap: u64, min_item: u64, what: &str) -> Result<(), String> {
         if n > cap || n.saturating_mul(min_item) > self.remaining() {
             return Err(format!(
-                "corrupt: {what} count {n} at offset {} is impossible for a file of {} bytes",
+                "truncated or corrupt: {what} count {n} at offset {} is impossible for a file of {} bytes",
                 self.pos.saturating_sub(4),
                 self.len
             ));
@@ -248,7 +250,9 @@ fn read_meta<R: Read + Seek>(s: &mut Src<R>, what: &str) -> Result<Meta, String>
         };
         if let Some(n) = fixed {
             if size != n {
-                return Err(format!("corrupt: metadata {name:?} of type {ty} has size {size}, expected {n}"));
+                return Err(format!(
+                    "corrupt: metadata {name:?} of type {ty} has size {size}, expected {n}"
+                ));
             }
         }
         let value = s.bytes(size, "metadata value")?;
@@ -317,7 +321,9 @@ pub(crate) fn validate<R: Read + Seek>(r: &mut R, len: u64) -> Result<FileInfo, 
     let mut s = Src { r, len, pos: 0 };
     s.seek(0, "start")?;
     if len < 8 {
-        return Err(format!("not a VDB file ({len} bytes, too short for the header)"));
+        return Err(format!(
+            "not a VDB file ({len} bytes, too short for the header)"
+        ));
     }
     let magic: [u8; 8] = s.array("magic number")?;
     if magic != MAGIC {
@@ -329,7 +335,8 @@ pub(crate) fn validate<R: Read + Seek>(r: &mut R, len: u64) -> Result<FileInfo, 
             "unsupported VDB file format version {file_version} (supported: {MIN_FILE_VERSION} to {MAX_FILE_VERSION})"
         ));
     }
-    let library_version = (s.u32("library version")?, s.u32("library version")?);
+    // Library version (major, minor): informational only.
+    s.skip(8, "library version")?;
     let has_grid_offsets = s.u8("grid offsets flag")?;
     if has_grid_offsets != 1 {
         return Err("file has no grid offsets (written as a stream); not supported".into());
@@ -376,21 +383,32 @@ pub(crate) fn validate<R: Read + Seek>(r: &mut R, len: u64) -> Result<FileInfo, 
             Some(t) => (t.to_string(), true),
             None => (raw_type.clone(), false),
         };
-        let name = unique_name.split(UNIQUE_SEP).next().unwrap_or("").to_string();
+        let name = unique_name
+            .split(UNIQUE_SEP)
+            .next()
+            .unwrap_or("")
+            .to_string();
 
         // The grid's own preamble, bounded by its end offset.
-        let mut g = Src { r: &mut *s.r, len: end_pos, pos: 0 };
+        let mut g = Src {
+            r: &mut *s.r,
+            len: end_pos,
+            pos: 0,
+        };
         g.seek(grid_pos, "grid data")?;
         let compression = if file_version >= V_NODE_MASK_COMPRESSION {
             let c = g.u32("grid compression flags")?;
             if c & !0x7 != 0 {
-                return Err(format!("corrupt: grid {label:?} has invalid compression flags {c:#x}"));
+                return Err(format!(
+                    "corrupt: grid {label:?} has invalid compression flags {c:#x}"
+                ));
             }
             Some(c)
         } else {
             None
         };
-        let meta = read_meta(&mut g, "grid metadata").map_err(|e| format!("grid {label:?}: {e}"))?;
+        let meta =
+            read_meta(&mut g, "grid metadata").map_err(|e| format!("grid {label:?}: {e}"))?;
         let (map_type, index_to_world) = if file_version >= V_NEW_TRANSFORM {
             read_transform(&mut g).map_err(|e| format!("grid {label:?}: {e}"))?
         } else {
@@ -402,9 +420,6 @@ pub(crate) fn validate<R: Read + Seek>(r: &mut R, len: u64) -> Result<FileInfo, 
             grid_type,
             half_float: suffix_half || meta.half_float,
             instance_parent,
-            grid_pos,
-            block_pos,
-            end_pos,
             compression,
             class: meta.class.unwrap_or_else(|| "unknown".into()),
             active_voxels: meta.voxel_count.and_then(|v| u64::try_from(v).ok()),
@@ -413,12 +428,20 @@ pub(crate) fn validate<R: Read + Seek>(r: &mut R, len: u64) -> Result<FileInfo, 
             root: None,
         };
         if desc.is_float() && desc.instance_parent.is_empty() && desc.index_to_world.is_some() {
-            desc.root = Some(read_root(&mut g).map_err(|e| format!("grid {label:?}: {e}"))?);
+            let root = read_root(&mut g).map_err(|e| format!("grid {label:?}: {e}"))?;
+            if let Some(flags) = desc.compression {
+                walk_tree(&mut g, flags, desc.half_float, &root, block_pos, end_pos)
+                    .map_err(|e| format!("grid {label:?}: {e}"))?;
+            }
+            desc.root = Some(root);
         }
         grids.push(desc);
         s.seek(end_pos, "next grid descriptor")?;
     }
-    Ok(FileInfo { file_version, library_version, grids })
+    Ok(FileInfo {
+        file_version,
+        grids,
+    })
 }
 
 /// The root node's topology header: background, tiles, child count (float trees).
@@ -432,18 +455,150 @@ fn read_root<R: Read + Seek>(g: &mut Src<R>) -> Result<RootInfo, String> {
     let child_count = g.u32("root child count")?;
     // A tile is 12 + 4 + 1 bytes; a child is at least its origin and two 4 KB masks.
     g.checked_count(tile_count, u32::MAX as u64, 17, "root tile")?;
-    g.checked_count(child_count as u64 + tile_count, u32::MAX as u64, 17, "root child")?;
+    g.checked_count(
+        child_count as u64 + tile_count,
+        u32::MAX as u64,
+        17,
+        "root child",
+    )?;
     if (child_count as u64).saturating_mul(12 + 2 * 4096) > g.remaining() {
-        return Err(format!("corrupt: root child count {child_count} does not fit in the grid's data"));
+        return Err(format!(
+            "corrupt: root child count {child_count} does not fit in the grid's data"
+        ));
     }
     let mut tiles = Vec::new();
     for _ in 0..tile_count {
-        let origin = [g.i32("root tile")?, g.i32("root tile")?, g.i32("root tile")?];
+        let origin = [
+            g.i32("root tile")?,
+            g.i32("root tile")?,
+            g.i32("root tile")?,
+        ];
         let value = g.f32("root tile")?;
         let active = g.u8("root tile")? != 0;
         if active || value.to_bits() != background.to_bits() {
-            tiles.push(RawTile { origin, dim: 4096, value, active });
+            tiles.push(RawTile {
+                origin,
+                dim: 4096,
+                value,
+                active,
+            });
         }
     }
-    Ok(RootInfo { background, tiles, child_count })
+    Ok(RootInfo {
+        background,
+        tiles,
+        child_count,
+    })
+}
+
+const COMPRESS_ZIP: u32 = 0x1;
+const COMPRESS_ACTIVE_MASK: u32 = 0x2;
+const COMPRESS_BLOSC: u32 = 0x4;
+
+/// Walks a float tree's topology and buffers (file version >= 222) without
+/// decompressing anything, checking that every mask, value array and compressed
+/// chunk lies inside the grid's data. Compressed chunk sizes are what OpenVDB and
+/// vdb-rs allocate from, so a corrupt one must be caught here.
+fn walk_tree<R: Read + Seek>(
+    g: &mut Src<R>,
+    flags: u32,
+    half: bool,
+    root: &RootInfo,
+    block_pos: u64,
+    end_pos: u64,
+) -> Result<(), String> {
+    // Topology must end at the block offset.
+    g.len = block_pos;
+    let mut leaves: u64 = 0;
+    for _ in 0..root.child_count {
+        g.skip(12, "internal node origin")?;
+        let (children5, active5) = read_masks(g, 32768, "internal node (level 2)")?;
+        skip_values(g, flags, half, 32768, active5)?;
+        for _ in 0..children5 {
+            let (children4, active4) = read_masks(g, 4096, "internal node (level 1)")?;
+            skip_values(g, flags, half, 4096, active4)?;
+            // Leaf topology: just the value mask.
+            g.skip(children4 * 64, "leaf masks")?;
+            leaves += children4;
+        }
+    }
+    if g.pos != block_pos {
+        return Err(format!(
+            "corrupt: tree topology ends at offset {} but the grid's blocks start at {block_pos}",
+            g.pos
+        ));
+    }
+    g.len = end_pos;
+    for _ in 0..leaves {
+        let mask = g.bytes(64, "leaf value mask")?;
+        let active: u64 = mask.iter().map(|b| b.count_ones() as u64).sum();
+        skip_values(g, flags, half, 512, active)?;
+    }
+    Ok(())
+}
+
+/// Reads a child mask and a value mask of `bits` bits; returns their popcounts.
+fn read_masks<R: Read + Seek>(g: &mut Src<R>, bits: u64, what: &str) -> Result<(u64, u64), String> {
+    let child = g.bytes(bits / 8, what)?;
+    let value = g.bytes(bits / 8, what)?;
+    let ones = |m: &[u8]| m.iter().map(|b| b.count_ones() as u64).sum::<u64>();
+    Ok((ones(&child), ones(&value)))
+}
+
+/// Skips one `io::writeCompressedValues` record of `num` values (`active` of them
+/// active), checking its sizes.
+fn skip_values<R: Read + Seek>(
+    g: &mut Src<R>,
+    flags: u32,
+    half: bool,
+    num: u64,
+    active: u64,
+) -> Result<(), String> {
+    let metadata = g.u8("node metadata")?;
+    if metadata > 6 {
+        return Err(format!(
+            "corrupt: node metadata {metadata} at offset {}",
+            g.pos - 1
+        ));
+    }
+    // Inactive values are stored at full precision.
+    match metadata {
+        2 | 4 => g.skip(4, "inactive value")?,
+        5 => g.skip(8, "inactive values")?,
+        _ => {}
+    }
+    if matches!(metadata, 3..=5) {
+        g.skip(num / 8, "selection mask")?;
+    }
+    let count = if flags & COMPRESS_ACTIVE_MASK != 0 && metadata != 6 {
+        active
+    } else {
+        num
+    };
+    // OpenVDB's HalfReader/HalfWriter skip empty arrays entirely (no size field);
+    // full-precision arrays always get one. vdb-rs misses this, one reason it fails
+    // on half-float files.
+    if half && count == 0 {
+        return Ok(());
+    }
+    let bytes = count * if half { 2 } else { 4 };
+    if flags & (COMPRESS_BLOSC | COMPRESS_ZIP) != 0 {
+        let stored = g.i64("compressed size")?;
+        if stored <= 0 {
+            // Stored uncompressed.
+            if stored.unsigned_abs() != bytes {
+                return Err(format!(
+                    "corrupt: uncompressed chunk of {} bytes at offset {} where {bytes} were expected",
+                    stored.unsigned_abs(),
+                    g.pos - 8
+                ));
+            }
+            g.skip(bytes, "values")?;
+        } else {
+            g.skip(stored as u64, "compressed values")?;
+        }
+    } else {
+        g.skip(bytes, "values")?;
+    }
+    Ok(())
 }

@@ -14,7 +14,11 @@ use std::io::{Read, Seek};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
 /// Maps vdb-rs reads without panicking (see `VdbReader::read_transform`).
-const SUPPORTED_MAPS: [&str; 3] = ["UniformScaleMap", "UniformScaleTranslateMap", "ScaleTranslateMap"];
+const SUPPORTED_MAPS: [&str; 3] = [
+    "UniformScaleMap",
+    "UniformScaleTranslateMap",
+    "ScaleTranslateMap",
+];
 /// vdb-rs hits `todo!()` before 216 and mis-indexes internal-node values before 222.
 const MIN_VERSION: u32 = 222;
 
@@ -24,9 +28,15 @@ pub(crate) fn unsupported_reason(info: &FileInfo, desc: &GridDesc) -> Option<Str
     let why = if desc.half_float {
         format!("grid {:?} stores half floats", desc.name)
     } else if !desc.instance_parent.is_empty() {
-        format!("grid {:?} is an instance of grid {:?}", desc.name, desc.instance_parent)
+        format!(
+            "grid {:?} is an instance of grid {:?}",
+            desc.name, desc.instance_parent
+        )
     } else if info.file_version < MIN_VERSION {
-        format!("file format version {} is older than {MIN_VERSION}", info.file_version)
+        format!(
+            "file format version {} is older than {MIN_VERSION}",
+            info.file_version
+        )
     } else if !SUPPORTED_MAPS.contains(&desc.map_type.as_str()) {
         format!("grid {:?} has a {} transform", desc.name, desc.map_type)
     } else if desc.root.is_none() {
@@ -53,8 +63,7 @@ pub(crate) fn read_float_grid<R: Read + Seek>(
         return Err("internal error: grid header was not parsed".into());
     };
     let result = catch_unwind(AssertUnwindSafe(|| -> Result<RawGrid, String> {
-        let mut reader =
-            vdb_rs::VdbReader::new(source).map_err(|e| format!("vdb-rs: {e}"))?;
+        let mut reader = vdb_rs::VdbReader::new(source).map_err(|e| format!("vdb-rs: {e}"))?;
         let grid = reader
             .read_grid::<f32>(&desc.unique_name)
             .map_err(|e| format!("vdb-rs: {e}"))?;
@@ -89,7 +98,12 @@ fn convert(tree: &vdb_rs::Tree<f32>, background: f32) -> Result<RawGrid, String>
     let mut tile = |origin: [i32; 3], dim: i32, value: f32, active: bool| {
         // Same rule as the C++ bridge: inactive background tiles carry nothing.
         if active || value != background {
-            tiles.push(RawTile { origin, dim, value, active });
+            tiles.push(RawTile {
+                origin,
+                dim,
+                value,
+                active,
+            });
         }
     };
     for n5 in &tree.root_nodes {
@@ -101,7 +115,10 @@ fn convert(tree: &vdb_rs::Tree<f32>, background: f32) -> Result<RawGrid, String>
             tile([o.x, o.y, o.z], 128, n5.data[idx], n5.value_mask[idx]);
         }
         for idx in n5.child_mask.iter_ones() {
-            let n4 = n5.nodes.get(&(idx as u32)).ok_or("vdb-rs lost an internal node")?;
+            let n4 = n5
+                .nodes
+                .get(&(idx as u32))
+                .ok_or("vdb-rs lost an internal node")?;
             if n4.data.len() != 4096 || n4.child_mask.len() != 4096 {
                 return Err("vdb-rs returned a malformed internal node".into());
             }

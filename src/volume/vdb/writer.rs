@@ -32,7 +32,10 @@ pub fn write_float_grid(path: &Path, grid: &RawGrid) -> Result<(), VdbError> {
 
 /// The bytes of a single-grid VDB file holding `grid`.
 pub fn write_float_grid_bytes(grid: &RawGrid) -> Result<Vec<u8>, VdbError> {
-    encode(grid).map_err(|message| VdbError::Write { file: format!("<grid {:?}>", grid.name), message })
+    encode(grid).map_err(|message| VdbError::Write {
+        file: format!("<grid {:?}>", grid.name),
+        message,
+    })
 }
 
 /// An internal node's entry that is not a child: a tile.
@@ -79,10 +82,16 @@ fn build_tree(grid: &RawGrid) -> Result<Root, String> {
     let mut root = Root::default();
     for (i, leaf) in grid.leaves.iter().enumerate() {
         if leaf.origin.iter().any(|v| v & 7 != 0) {
-            return Err(format!("leaf {i} origin {:?} is not a multiple of 8", leaf.origin));
+            return Err(format!(
+                "leaf {i} origin {:?} is not a multiple of 8",
+                leaf.origin
+            ));
         }
         if leaf.values.len() != BRICK_VOXELS {
-            return Err(format!("leaf {i} has {} values, expected {BRICK_VOXELS}", leaf.values.len()));
+            return Err(format!(
+                "leaf {i} has {} values, expected {BRICK_VOXELS}",
+                leaf.values.len()
+            ));
         }
         let n4 = root
             .children
@@ -96,15 +105,31 @@ fn build_tree(grid: &RawGrid) -> Result<Root, String> {
         }
     }
     for t in &grid.tiles {
-        let bad_origin = || format!("tile at {:?} is not aligned to its size {}", t.origin, t.dim);
+        let bad_origin = || {
+            format!(
+                "tile at {:?} is not aligned to its size {}",
+                t.origin, t.dim
+            )
+        };
         if !matches!(t.dim, 8 | 128 | 4096) {
-            return Err(format!("tile at {:?} has size {}; OpenVDB tiles are 8, 128 or 4096", t.origin, t.dim));
+            return Err(format!(
+                "tile at {:?} has size {}; OpenVDB tiles are 8, 128 or 4096",
+                t.origin, t.dim
+            ));
         }
         if t.origin.iter().any(|v| v & (t.dim - 1) != 0) {
             return Err(bad_origin());
         }
-        let tile = Tile { value: t.value, active: t.active };
-        let clash = || format!("tile at {:?} (size {}) overlaps other data", t.origin, t.dim);
+        let tile = Tile {
+            value: t.value,
+            active: t.active,
+        };
+        let clash = || {
+            format!(
+                "tile at {:?} (size {}) overlaps other data",
+                t.origin, t.dim
+            )
+        };
         match t.dim {
             4096 => {
                 let k = key5(t.origin);
@@ -198,7 +223,10 @@ impl Out {
     }
     fn mask(&mut self, bits: &[bool]) {
         for chunk in bits.chunks(64) {
-            let w = chunk.iter().enumerate().fold(0u64, |w, (i, &b)| w | ((b as u64) << i));
+            let w = chunk
+                .iter()
+                .enumerate()
+                .fold(0u64, |w, (i, &b)| w | ((b as u64) << i));
             self.0.extend_from_slice(&w.to_le_bytes());
         }
     }
@@ -229,14 +257,26 @@ impl Out {
 
 /// One internal node's masks and values (`InternalNode::writeTopology`): child mask,
 /// value mask, then the metadata byte and every value (zero under children).
-fn write_internal(out: &mut Out, size: usize, child: impl Fn(u32) -> bool, tile: impl Fn(u32) -> Option<Tile>, bg: f32) {
+fn write_internal(
+    out: &mut Out,
+    size: usize,
+    child: impl Fn(u32) -> bool,
+    tile: impl Fn(u32) -> Option<Tile>,
+    bg: f32,
+) {
     let child_bits: Vec<bool> = (0..size as u32).map(&child).collect();
-    let value_bits: Vec<bool> = (0..size as u32).map(|i| tile(i).is_some_and(|t| t.active)).collect();
+    let value_bits: Vec<bool> = (0..size as u32)
+        .map(|i| tile(i).is_some_and(|t| t.active))
+        .collect();
     out.mask(&child_bits);
     out.mask(&value_bits);
     out.u8(NO_MASK_AND_ALL_VALS);
     for i in 0..size as u32 {
-        let v = if child_bits[i as usize] { 0.0 } else { tile(i).map_or(bg, |t| t.value) };
+        let v = if child_bits[i as usize] {
+            0.0
+        } else {
+            tile(i).map_or(bg, |t| t.value)
+        };
         out.f32(v);
     }
 }
@@ -253,9 +293,23 @@ fn encode(grid: &RawGrid) -> Result<Vec<u8>, String> {
     out.u32(LIBRARY_VERSION.0);
     out.u32(LIBRARY_VERSION.1);
     out.u8(1); // has grid offsets
-    // A UUID derived from the content, so identical grids give identical files.
-    let h = format!("{:016x}{:016x}", grid.checksum(), grid.leaves.len() as u64 ^ 0x4e494d4255530000);
-    out.0.extend_from_slice(format!("{}-{}-4{}-8{}-{}", &h[0..8], &h[8..12], &h[13..16], &h[17..20], &h[20..32]).as_bytes());
+               // A UUID derived from the content, so identical grids give identical files.
+    let h = format!(
+        "{:016x}{:016x}",
+        grid.checksum(),
+        grid.leaves.len() as u64 ^ 0x4e494d4255530000
+    );
+    out.0.extend_from_slice(
+        format!(
+            "{}-{}-4{}-8{}-{}",
+            &h[0..8],
+            &h[8..12],
+            &h[13..16],
+            &h[17..20],
+            &h[20..32]
+        )
+        .as_bytes(),
+    );
     out.u32(0); // file metadata entries
     out.i32(1); // grid count
 
@@ -271,10 +325,19 @@ fn encode(grid: &RawGrid) -> Result<Vec<u8>, String> {
     let grid_pos = out.0.len();
     out.u32(0); // compression: none
     let bounds = grid.active_index_bounds();
-    let class = if grid.class.is_empty() { "unknown" } else { grid.class.as_str() };
-    out.u32(if bounds.is_some() { 5 } else { 3 });
+    let class = if grid.class.is_empty() {
+        "unknown"
+    } else {
+        grid.class.as_str()
+    };
+    out.u32(if bounds.is_some() { 6 } else { 4 });
     out.meta_string("class", class);
-    out.meta_i64("file_voxel_count", grid.active_voxel_count().min(i64::MAX as u64) as i64);
+    // OpenVDB only names grids read via readAllGridMetadata from this entry.
+    out.meta_string("name", &grid.name);
+    out.meta_i64(
+        "file_voxel_count",
+        grid.active_voxel_count().min(i64::MAX as u64) as i64,
+    );
     out.meta_bool("is_saved_as_half_float", false);
     if let Some((lo, hi)) = bounds {
         out.meta_vec3i("file_bbox_min", lo);
@@ -283,7 +346,11 @@ fn encode(grid: &RawGrid) -> Result<Vec<u8>, String> {
     // Transform (`ScaleTranslateMap::write`): translation, scale, voxel size, inverse
     // scale, inverse squared scale, inverse twice scale.
     let uniform = scale.x == scale.y && scale.y == scale.z;
-    out.string(if uniform { "UniformScaleTranslateMap" } else { "ScaleTranslateMap" });
+    out.string(if uniform {
+        "UniformScaleTranslateMap"
+    } else {
+        "ScaleTranslateMap"
+    });
     out.dvec3(translation);
     out.dvec3(scale);
     out.dvec3(scale);
@@ -303,11 +370,24 @@ fn encode(grid: &RawGrid) -> Result<Vec<u8>, String> {
     }
     for (k, n5) in &root.children {
         out.coord([k.0, k.1, k.2]);
-        write_internal(&mut out, 32768, |i| n5.children.contains_key(&i), |i| n5.tiles.get(&i).copied(), bg);
+        write_internal(
+            &mut out,
+            32768,
+            |i| n5.children.contains_key(&i),
+            |i| n5.tiles.get(&i).copied(),
+            bg,
+        );
         for n4 in n5.children.values() {
-            write_internal(&mut out, 4096, |i| n4.leaves.contains_key(&i), |i| n4.tiles.get(&i).copied(), bg);
+            write_internal(
+                &mut out,
+                4096,
+                |i| n4.leaves.contains_key(&i),
+                |i| n4.tiles.get(&i).copied(),
+                bg,
+            );
             for &l in n4.leaves.values() {
-                out.0.extend(grid.leaves[l].active.iter().flat_map(|w| w.to_le_bytes()));
+                out.0
+                    .extend(grid.leaves[l].active.iter().flat_map(|w| w.to_le_bytes()));
             }
         }
     }
@@ -318,7 +398,8 @@ fn encode(grid: &RawGrid) -> Result<Vec<u8>, String> {
         for n4 in n5.children.values() {
             for &l in n4.leaves.values() {
                 let leaf = &grid.leaves[l];
-                out.0.extend(leaf.active.iter().flat_map(|w| w.to_le_bytes()));
+                out.0
+                    .extend(leaf.active.iter().flat_map(|w| w.to_le_bytes()));
                 out.u8(NO_MASK_AND_ALL_VALS);
                 leaf.values.iter().for_each(|&v| out.f32(v));
             }
