@@ -632,3 +632,66 @@ fn corrupted_bytes_never_crash() {
     }
     println!("corrupted files: {ok} read, {err} rejected");
 }
+
+/// Replaces the writer's ScaleTranslateMap with an AffineMap holding a rotation, as
+/// OpenVDB would write it (row-vector matrix, row-major), and fixes the offsets.
+fn with_affine_map(bytes: &[u8], column_vector: DMat4) -> Vec<u8> {
+    let name = b"UniformScaleTranslateMap";
+    let at = bytes.windows(name.len()).position(|w| w == name).unwrap() - 4;
+    let old_len = 4 + name.len() + 6 * 24;
+    let mut map = Vec::new();
+    map.extend_from_slice(&9u32.to_le_bytes());
+    map.extend_from_slice(b"AffineMap");
+    // Row-major storage of the row-vector matrix = column-major storage of ours.
+    for v in column_vector.to_cols_array() {
+        map.extend_from_slice(&v.to_le_bytes());
+    }
+    let delta = map.len() as i64 - old_len as i64;
+    let mut out = bytes[..at].to_vec();
+    out.extend_from_slice(&map);
+    out.extend_from_slice(&bytes[at + old_len..]);
+    // Block and end offsets follow the grid offset in the single descriptor.
+    let desc = 8 + 4 + 8 + 1 + 36 + 4 + 4;
+    let offsets = desc + 4 + "density".len() + 4 + "Tree_float_5_4_3".len() + 4;
+    for k in 1..3 {
+        let p = offsets + 8 * k;
+        let v = i64::from_le_bytes(out[p..p + 8].try_into().unwrap()) + delta;
+        out[p..p + 8].copy_from_slice(&v.to_le_bytes());
+    }
+    out
+}
+
+#[test]
+fn affine_transform_openvdb_reads_vdbrs_refuses() {
+    let grid = noisy_sphere([0, 0, 0], 9, DMat4::IDENTITY);
+    let affine = DMat4::from_translation(DVec3::new(1.0, 2.0, 3.0))
+        * DMat4::from_rotation_z(0.5)
+        * DMat4::from_scale(DVec3::new(0.1, 0.2, 0.3));
+    let bytes = with_affine_map(&write_float_grid_bytes(&grid).unwrap(), affine);
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("affine.vdb");
+    std::fs::write(&p, &bytes).unwrap();
+    let loc = AssetLocation::File(p);
+    let e = read_float_grid_with(Reader::VdbRs, &loc, "density", None).unwrap_err();
+    assert!(matches!(e, VdbError::Unsupported { .. }), "{e}");
+    let e = e.to_string();
+    assert!(
+        e.contains("affine.vdb") && e.contains("AffineMap") && e.contains("libopenvdb-dev"),
+        "{e}"
+    );
+    if Reader::OpenVdb.available() {
+        let got = read_float_grid_with(Reader::OpenVdb, &loc, "density", None).unwrap();
+        assert_eq!(got.checksum(), grid.checksum());
+        // The bridge converts OpenVDB's row-vector matrix to our column-vector one.
+        assert!(
+            got.index_to_world.abs_diff_eq(affine, 1e-12),
+            "{:?}",
+            got.index_to_world
+        );
+        let w = got
+            .index_to_world
+            .transform_point3(DVec3::new(10.0, 0.0, 0.0));
+        let want = DVec3::new(1.0 + 0.5f64.cos(), 2.0 + 0.5f64.sin(), 3.0);
+        assert!(w.abs_diff_eq(want, 1e-12), "{w:?}");
+    }
+}
