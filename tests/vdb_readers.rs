@@ -544,6 +544,14 @@ fn wrong_grid_name_lists_available_grids() {
             .to_string();
         assert!(e.contains("index -1"), "{e}");
     }
+    if !Reader::OpenVdb.available() {
+        let e = read_float_grid_with(Reader::OpenVdb, &loc, "density", None).unwrap_err();
+        assert!(matches!(e, VdbError::Unsupported { .. }));
+        assert!(e.to_string().contains("libopenvdb-dev"), "{e}");
+        assert_eq!(active_reader(), Reader::VdbRs);
+    } else {
+        assert_eq!(active_reader(), Reader::OpenVdb);
+    }
     // The default reader finds it by name.
     assert!(read_float_grid(&loc, "density", None).is_ok());
     println!("default reader: {}", active_reader().name());

@@ -44,7 +44,7 @@ pub(crate) mod ffi {
 /// Converts the bridge's buffers; `Err` carries a description of an inconsistent shape.
 pub(crate) fn to_raw_grid(d: ffi::FloatGridData) -> Result<RawGrid, String> {
     let leaf_count = d.leaf_origins.len() / 3;
-    if d.leaf_origins.len() % 3 != 0
+    if !d.leaf_origins.len().is_multiple_of(3)
         || d.leaf_values.len() != leaf_count * BRICK_VOXELS
         || d.leaf_masks.len() != leaf_count * 8
     {

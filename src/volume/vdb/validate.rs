@@ -96,6 +96,7 @@ impl GridDesc {
         }
     }
     /// The name OpenVDB's `File::readGrid` resolves to this grid: `name` or `name[N]`.
+    #[cfg_attr(not(nimbus_openvdb), allow(dead_code))]
     pub fn openvdb_lookup_name(&self) -> String {
         match self.unique_name.split_once(UNIQUE_SEP) {
             Some((base, idx)) => format!("{base}[{idx}]"),
