@@ -9,7 +9,7 @@ use nimbus::scene::AssetLocation;
 use nimbus::volume::grid::{RawGrid, RawLeaf, RawTile};
 use nimbus::volume::vdb::{
     active_reader, list_grids, list_grids_with, read_float_grid, read_float_grid_with,
-    write_float_grid, write_float_grid_bytes, Reader, VdbError,
+    write_float_grid, write_float_grid_bytes, write_float_grids, Reader, VdbError,
 };
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -641,19 +641,16 @@ fn corrupted_bytes_never_crash() {
     println!("corrupted files: {ok} read, {err} rejected");
 }
 
-/// Replaces the writer's ScaleTranslateMap with an AffineMap holding a rotation, as
-/// OpenVDB would write it (row-vector matrix, row-major), and fixes the offsets.
-fn with_affine_map(bytes: &[u8], column_vector: DMat4) -> Vec<u8> {
-    let name = b"UniformScaleTranslateMap";
-    let at = bytes.windows(name.len()).position(|w| w == name).unwrap() - 4;
-    let old_len = 4 + name.len() + 6 * 24;
+/// Replaces the writer's ScaleTranslateMap with map `name` and raw `payload`, fixing
+/// the descriptor offsets (single-grid files only).
+fn with_map(bytes: &[u8], name: &str, payload: &[u8]) -> Vec<u8> {
+    let old = b"UniformScaleTranslateMap";
+    let at = bytes.windows(old.len()).position(|w| w == old).unwrap() - 4;
+    let old_len = 4 + old.len() + 6 * 24;
     let mut map = Vec::new();
-    map.extend_from_slice(&9u32.to_le_bytes());
-    map.extend_from_slice(b"AffineMap");
-    // Row-major storage of the row-vector matrix = column-major storage of ours.
-    for v in column_vector.to_cols_array() {
-        map.extend_from_slice(&v.to_le_bytes());
-    }
+    map.extend_from_slice(&(name.len() as u32).to_le_bytes());
+    map.extend_from_slice(name.as_bytes());
+    map.extend_from_slice(payload);
     let delta = map.len() as i64 - old_len as i64;
     let mut out = bytes[..at].to_vec();
     out.extend_from_slice(&map);
@@ -667,6 +664,40 @@ fn with_affine_map(bytes: &[u8], column_vector: DMat4) -> Vec<u8> {
         out[p..p + 8].copy_from_slice(&v.to_le_bytes());
     }
     out
+}
+
+/// An AffineMap as OpenVDB writes it: the row-vector matrix, row-major, which is
+/// the column-major storage of our column-vector matrix.
+fn with_affine_map(bytes: &[u8], column_vector: DMat4) -> Vec<u8> {
+    let payload: Vec<u8> = column_vector
+        .to_cols_array()
+        .iter()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    with_map(bytes, "AffineMap", &payload)
+}
+
+#[test]
+fn frustum_transform_is_refused_by_both() {
+    let grid = noisy_sphere([0, 0, 0], 9, DMat4::IDENTITY);
+    let bytes = with_map(
+        &write_float_grid_bytes(&grid).unwrap(),
+        "NonlinearFrustumMap",
+        &[0u8; 200],
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("frustum.vdb");
+    std::fs::write(&p, &bytes).unwrap();
+    let loc = AssetLocation::File(p);
+    for reader in readers() {
+        let e = read_float_grid_with(reader, &loc, "density", None).unwrap_err();
+        assert!(matches!(e, VdbError::Unsupported { .. }), "{e}");
+        let e = e.to_string();
+        assert!(
+            e.contains("frustum.vdb") && e.contains("NonlinearFrustumMap transform"),
+            "{e}"
+        );
+    }
 }
 
 #[test]
@@ -701,5 +732,61 @@ fn affine_transform_openvdb_reads_vdbrs_refuses() {
             .transform_point3(DVec3::new(10.0, 0.0, 0.0));
         let want = DVec3::new(1.0 + 0.5f64.cos(), 2.0 + 0.5f64.sin(), 3.0);
         assert!(w.abs_diff_eq(want, 1e-12), "{w:?}");
+    }
+}
+
+#[test]
+fn multi_grid_file_with_duplicate_names() {
+    let m = scale_translate(DVec3::splat(0.25), DVec3::new(-1.0, 0.0, 1.0));
+    let a = noisy_sphere([0, 0, 0], 6, m);
+    let mut b = noisy_sphere([30, 0, 0], 8, m);
+    b.name = "temperature".into();
+    let mut c = noisy_sphere([-20, 10, 0], 7, m);
+    c.class = "unknown".into();
+    let mut empty = noisy_sphere([0, 0, 0], 3, m);
+    empty.leaves.clear();
+    empty.tiles.clear();
+    empty.name = "empty".into();
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("multi.vdb");
+    write_float_grids(&p, &[a.clone(), b.clone(), c.clone(), empty.clone()]).unwrap();
+    let loc = AssetLocation::File(p);
+    let names: Vec<String> = list_grids(&loc)
+        .unwrap()
+        .into_iter()
+        .map(|g| g.name)
+        .collect();
+    assert_eq!(names, ["density", "temperature", "density", "empty"]);
+    for reader in readers() {
+        let who = reader.name();
+        let get = |name: &str, index: Option<i32>| {
+            read_float_grid_with(reader, &loc, name, index).unwrap_or_else(|e| panic!("{who}: {e}"))
+        };
+        assert_same_grid(&a, &get("density", None), who);
+        assert_same_grid(&a, &get("density", Some(0)), who);
+        assert_same_grid(&c, &get("density", Some(1)), who);
+        assert_same_grid(&b, &get("temperature", None), who);
+        assert_same_grid(&c, &get("", Some(2)), who);
+        let e = get("empty", None);
+        assert_eq!(
+            (e.leaves.len(), e.tiles.len(), e.active_voxel_count()),
+            (0, 0, 0)
+        );
+        let err = read_float_grid_with(reader, &loc, "density", Some(2))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("index 2 (of 2)") && err.contains("\"temperature\""),
+            "{err}"
+        );
+    }
+    if Reader::OpenVdb.available() {
+        let mut ov: Vec<String> = list_grids_with(Reader::OpenVdb, &loc)
+            .unwrap()
+            .into_iter()
+            .map(|g| g.name)
+            .collect();
+        ov.sort();
+        assert_eq!(ov, ["density", "density", "empty", "temperature"]);
     }
 }

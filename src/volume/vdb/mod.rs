@@ -12,7 +12,9 @@ mod validate;
 mod vdbrs;
 mod writer;
 
-pub use writer::{write_float_grid, write_float_grid_bytes};
+pub use writer::{
+    write_float_grid, write_float_grid_bytes, write_float_grids, write_float_grids_bytes,
+};
 
 use crate::scene::AssetLocation;
 use crate::volume::grid::RawGrid;
@@ -165,6 +167,23 @@ pub fn read_float_grid_with(
             grid: desc.name.clone(),
             found: desc.value_type_label(),
         });
+    }
+    // Only grids whose transform and tree validation understood reach a reader: a
+    // frustum (or unknown) map would leave the tree unchecked, and Nimbus cannot use
+    // non-linear maps anyway.
+    if desc.index_to_world.is_none() {
+        let message = if desc.map_type.is_empty() {
+            format!(
+                "grid {:?}: file format version {} predates the transform layout Nimbus reads (219)",
+                desc.name, info.file_version
+            )
+        } else {
+            format!(
+                "grid {:?} has a {} transform; only linear (affine) index-to-world transforms are supported",
+                desc.name, desc.map_type
+            )
+        };
+        return Err(VdbError::Unsupported { file, message });
     }
     match reader {
         Reader::VdbRs => {

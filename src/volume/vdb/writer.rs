@@ -20,7 +20,18 @@ const NO_MASK_AND_ALL_VALS: u8 = 6;
 
 /// Writes `grid` to `path` as a single-grid VDB file.
 pub fn write_float_grid(path: &Path, grid: &RawGrid) -> Result<(), VdbError> {
-    let bytes = encode(grid).map_err(|message| VdbError::Write {
+    write_float_grids(path, std::slice::from_ref(grid))
+}
+
+/// The bytes of a single-grid VDB file holding `grid`.
+pub fn write_float_grid_bytes(grid: &RawGrid) -> Result<Vec<u8>, VdbError> {
+    write_float_grids_bytes(std::slice::from_ref(grid))
+}
+
+/// Writes several float grids (in this order) to one VDB file at `path`. Grids may
+/// share a name; readers tell them apart by index (USD `fieldIndex`).
+pub fn write_float_grids(path: &Path, grids: &[RawGrid]) -> Result<(), VdbError> {
+    let bytes = encode(grids).map_err(|message| VdbError::Write {
         file: path.display().to_string(),
         message,
     })?;
@@ -30,10 +41,10 @@ pub fn write_float_grid(path: &Path, grid: &RawGrid) -> Result<(), VdbError> {
     })
 }
 
-/// The bytes of a single-grid VDB file holding `grid`.
-pub fn write_float_grid_bytes(grid: &RawGrid) -> Result<Vec<u8>, VdbError> {
-    encode(grid).map_err(|message| VdbError::Write {
-        file: format!("<grid {:?}>", grid.name),
+/// The bytes of a VDB file holding `grids`, as [`write_float_grids`] writes them.
+pub fn write_float_grids_bytes(grids: &[RawGrid]) -> Result<Vec<u8>, VdbError> {
+    encode(grids).map_err(|message| VdbError::Write {
+        file: "<in-memory VDB>".into(),
         message,
     })
 }
@@ -281,10 +292,10 @@ fn write_internal(
     }
 }
 
-fn encode(grid: &RawGrid) -> Result<Vec<u8>, String> {
-    let root = build_tree(grid)?;
-    let (scale, translation) = scale_translate(&grid.index_to_world)?;
-    let bg = grid.background;
+fn encode(grids: &[RawGrid]) -> Result<Vec<u8>, String> {
+    if grids.is_empty() {
+        return Err("no grids to write".into());
+    }
     let mut out = Out::default();
 
     // Archive header.
@@ -294,27 +305,48 @@ fn encode(grid: &RawGrid) -> Result<Vec<u8>, String> {
     out.u32(LIBRARY_VERSION.1);
     out.u8(1); // has grid offsets
                // A UUID derived from the content, so identical grids give identical files.
-    let h = format!(
-        "{:016x}{:016x}",
-        grid.checksum(),
-        grid.leaves.len() as u64 ^ 0x4e494d4255530000
+    let sum = grids
+        .iter()
+        .fold(0u64, |a, g| a.rotate_left(7) ^ g.checksum());
+    let count = grids.iter().map(|g| g.leaves.len() as u64).sum::<u64>();
+    let h = format!("{sum:016x}{:016x}", count ^ 0x4e49_4d42_5553_0000);
+    let uuid = format!(
+        "{}-{}-4{}-8{}-{}",
+        &h[0..8],
+        &h[8..12],
+        &h[13..16],
+        &h[17..20],
+        &h[20..32]
     );
-    out.0.extend_from_slice(
-        format!(
-            "{}-{}-4{}-8{}-{}",
-            &h[0..8],
-            &h[8..12],
-            &h[13..16],
-            &h[17..20],
-            &h[20..32]
-        )
-        .as_bytes(),
-    );
+    out.0.extend_from_slice(uuid.as_bytes());
     out.u32(0); // file metadata entries
-    out.i32(1); // grid count
+    out.i32(i32::try_from(grids.len()).map_err(|_| "too many grids")?);
+
+    let mut seen: Vec<&str> = Vec::new();
+    for (i, grid) in grids.iter().enumerate() {
+        // Duplicate names get OpenVDB's "name\x1eN" suffix (N = 1, 2, ... in file
+        // order), which is how OpenVDB itself keeps descriptor names unique.
+        let dup = seen.iter().filter(|n| **n == grid.name).count();
+        seen.push(&grid.name);
+        let unique = if dup == 0 {
+            grid.name.clone()
+        } else {
+            format!("{}\u{1e}{dup}", grid.name)
+        };
+        encode_grid(&mut out, grid, &unique)
+            .map_err(|e| format!("grid {i} ({:?}): {e}", grid.name))?;
+    }
+    Ok(out.0)
+}
+
+/// Appends one grid: descriptor, then metadata, transform, topology and buffers.
+fn encode_grid(out: &mut Out, grid: &RawGrid, unique_name: &str) -> Result<(), String> {
+    let root = build_tree(grid)?;
+    let (scale, translation) = scale_translate(&grid.index_to_world)?;
+    let bg = grid.background;
 
     // Grid descriptor; the three offsets are patched once known.
-    out.string(&grid.name);
+    out.string(unique_name);
     out.string("Tree_float_5_4_3");
     out.string(""); // instance parent
     let offsets_at = out.0.len();
@@ -371,7 +403,7 @@ fn encode(grid: &RawGrid) -> Result<Vec<u8>, String> {
     for (k, n5) in &root.children {
         out.coord([k.0, k.1, k.2]);
         write_internal(
-            &mut out,
+            out,
             32768,
             |i| n5.children.contains_key(&i),
             |i| n5.tiles.get(&i).copied(),
@@ -379,7 +411,7 @@ fn encode(grid: &RawGrid) -> Result<Vec<u8>, String> {
         );
         for n4 in n5.children.values() {
             write_internal(
-                &mut out,
+                out,
                 4096,
                 |i| n4.leaves.contains_key(&i),
                 |i| n4.tiles.get(&i).copied(),
@@ -410,5 +442,5 @@ fn encode(grid: &RawGrid) -> Result<Vec<u8>, String> {
         let at = offsets_at + 8 * i;
         out.0[at..at + 8].copy_from_slice(&(pos as i64).to_le_bytes());
     }
-    Ok(out.0)
+    Ok(())
 }
