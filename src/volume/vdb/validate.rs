@@ -595,6 +595,26 @@ fn skip_values<R: Read + Seek>(
                 ));
             }
             g.skip(bytes, "values")?;
+        } else if flags & COMPRESS_BLOSC != 0 {
+            // Readers size their output from the blosc header (vdb-rs allocates
+            // whatever it claims), so it must describe exactly this chunk.
+            let stored = stored as u64;
+            let header = g.bytes(16.min(stored), "blosc header")?;
+            let field = |i: usize| {
+                header
+                    .get(i..i + 4)
+                    .and_then(|b| b.try_into().ok())
+                    .map(u32::from_le_bytes)
+            };
+            let (nbytes, cbytes) = (field(4), field(12));
+            if nbytes != Some(bytes as u32) || cbytes != Some(stored as u32) {
+                return Err(format!(
+                    "corrupt: blosc chunk at offset {} declares {nbytes:?} bytes ({cbytes:?} compressed); \
+                     expected {bytes} ({stored} compressed)",
+                    g.pos - header.len() as u64
+                ));
+            }
+            g.skip(stored - header.len() as u64, "compressed values")?;
         } else {
             g.skip(stored as u64, "compressed values")?;
         }
