@@ -95,15 +95,21 @@ pub enum VdbError {
 }
 
 fn list_or_none(names: &[String]) -> String {
+    // A file may hold thousands of grids; keep the message readable.
+    const SHOWN: usize = 20;
     if names.is_empty() {
-        "(none)".into()
-    } else {
-        names
-            .iter()
-            .map(|n| format!("{n:?}"))
-            .collect::<Vec<_>>()
-            .join(", ")
+        return "(none)".into();
     }
+    let mut list = names
+        .iter()
+        .take(SHOWN)
+        .map(|n| format!("{n:?}"))
+        .collect::<Vec<_>>()
+        .join(", ");
+    if names.len() > SHOWN {
+        list += &format!(" and {} more", names.len() - SHOWN);
+    }
+    list
 }
 
 /// The reader this build uses by default.
@@ -245,12 +251,14 @@ fn select<'a>(
     index: Option<i32>,
 ) -> Result<&'a GridDesc, VdbError> {
     let not_found = |wanted: String| {
-        let mut available: Vec<String> = Vec::new();
-        for g in &info.grids {
-            if !available.contains(&g.name) {
-                available.push(g.name.clone());
-            }
-        }
+        // Distinct names in file order.
+        let mut seen = std::collections::HashSet::new();
+        let available: Vec<String> = info
+            .grids
+            .iter()
+            .filter(|g| seen.insert(g.name.as_str()))
+            .map(|g| g.name.clone())
+            .collect();
         VdbError::GridNotFound {
             file: file.to_string(),
             wanted,

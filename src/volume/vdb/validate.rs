@@ -28,6 +28,8 @@ const V_NODE_MASK_COMPRESSION: u32 = 222;
 
 /// Caps on header fields. Real files are far below them; corrupt ones are far above.
 const MAX_NAME_LEN: u64 = 64 * 1024;
+/// Grid names end up in error messages, so they get a tighter cap.
+const MAX_GRID_NAME_LEN: u64 = 1024;
 const MAX_TYPE_NAME_LEN: u64 = 1024;
 const MAX_GRIDS: u64 = 100_000;
 const MAX_METADATA_ENTRIES: u64 = 100_000;
@@ -357,10 +359,10 @@ pub(crate) fn validate<R: Read + Seek>(r: &mut R, len: u64) -> Result<FileInfo, 
     let mut grids = Vec::with_capacity(grid_count as usize);
     for i in 0..grid_count {
         let desc_start = s.pos;
-        let unique_name = s.string(MAX_NAME_LEN, "grid name")?;
+        let unique_name = s.string(MAX_GRID_NAME_LEN, "grid name")?;
         let raw_type = s.string(MAX_TYPE_NAME_LEN, "grid type")?;
         let instance_parent = if file_version >= V_GRID_INSTANCING {
-            s.string(MAX_NAME_LEN, "grid instance parent")?
+            s.string(MAX_GRID_NAME_LEN, "grid instance parent")?
         } else {
             String::new()
         };
