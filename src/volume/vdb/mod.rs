@@ -1,10 +1,25 @@
 //! OpenVDB file reading: validation first, then either the C++ OpenVDB bridge
 //! (preferred) or the pure-Rust `vdb-rs` fallback. Both produce a [`RawGrid`].
 //!
-//! STUB (to be implemented): see the interface below.
+//! Every file is first parsed by [`validate`] in Rust: OpenVDB and vdb-rs both trust
+//! the lengths and offsets they find, so a corrupt header must never reach them.
+//! Grid selection (name, duplicate index) and type checks also happen here, so both
+//! readers report the same errors.
+
+#[cfg(nimbus_openvdb)]
+mod bridge;
+mod validate;
+mod vdbrs;
+mod writer;
+
+pub use writer::{
+    write_float_grid, write_float_grid_bytes, write_float_grids, write_float_grids_bytes,
+};
 
 use crate::scene::AssetLocation;
 use crate::volume::grid::RawGrid;
+use std::io::Cursor;
+use validate::{FileInfo, GridDesc};
 
 /// Which reader decodes VDB files in this build.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -22,6 +37,14 @@ impl Reader {
             Reader::VdbRs => "vdb-rs",
         }
     }
+
+    /// Whether this reader is compiled into this build.
+    pub fn available(self) -> bool {
+        match self {
+            Reader::OpenVdb => cfg!(nimbus_openvdb),
+            Reader::VdbRs => true,
+        }
+    }
 }
 
 /// A grid as listed in a file's header.
@@ -33,23 +56,95 @@ pub struct GridInfo {
     pub active_voxels: Option<u64>,
 }
 
+/// Errors of VDB reading and writing. Every variant names the file.
 #[derive(Debug, thiserror::Error)]
 pub enum VdbError {
+    /// The file is not a valid VDB file (empty, truncated, bad magic, corrupt header).
     #[error("{file}: {message}")]
     Invalid { file: String, message: String },
+    /// The file could not be opened or read.
+    #[error("{file}: {message}")]
+    Io { file: String, message: String },
+    /// No grid matches the requested name / index.
+    #[error("{file}: grid {wanted} not found; available grids: {}", list_or_none(.available))]
+    GridNotFound {
+        file: String,
+        wanted: String,
+        available: Vec<String>,
+    },
+    /// The grid exists but does not hold floats.
+    #[error("{file}: grid {grid:?} is {found}, expected float")]
+    WrongType {
+        file: String,
+        grid: String,
+        found: String,
+    },
+    /// The chosen reader cannot read this (valid) file; the message says what to do.
+    #[error("{file}: {message}")]
+    Unsupported { file: String, message: String },
+    /// The reader failed on a file that passed validation.
+    #[error("{file}: {reader} failed: {message}")]
+    Reader {
+        file: String,
+        reader: &'static str,
+        message: String,
+    },
+    /// Writing a VDB file failed.
+    #[error("{file}: cannot write VDB: {message}")]
+    Write { file: String, message: String },
+}
+
+fn list_or_none(names: &[String]) -> String {
+    // A file may hold thousands of grids; keep the message readable.
+    const SHOWN: usize = 20;
+    if names.is_empty() {
+        return "(none)".into();
+    }
+    let mut list = names
+        .iter()
+        .take(SHOWN)
+        .map(|n| format!("{n:?}"))
+        .collect::<Vec<_>>()
+        .join(", ");
+    if names.len() > SHOWN {
+        list += &format!(" and {} more", names.len() - SHOWN);
+    }
+    list
 }
 
 /// The reader this build uses by default.
 pub fn active_reader() -> Reader {
-    Reader::VdbRs
+    if cfg!(nimbus_openvdb) {
+        Reader::OpenVdb
+    } else {
+        Reader::VdbRs
+    }
 }
 
-/// Lists the grids of a file.
+/// Lists the grids of a file (from its validated header; no trees are read).
 pub fn list_grids(loc: &AssetLocation) -> Result<Vec<GridInfo>, VdbError> {
-    Err(VdbError::Invalid {
-        file: loc.to_string(),
-        message: "not implemented".into(),
-    })
+    let info = validate_location(loc)?;
+    Ok(info
+        .grids
+        .iter()
+        .map(|g| GridInfo {
+            name: g.name.clone(),
+            value_type: g.grid_type.clone(),
+            active_voxels: g.active_voxels,
+        })
+        .collect())
+}
+
+/// As [`list_grids`], but asking OpenVDB itself (after validation) when `reader` is
+/// [`Reader::OpenVdb`]; for cross-checks.
+pub fn list_grids_with(reader: Reader, loc: &AssetLocation) -> Result<Vec<GridInfo>, VdbError> {
+    match reader {
+        Reader::VdbRs => list_grids(loc),
+        Reader::OpenVdb => {
+            validate_location(loc)?;
+            openvdb_list(loc)
+        }
+    }
 }
 
 /// Reads one float grid: by name (empty = any), and by index among the grids with
@@ -64,13 +159,230 @@ pub fn read_float_grid(
 
 /// As [`read_float_grid`], with a chosen reader (for cross-checks).
 pub fn read_float_grid_with(
-    _reader: Reader,
+    reader: Reader,
     loc: &AssetLocation,
-    _name: &str,
-    _index: Option<i32>,
+    name: &str,
+    index: Option<i32>,
 ) -> Result<RawGrid, VdbError> {
-    Err(VdbError::Invalid {
+    let file = loc.to_string();
+    let info = validate_location(loc)?;
+    let desc = select(&info, &file, name, index)?;
+    if !desc.is_float() {
+        return Err(VdbError::WrongType {
+            file,
+            grid: desc.name.clone(),
+            found: desc.value_type_label(),
+        });
+    }
+    // Only grids whose transform and tree validation understood reach a reader: a
+    // frustum (or unknown) map would leave the tree unchecked, and Nimbus cannot use
+    // non-linear maps anyway.
+    if desc.index_to_world.is_none() {
+        let message = if desc.map_type.is_empty() {
+            format!(
+                "grid {:?}: file format version {} predates the transform layout Nimbus reads (219)",
+                desc.name, info.file_version
+            )
+        } else {
+            format!(
+                "grid {:?} has a {} transform; only linear (affine) index-to-world transforms are supported",
+                desc.name, desc.map_type
+            )
+        };
+        return Err(VdbError::Unsupported { file, message });
+    }
+    match reader {
+        Reader::VdbRs => {
+            if let Some(message) = vdbrs::unsupported_reason(&info, desc) {
+                return Err(VdbError::Unsupported { file, message });
+            }
+            let result = match loc {
+                AssetLocation::File(path) => {
+                    let f = std::fs::File::open(path).map_err(|e| VdbError::Io {
+                        file: file.clone(),
+                        message: e.to_string(),
+                    })?;
+                    vdbrs::read_float_grid(std::io::BufReader::new(f), &info, desc)
+                }
+                AssetLocation::Packaged { bytes, .. } => {
+                    vdbrs::read_float_grid(Cursor::new(bytes.as_slice()), &info, desc)
+                }
+            };
+            result.map_err(|message| VdbError::Reader {
+                file,
+                reader: "vdb-rs",
+                message,
+            })
+        }
+        Reader::OpenVdb => openvdb_read(loc, desc),
+    }
+}
+
+/// Validates the file or package member behind `loc`.
+fn validate_location(loc: &AssetLocation) -> Result<FileInfo, VdbError> {
+    let file = loc.to_string();
+    let result = match loc {
+        AssetLocation::File(path) => {
+            let f = std::fs::File::open(path).map_err(|e| VdbError::Io {
+                file: file.clone(),
+                message: e.to_string(),
+            })?;
+            let len = f
+                .metadata()
+                .map_err(|e| VdbError::Io {
+                    file: file.clone(),
+                    message: e.to_string(),
+                })?
+                .len();
+            validate::validate(&mut std::io::BufReader::new(f), len)
+        }
+        AssetLocation::Packaged { bytes, .. } => {
+            validate::validate(&mut Cursor::new(bytes.as_slice()), bytes.len() as u64)
+        }
+    };
+    result.map_err(|message| VdbError::Invalid { file, message })
+}
+
+/// Picks the grid named `name` (any grid when empty), the `index`-th of those.
+fn select<'a>(
+    info: &'a FileInfo,
+    file: &str,
+    name: &str,
+    index: Option<i32>,
+) -> Result<&'a GridDesc, VdbError> {
+    let not_found = |wanted: String| {
+        // Distinct names in file order.
+        let mut seen = std::collections::HashSet::new();
+        let available: Vec<String> = info
+            .grids
+            .iter()
+            .filter(|g| seen.insert(g.name.as_str()))
+            .map(|g| g.name.clone())
+            .collect();
+        VdbError::GridNotFound {
+            file: file.to_string(),
+            wanted,
+            available,
+        }
+    };
+    let candidates: Vec<&GridDesc> = info
+        .grids
+        .iter()
+        .filter(|g| name.is_empty() || g.name == name)
+        .collect();
+    let label = if name.is_empty() {
+        "(any)".to_string()
+    } else {
+        format!("{name:?}")
+    };
+    match index {
+        Some(i) => usize::try_from(i)
+            .ok()
+            .and_then(|i| candidates.get(i).copied())
+            .ok_or_else(|| not_found(format!("{label} with index {i} (of {})", candidates.len()))),
+        // No index: the first grid of that name; with no name either, the first float
+        // grid (then the first grid, which yields a type error).
+        None if name.is_empty() => candidates
+            .iter()
+            .find(|g| g.is_float())
+            .or(candidates.first())
+            .copied()
+            .ok_or_else(|| not_found(label)),
+        None => candidates.first().copied().ok_or_else(|| not_found(label)),
+    }
+}
+
+#[cfg(nimbus_openvdb)]
+fn with_openvdb_path<T>(
+    loc: &AssetLocation,
+    f: impl FnOnce(&str) -> Result<T, VdbError>,
+) -> Result<T, VdbError> {
+    let file = loc.to_string();
+    let io_err = |e: std::io::Error| VdbError::Io {
+        file: file.clone(),
+        message: e.to_string(),
+    };
+    match loc {
+        AssetLocation::File(path) => {
+            let p = path.to_str().ok_or_else(|| VdbError::Io {
+                file: file.clone(),
+                message: "path is not valid UTF-8, which the OpenVDB bridge needs".into(),
+            })?;
+            f(p)
+        }
+        // OpenVDB reads files, so a package member goes through a temporary file.
+        AssetLocation::Packaged { bytes, .. } => {
+            use std::io::Write;
+            let mut tmp = tempfile::Builder::new()
+                .prefix("nimbus-")
+                .suffix(".vdb")
+                .tempfile()
+                .map_err(io_err)?;
+            tmp.write_all(bytes)
+                .and_then(|_| tmp.flush())
+                .map_err(io_err)?;
+            let p = tmp.path().to_str().ok_or_else(|| VdbError::Io {
+                file: file.clone(),
+                message: "temporary path is not valid UTF-8".into(),
+            })?;
+            f(p)
+        }
+    }
+}
+
+#[cfg(nimbus_openvdb)]
+fn openvdb_read(loc: &AssetLocation, desc: &GridDesc) -> Result<RawGrid, VdbError> {
+    let file = loc.to_string();
+    let err = |message: String| VdbError::Reader {
+        file: file.clone(),
+        reader: "openvdb",
+        message,
+    };
+    let data = with_openvdb_path(loc, |p| {
+        bridge::ffi::read_float_grid(p, &desc.openvdb_lookup_name())
+            .map_err(|e| err(e.what().to_string()))
+    })?;
+    let mut grid = bridge::to_raw_grid(data).map_err(err)?;
+    grid.name = desc.name.clone();
+    Ok(grid)
+}
+
+#[cfg(nimbus_openvdb)]
+fn openvdb_list(loc: &AssetLocation) -> Result<Vec<GridInfo>, VdbError> {
+    let file = loc.to_string();
+    let list = with_openvdb_path(loc, |p| {
+        bridge::ffi::list_grids(p).map_err(|e| VdbError::Reader {
+            file: file.clone(),
+            reader: "openvdb",
+            message: e.what().to_string(),
+        })
+    })?;
+    Ok(list
+        .into_iter()
+        .map(|e| GridInfo {
+            name: e.name,
+            value_type: e.value_type,
+            active_voxels: u64::try_from(e.active_voxels).ok(),
+        })
+        .collect())
+}
+
+#[cfg(not(nimbus_openvdb))]
+fn openvdb_unavailable(loc: &AssetLocation) -> VdbError {
+    VdbError::Unsupported {
         file: loc.to_string(),
-        message: "not implemented".into(),
-    })
+        message: "this build of Nimbus has no OpenVDB reader; install OpenVDB (libopenvdb-dev) \
+                  and rebuild (NIMBUS_OPENVDB=require)"
+            .into(),
+    }
+}
+
+#[cfg(not(nimbus_openvdb))]
+fn openvdb_read(loc: &AssetLocation, _desc: &GridDesc) -> Result<RawGrid, VdbError> {
+    Err(openvdb_unavailable(loc))
+}
+
+#[cfg(not(nimbus_openvdb))]
+fn openvdb_list(loc: &AssetLocation) -> Result<Vec<GridInfo>, VdbError> {
+    Err(openvdb_unavailable(loc))
 }

@@ -1,0 +1,169 @@
+#include "nimbus/cpp/vdb_bridge.h"
+#include "nimbus/src/volume/vdb/bridge.rs.h"
+
+#include <openvdb/openvdb.h>
+#include <openvdb/io/File.h>
+
+#include <exception>
+#include <stdexcept>
+#include <string>
+
+namespace nimbus_vdb {
+namespace {
+
+// OpenVDB exception texts can embed file contents (a corrupt file once produced a
+// 1.5 GB message); keep what crosses into Rust short.
+constexpr size_t kMaxMessage = 512;
+
+std::string capped(const char* what) {
+    std::string s = what ? what : "unknown error";
+    if (s.size() > kMaxMessage) {
+        s.resize(kMaxMessage);
+        s += "... (truncated)";
+    }
+    return s;
+}
+
+// Runs `body`, turning every exception into a std::runtime_error with a capped message,
+// which cxx hands to Rust as an Err.
+template <typename F>
+auto guarded(F&& body) -> decltype(body()) {
+    try {
+        return body();
+    } catch (const openvdb::Exception& e) {
+        throw std::runtime_error(capped(e.what()));
+    } catch (const std::exception& e) {
+        throw std::runtime_error(capped(e.what()));
+    } catch (...) {
+        throw std::runtime_error("unknown C++ exception in OpenVDB");
+    }
+}
+
+void open_file(openvdb::io::File& file) {
+    openvdb::initialize();
+    // Delayed loading would keep the file mapped and read leaves lazily; we copy
+    // everything out at once, so read eagerly.
+    file.setCopyMaxBytes(0);
+    file.open(/*delayLoad=*/false);
+}
+
+template <typename Vec, typename T>
+void push3(Vec& v, const T& c) {
+    v.push_back(c[0]);
+    v.push_back(c[1]);
+    v.push_back(c[2]);
+}
+
+void push_tile(FloatGridData& out, const openvdb::Coord& origin, int32_t dim, float value,
+               bool active) {
+    // Inactive tiles that hold the background carry no information; Rust readers
+    // apply the same rule so both produce the same tile lists.
+    if (!active && value == out.background) return;
+    push3(out.tile_origins, origin);
+    out.tile_dims.push_back(dim);
+    out.tile_values.push_back(value);
+    out.tile_active.push_back(active ? 1 : 0);
+}
+
+} // namespace
+
+rust::Vec<GridListEntry> list_grids(rust::Str path) {
+    return guarded([&] {
+        openvdb::io::File file{std::string(path)};
+        open_file(file);
+        rust::Vec<GridListEntry> out;
+        openvdb::GridPtrVecPtr grids = file.readAllGridMetadata();
+        // Both iterate the file's descriptor table in the same order; the iterator
+        // supplies names for grids whose metadata lacks a "name" entry.
+        auto names = file.beginName();
+        for (const auto& g : *grids) {
+            std::string fallback;
+            if (names != file.endName()) {
+                fallback = names.gridName();
+                ++names;
+            }
+            if (!g) continue;
+            GridListEntry e;
+            e.name = g->getName().empty() ? fallback : g->getName();
+            e.value_type = g->type();
+            e.active_voxels = -1;
+            if (auto m = g->getMetadata<openvdb::Int64Metadata>(openvdb::GridBase::META_FILE_VOXEL_COUNT)) {
+                e.active_voxels = m->value();
+            }
+            out.push_back(std::move(e));
+        }
+        file.close();
+        return out;
+    });
+}
+
+FloatGridData read_float_grid(rust::Str path, rust::Str lookup_name) {
+    return guarded([&] {
+        const std::string name(lookup_name);
+        openvdb::io::File file{std::string(path)};
+        open_file(file);
+        if (!file.hasGrid(name)) {
+            throw std::runtime_error("grid " + name + " not found");
+        }
+        openvdb::GridBase::Ptr base = file.readGrid(name);
+        file.close();
+        if (!base) throw std::runtime_error("grid " + name + " could not be read");
+        if (base->isType<openvdb::Vec3SGrid>()) {
+            throw std::runtime_error("grid " + name + " is Vec3s, expected float");
+        }
+        openvdb::FloatGrid::Ptr grid = openvdb::gridPtrCast<openvdb::FloatGrid>(base);
+        if (!grid) {
+            throw std::runtime_error("grid " + name + " is " + base->valueType() +
+                                     ", expected float");
+        }
+
+        const openvdb::math::MapBase::ConstPtr map = grid->transform().baseMap();
+        if (!map->isLinear()) {
+            throw std::runtime_error("grid " + name + " has a non-linear transform (" +
+                                     map->type() + "); only affine transforms are supported");
+        }
+
+        FloatGridData out;
+        out.name = grid->getName();
+        out.class_name = openvdb::GridBase::gridClassToString(grid->getGridClass());
+        out.background = grid->background();
+
+        // OpenVDB's matrices are row-vector (world = [i j k 1] * M); copy row-major and
+        // let Rust transpose.
+        const openvdb::math::Mat4d m = map->getAffineMap()->getMat4();
+        for (int r = 0; r < 4; ++r)
+            for (int c = 0; c < 4; ++c) out.index_to_world_row_major.push_back(m(r, c));
+
+        const auto& root = grid->tree().root();
+        for (auto it = root.cbeginValueAll(); it; ++it) {
+            push_tile(out, it.getCoord(), 4096, *it, it.isValueOn());
+        }
+        const size_t leaf_count = grid->tree().leafCount();
+        out.leaf_origins.reserve(leaf_count * 3);
+        out.leaf_values.reserve(leaf_count * 512);
+        out.leaf_masks.reserve(leaf_count * 8);
+        for (auto c5 = root.cbeginChildOn(); c5; ++c5) {
+            for (auto it = c5->cbeginValueAll(); it; ++it) {
+                push_tile(out, it.getCoord(), 128, *it, it.isValueOn());
+            }
+            for (auto c4 = c5->cbeginChildOn(); c4; ++c4) {
+                for (auto it = c4->cbeginValueAll(); it; ++it) {
+                    push_tile(out, it.getCoord(), 8, *it, it.isValueOn());
+                }
+                for (auto leaf = c4->cbeginChildOn(); leaf; ++leaf) {
+                    push3(out.leaf_origins, leaf->origin());
+                    for (openvdb::Index i = 0; i < openvdb::FloatTree::LeafNodeType::SIZE; ++i) {
+                        out.leaf_values.push_back(leaf->getValue(i));
+                    }
+                    const auto& mask = leaf->getValueMask();
+                    for (openvdb::Index w = 0; w < 8; ++w) {
+                        out.leaf_masks.push_back(mask.getWord<uint64_t>(w));
+                    }
+                }
+            }
+        }
+        return out;
+    });
+}
+
+} // namespace nimbus_vdb

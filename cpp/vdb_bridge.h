@@ -1,0 +1,21 @@
+// OpenVDB → plain buffers. The only C++ in Nimbus: it opens a file with OpenVDB and
+// copies a float grid's leaves, tiles and transform into Rust-owned vectors. All
+// validation and all interpretation happen on the Rust side.
+#pragma once
+
+#include "rust/cxx.h"
+
+namespace nimbus_vdb {
+
+struct GridListEntry;
+struct FloatGridData;
+
+// Grids of a file, in OpenVDB's order, from metadata only (no trees are read).
+rust::Vec<GridListEntry> list_grids(rust::Str path);
+
+// Reads the grid `lookup_name` ("name" or "name[N]" for the N-th duplicate, as
+// OpenVDB's File::readGrid understands it) and copies it out. Throws (→ Rust Err)
+// unless it is a float grid with a linear transform.
+FloatGridData read_float_grid(rust::Str path, rust::Str lookup_name);
+
+} // namespace nimbus_vdb
