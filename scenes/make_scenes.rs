@@ -7,7 +7,7 @@
 
 use glam::DVec3;
 use nimbus::volume::procedural::{cloud_density, fbm, grid_from_fn};
-use nimbus::volume::vdb::writer::write_float_grid;
+use nimbus::volume::vdb::write_float_grid;
 use std::path::Path;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
