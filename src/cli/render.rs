@@ -5,14 +5,12 @@ use crate::output::stats::RenderStats;
 use crate::output::{check_writable, write_atomically};
 use crate::render::camera::CameraRays;
 use crate::render::film::Aov;
-use crate::render::job::RenderJob;
+use crate::render::job::{medium_for_scene, RenderJob};
 use crate::render::lights::Lights;
-use crate::scene::{load_stage, LoadOptions, Scene};
+use crate::scene::{load_stage, LoadOptions};
 use crate::track::{
     scheme::SchemeOptions, SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind,
 };
-use crate::volume::grid::Grid;
-use crate::volume::medium::Medium;
 use crate::volume::vdb;
 use anyhow::{bail, Context, Result};
 use clap::Args;
@@ -140,7 +138,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
             MAX_FILM_BYTES >> 30
         );
     }
-    let medium = build_medium(&scene, args.majorant_cell)?;
+    let medium = medium_for_scene(&scene, args.majorant_cell)?;
     let load_seconds = wall.elapsed().as_secs_f64();
 
     let lights = Lights::from_scene(&scene);
@@ -238,44 +236,6 @@ pub fn run(args: RenderArgs) -> Result<()> {
         totals.density_lookups as f64 / (width as f64 * height as f64 * spp as f64)
     );
     Ok(())
-}
-
-/// Loads the density grid of the scene's volume and builds its medium.
-pub fn build_medium(scene: &Scene, cell_voxels: u32) -> Result<Medium> {
-    let Some(volume) = scene.volumes.first() else {
-        bail!(
-            "{}: the stage has no visible UsdVolVolume prim to render",
-            scene.stage_path.display()
-        );
-    };
-    if scene.volumes.len() > 1 {
-        eprintln!(
-            "nimbus: warning: the stage has {} volumes; this version renders only the first ({}), the others are ignored",
-            scene.volumes.len(),
-            volume.prim_path
-        );
-    }
-    let field = &volume.density;
-    let raw = vdb::read_float_grid(&field.file, &field.field_name, field.field_index)
-        .with_context(|| format!("volume {}: field {}", volume.prim_path, field.prim_path))?;
-    let grid =
-        Grid::from_raw(&raw).with_context(|| format!("{}: {}", field.file, field.prim_path))?;
-    if grid.sanitized_voxels > 0 {
-        eprintln!(
-            "nimbus: warning: {}: grid '{}' has {} NaN, infinite or negative voxels; they are treated as 0",
-            field.file, grid.name, grid.sanitized_voxels
-        );
-    }
-    Ok(Medium::new(
-        &volume.prim_path,
-        grid,
-        volume.volume_to_world,
-        volume.density_scale,
-        volume.absorption,
-        volume.scattering,
-        volume.anisotropy,
-        cell_voxels,
-    )?)
 }
 
 fn tracker_settings(args: &RenderArgs) -> Result<TrackerSettings> {

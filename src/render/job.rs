@@ -5,10 +5,14 @@ use crate::render::camera::CameraRays;
 use crate::render::film::Film;
 use crate::render::integrator::Integrator;
 use crate::render::lights::Lights;
+use crate::scene::Scene;
 use crate::track::{
     self, Dispatch, FreePathSampler, TrackerKind, TrackerSettings, TransmittanceEstimator,
 };
+use crate::volume::grid::Grid;
 use crate::volume::medium::Medium;
+use crate::volume::vdb;
+use anyhow::{bail, Context};
 
 pub struct RenderJob<'a> {
     pub medium: &'a Medium,
@@ -61,4 +65,42 @@ impl RenderJob<'_> {
             },
         )
     }
+}
+
+/// Loads the density grid of the scene's volume and builds its medium.
+pub fn medium_for_scene(scene: &Scene, cell_voxels: u32) -> anyhow::Result<Medium> {
+    let Some(volume) = scene.volumes.first() else {
+        bail!(
+            "{}: the stage has no visible UsdVolVolume prim to render",
+            scene.stage_path.display()
+        );
+    };
+    if scene.volumes.len() > 1 {
+        eprintln!(
+            "nimbus: warning: the stage has {} volumes; this version renders only the first ({}), the others are ignored",
+            scene.volumes.len(),
+            volume.prim_path
+        );
+    }
+    let field = &volume.density;
+    let raw = vdb::read_float_grid(&field.file, &field.field_name, field.field_index)
+        .with_context(|| format!("volume {}: field {}", volume.prim_path, field.prim_path))?;
+    let grid =
+        Grid::from_raw(&raw).with_context(|| format!("{}: {}", field.file, field.prim_path))?;
+    if grid.sanitized_voxels > 0 {
+        eprintln!(
+            "nimbus: warning: {}: grid '{}' has {} NaN, infinite or negative voxels; they are treated as 0",
+            field.file, grid.name, grid.sanitized_voxels
+        );
+    }
+    Ok(Medium::new(
+        &volume.prim_path,
+        grid,
+        volume.volume_to_world,
+        volume.density_scale,
+        volume.absorption,
+        volume.scattering,
+        volume.anisotropy,
+        cell_voxels,
+    )?)
 }
