@@ -318,11 +318,11 @@ impl Loader<'_> {
 
     fn volume(&mut self, prim: &Prim) -> Result<Volume, SceneError> {
         let t = self.time;
-        let fields = self.fields(prim)?;
-        if fields.is_empty() {
+        let (fields, relationship_count) = self.fields(prim)?;
+        if relationship_count == 0 {
             return Err(prim_error(
                 prim.path(),
-                "volume has no field:* relationships",
+                "volume has no field:* relationships with targets",
             ));
         }
         let density_name = read_string(prim, tokens::DENSITY_FIELD, t)?
@@ -371,9 +371,11 @@ impl Loader<'_> {
 
     /// Every `field:*` relationship whose target is an OpenVDBAsset. A target that
     /// does not exist is an error (the stage is broken); a field of another type
-    /// (e.g. Field3DAsset) is left out, since Nimbus cannot read it.
-    fn fields(&self, prim: &Prim) -> Result<Vec<(String, Field)>, SceneError> {
+    /// (e.g. Field3DAsset) is left out, since Nimbus cannot read it. Also returns
+    /// how many targeted `field:*` relationships there were, of any type.
+    fn fields(&self, prim: &Prim) -> Result<(Vec<(String, Field)>, usize), SceneError> {
         let mut fields = Vec::new();
+        let mut relationship_count = 0;
         let rels = prim
             .relationships()
             .map_err(|e| prim_error(prim.path(), e))?;
@@ -389,6 +391,7 @@ impl Loader<'_> {
             else {
                 continue;
             };
+            relationship_count += 1;
             let target_prim = self
                 .stage
                 .prim(target.clone())
@@ -410,7 +413,7 @@ impl Loader<'_> {
             }
         }
         fields.sort_by(|a, b| a.0.cmp(&b.0));
-        Ok(fields)
+        Ok((fields, relationship_count))
     }
 
     fn field(&self, prim: &Prim) -> Result<Field, SceneError> {
