@@ -409,7 +409,11 @@ const CAMERA: &str = "def Camera \"Cam\" {}\n";
 fn load_err(path: &Path) -> SceneError {
     match load_stage(path, &LoadOptions::default()) {
         Ok(scene) => panic!("{} loaded: {scene:?}", path.display()),
-        Err(e) => e,
+        Err(e) => {
+            // Shown with --nocapture, to eyeball that messages are readable.
+            eprintln!("{}: {e}", path.display());
+            e
+        }
     }
 }
 
@@ -431,6 +435,15 @@ fn malformed_usda() {
     );
     let err = load_err(&path);
     assert!(err.to_string().contains("broken.usda"), "{err}");
+}
+
+#[test]
+fn malformed_usda_mid_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = "#usda 1.0\ndef Xform \"A\" {\n    float x = 1\n    }}} garbage (\n}\ndef Camera \"C\" {}\n";
+    let path = write(dir.path(), "garbage.usda", text);
+    let err = load_err(&path);
+    assert!(err.to_string().contains("garbage.usda"), "{err}");
 }
 
 #[test]

@@ -69,7 +69,35 @@ pub fn load_stage(path: &Path, opts: &LoadOptions) -> Result<Scene, SceneError> 
     // scene is missing pieces its author meant to be there: refuse to render it,
     // and prefer that explanation over whatever symptom it caused.
     check_composition(&stage, path)?;
-    scene
+    scene.map_err(|e| in_stage(e, path))
+}
+
+/// Prim errors name the prim; add the stage file so a message read out of
+/// context (a render farm log) still says where to look.
+fn in_stage(error: SceneError, path: &Path) -> SceneError {
+    match error {
+        SceneError::Prim { prim, message } => SceneError::Prim {
+            prim,
+            message: format!("{message} (in {})", path.display()),
+        },
+        other => other,
+    }
+}
+
+/// `error` and every `source()` under it, so the detail (a parse position, the
+/// file that failed) is not lost behind a generic top-level message.
+fn error_chain(error: &dyn std::error::Error) -> String {
+    let mut text = error.to_string();
+    let mut source = error.source();
+    while let Some(cause) = source {
+        let cause_text = cause.to_string();
+        if !text.contains(&cause_text) {
+            text.push_str(": ");
+            text.push_str(&cause_text);
+        }
+        source = cause.source();
+    }
+    text
 }
 
 fn stage_error(path: &Path, message: impl Display) -> SceneError {
@@ -97,7 +125,7 @@ fn open_stage(path: &Path) -> Result<Stage, SceneError> {
     let stage = Stage::builder()
         .schema_registry(registry)
         .open(path_str)
-        .map_err(|e| stage_error(path, format!("cannot open stage: {e}")))?;
+        .map_err(|e| stage_error(path, format!("cannot open stage: {}", error_chain(&e))))?;
     check_composition(&stage, path)?;
     Ok(stage)
 }
@@ -740,15 +768,18 @@ fn read_asset(
 /// through the resolver (the renderer cannot open them as a file).
 fn asset_location(prim: &Prim, asset: &sdf::AssetPath) -> Result<AssetLocation, SceneError> {
     let authored = &asset.authored_path;
-    let resolved = asset
-        .resolved_path()
-        .filter(|r| !r.is_empty())
-        .ok_or_else(|| {
-            prim_error(
-                prim.path(),
-                format!("filePath @{authored}@ does not resolve to an existing file"),
-            )
-        })?;
+    let resolved = match asset.resolved_path().filter(|r| !r.is_empty()) {
+        Some(resolved) => resolved.to_string(),
+        None => {
+            resolve_from_package_root(&prim.attribute("filePath"), authored).ok_or_else(|| {
+                prim_error(
+                    prim.path(),
+                    format!("filePath @{authored}@ does not resolve to an existing file"),
+                )
+            })?
+        }
+    };
+    let resolved = resolved.as_str();
     if !openusd::ar::is_package_relative_path(resolved) {
         return Ok(AssetLocation::File(PathBuf::from(resolved)));
     }
@@ -765,6 +796,44 @@ fn asset_location(prim: &Prim, asset: &sdf::AssetPath) -> Result<AssetLocation, 
         member,
         bytes: Arc::new(bytes),
     })
+}
+
+/// pxr's Ar treats a relative path without a leading `./` or `../` as a search
+/// path: when it does not resolve next to the authoring layer and that layer is
+/// inside a package, it is looked up from the package root. UsdUtils'
+/// usdz packager relies on this (it rewrites some dependencies to `0/file.vdb`
+/// inside a layer in a subdirectory); openusd 0.8 only anchors to the layer, so
+/// the lookup is retried here for the package of each layer with an opinion.
+fn resolve_from_package_root(attr: &usd::Attribute, authored: &str) -> Option<String> {
+    use openusd::ar::Resolver;
+    let search_path_style = !authored.is_empty()
+        && !authored.starts_with("./")
+        && !authored.starts_with("../")
+        && !Path::new(authored).is_absolute()
+        && !openusd::ar::is_package_relative_path(authored);
+    if !search_path_style {
+        return None;
+    }
+    let resolver = openusd::ar::DefaultResolver::new();
+    let sites = attr.property_stack().ok()?;
+    sites.iter().find_map(|site| {
+        let package = package_of_layer(&site.layer)?;
+        let candidate = openusd::ar::join_package_relative_path(&package, authored);
+        resolver
+            .resolve(&candidate)
+            .map(|r| r.to_string_lossy().into_owned())
+    })
+}
+
+/// The outermost package a layer identifier lives in (or is), if any.
+fn package_of_layer(layer: &str) -> Option<String> {
+    if openusd::ar::is_package_relative_path(layer) {
+        return openusd::ar::split_package_relative_path_outer(layer).map(|(package, _)| package);
+    }
+    layer
+        .to_ascii_lowercase()
+        .ends_with(".usdz")
+        .then(|| layer.to_string())
 }
 
 fn read_packaged(resolved: &str) -> std::io::Result<Vec<u8>> {
