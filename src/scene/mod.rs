@@ -118,9 +118,7 @@ impl std::fmt::Display for AssetLocation {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             AssetLocation::File(p) => write!(f, "{}", p.display()),
-            AssetLocation::Packaged {
-                package, member, ..
-            } => {
+            AssetLocation::Packaged { package, member, .. } => {
                 write!(f, "{}[{}]", package.display(), member)
             }
         }
