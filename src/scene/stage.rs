@@ -1,8 +1,23 @@
 //! Loading a USD stage into a [`Scene`].
-//! STUB (to be implemented).
+//!
+//! The stage is composed by openusd (sublayers, references, payloads, variants)
+//! with a schema registry that knows UsdGeom/UsdLux/UsdRender/UsdVol and Nimbus'
+//! own API schemas, so every unauthored property reads its schema fallback.
+//! Everything is evaluated at one time code and converted to plain Rust types:
+//! transforms become column-vector [`DMat4`]s, asset paths become resolved files
+//! (or the bytes of a .usdz member).
 
+use super::schema::{self, tokens};
 use super::*;
+use openusd::gf;
+use openusd::sdf::{self, Value};
+use openusd::usd::{self, Prim, PrimPredicate, Stage, TimeCode};
+use openusd_schemas::geom::{self, ImageableExt};
+use openusd_schemas::render::StageMetadata;
+use std::fmt::Display;
+use std::io::Read;
 use std::path::Path;
+use std::sync::Arc;
 
 #[derive(Clone, Debug, Default)]
 pub struct LoadOptions {
@@ -14,15 +29,818 @@ pub struct LoadOptions {
 
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
+    /// The stage as a whole could not be opened or composed.
     #[error("{path}: {message}")]
     Stage { path: String, message: String },
+    /// One prim is malformed or refers to something that does not exist.
     #[error("{prim}: {message}")]
     Prim { prim: String, message: String },
 }
 
-pub fn load_stage(path: &Path, _opts: &LoadOptions) -> Result<Scene, SceneError> {
-    Err(SceneError::Stage {
+/// Schema type names this loader looks for (registry identifiers, so derived
+/// types match too through `is_a`).
+mod types {
+    pub const VOLUME: &str = "Volume";
+    pub const OPENVDB_ASSET: &str = "OpenVDBAsset";
+    pub const CAMERA: &str = "Camera";
+    pub const DISTANT_LIGHT: &str = "DistantLight";
+    pub const DOME_LIGHT: &str = "DomeLight";
+    pub const RENDER_SETTINGS: &str = "RenderSettings";
+    pub const RENDER_PRODUCT: &str = "RenderProduct";
+    pub const RENDER_VAR: &str = "RenderVar";
+}
+
+/// Prefix of a volume's field relationships (`field:density`).
+const FIELD_PREFIX: &str = "field:";
+/// Density field used when `nimbus:densityField` resolves no value at all.
+const DEFAULT_DENSITY_FIELD: &str = "density";
+
+/// Opens `path` and extracts everything the renderer needs at `opts.frame`.
+pub fn load_stage(path: &Path, opts: &LoadOptions) -> Result<Scene, SceneError> {
+    let stage = open_stage(path)?;
+    let loader = Loader {
+        stage: &stage,
+        time: opts.frame.map(TimeCode::new),
+        xforms: geom::XformCache::new(opts.frame.map(TimeCode::new)),
+    };
+    let scene = loader.load(path, opts);
+    // Reference and payload diagnostics accrue while prims are composed, so they
+    // are only complete after the traversal. A composition error means the
+    // scene is missing pieces its author meant to be there: refuse to render it,
+    // and prefer that explanation over whatever symptom it caused.
+    check_composition(&stage, path)?;
+    scene.map_err(|e| in_stage(e, path))
+}
+
+/// Prim errors name the prim; add the stage file so a message read out of
+/// context (a render farm log) still says where to look.
+fn in_stage(error: SceneError, path: &Path) -> SceneError {
+    match error {
+        SceneError::Prim { prim, message } => SceneError::Prim {
+            prim,
+            message: format!("{message} (in {})", path.display()),
+        },
+        other => other,
+    }
+}
+
+/// `error` and every `source()` under it, so the detail (a parse position, the
+/// file that failed) is not lost behind a generic top-level message.
+fn error_chain(error: &dyn std::error::Error) -> String {
+    let mut text = error.to_string();
+    let mut source = error.source();
+    while let Some(cause) = source {
+        let cause_text = cause.to_string();
+        if !text.contains(&cause_text) {
+            text.push_str(": ");
+            text.push_str(&cause_text);
+        }
+        source = cause.source();
+    }
+    text
+}
+
+fn stage_error(path: &Path, message: impl Display) -> SceneError {
+    SceneError::Stage {
         path: path.display().to_string(),
-        message: "not implemented".into(),
+        message: message.to_string(),
+    }
+}
+
+fn prim_error(prim: &sdf::Path, message: impl Display) -> SceneError {
+    SceneError::Prim {
+        prim: prim.to_string(),
+        message: message.to_string(),
+    }
+}
+
+fn open_stage(path: &Path) -> Result<Stage, SceneError> {
+    if !path.is_file() {
+        return Err(stage_error(path, "stage file not found"));
+    }
+    let path_str = path
+        .to_str()
+        .ok_or_else(|| stage_error(path, "path is not valid UTF-8"))?;
+    let registry = schema::registry().map_err(|e| stage_error(path, e))?;
+    let stage = Stage::builder()
+        .schema_registry(registry)
+        .open(path_str)
+        .map_err(|e| stage_error(path, format!("cannot open stage: {}", error_chain(&e))))?;
+    check_composition(&stage, path)?;
+    Ok(stage)
+}
+
+fn check_composition(stage: &Stage, path: &Path) -> Result<(), SceneError> {
+    let errors = stage.composition_errors();
+    if errors.is_empty() {
+        return Ok(());
+    }
+    let list: Vec<String> = errors.iter().map(|e| e.to_string()).collect();
+    Err(stage_error(
+        path,
+        format!("composition errors: {}", list.join("; ")),
+    ))
+}
+
+/// The prims of interest, gathered in one traversal (in namespace order).
+#[derive(Default)]
+struct Inventory {
+    volumes: Vec<Prim>,
+    cameras: Vec<Prim>,
+    distant_lights: Vec<Prim>,
+    dome_lights: Vec<Prim>,
+    render_settings: Vec<Prim>,
+}
+
+struct Loader<'a> {
+    stage: &'a Stage,
+    time: Option<TimeCode>,
+    xforms: geom::XformCache,
+}
+
+impl Loader<'_> {
+    fn load(mut self, path: &Path, opts: &LoadOptions) -> Result<Scene, SceneError> {
+        let inventory = self.inventory().map_err(|e| stage_error(path, e))?;
+        let settings_prim = self.settings_prim(&inventory, path)?;
+        let settings = match &settings_prim {
+            Some(prim) => self.render_settings(prim)?,
+            None => RenderSettings::default(),
+        };
+        let camera_prim = self.choose_camera(opts, settings_prim.as_ref(), &inventory, path)?;
+        let camera = self.camera(&camera_prim)?;
+        let volumes = self.visible(&inventory.volumes)?;
+        let distant = self.visible(&inventory.distant_lights)?;
+        let dome = self.visible(&inventory.dome_lights)?;
+        Ok(Scene {
+            stage_path: path.to_path_buf(),
+            // USD's default time code is NaN (`UsdTimeCode::Default()`).
+            time: opts.frame.unwrap_or(f64::NAN),
+            camera,
+            distant_lights: distant
+                .iter()
+                .map(|p| self.distant_light(p))
+                .collect::<Result<_, _>>()?,
+            dome_lights: dome
+                .iter()
+                .map(|p| self.dome_light(p))
+                .collect::<Result<_, _>>()?,
+            volumes: volumes
+                .iter()
+                .map(|p| self.volume(p))
+                .collect::<Result<_, _>>()?,
+            settings,
+        })
+    }
+
+    fn inventory(&self) -> Result<Inventory, openusd::Error> {
+        let mut paths = Vec::new();
+        // Instance proxies included: a volume inside an instanced asset renders.
+        self.stage
+            .traverse(PrimPredicate::DEFAULT.with_instance_proxies(true), |p| {
+                paths.push(p.clone())
+            })?;
+        let mut inventory = Inventory::default();
+        for path in paths {
+            let prim = self.stage.prim(path)?;
+            let bucket = if prim.is_a(types::VOLUME)? {
+                &mut inventory.volumes
+            } else if prim.is_a(types::CAMERA)? {
+                &mut inventory.cameras
+            } else if prim.is_a(types::DISTANT_LIGHT)? {
+                &mut inventory.distant_lights
+            } else if prim.is_a(types::DOME_LIGHT)? {
+                &mut inventory.dome_lights
+            } else if prim.is_a(types::RENDER_SETTINGS)? {
+                &mut inventory.render_settings
+            } else {
+                continue;
+            };
+            bucket.push(prim);
+        }
+        Ok(inventory)
+    }
+
+    /// Drops prims whose computed visibility (inherited down namespace) is
+    /// `invisible` at the scene time.
+    fn visible(&self, prims: &[Prim]) -> Result<Vec<Prim>, SceneError> {
+        let mut out = Vec::new();
+        for prim in prims {
+            let imageable =
+                geom::Imageable::from_prim(prim.clone()).map_err(|e| prim_error(prim.path(), e))?;
+            let invisible = match imageable {
+                Some(im) => {
+                    im.compute_visibility(self.time)
+                        .map_err(|e| prim_error(prim.path(), e))?
+                        == geom::Visibility::Invisible
+                }
+                None => false,
+            };
+            if !invisible {
+                out.push(prim.clone());
+            }
+        }
+        Ok(out)
+    }
+
+    /// Local → world of `prim` as a column-vector matrix.
+    fn world_transform(&mut self, prim: &Prim) -> Result<DMat4, SceneError> {
+        let m = self
+            .xforms
+            .local_to_world_transform(prim)
+            .map_err(|e| prim_error(prim.path(), format!("cannot compute transform: {e}")))?;
+        Ok(to_dmat4(&m))
+    }
+
+    // ----- camera -------------------------------------------------------------
+
+    fn choose_camera(
+        &self,
+        opts: &LoadOptions,
+        settings: Option<&Prim>,
+        inventory: &Inventory,
+        path: &Path,
+    ) -> Result<Prim, SceneError> {
+        if let Some(requested) = &opts.camera {
+            let prim = self
+                .stage
+                .prim(requested.as_str())
+                .map_err(|e| prim_error_str(requested, format!("invalid camera path: {e}")))?;
+            return self.require_type(&prim, types::CAMERA, "requested camera");
+        }
+        if let Some(settings) = settings {
+            if let Some(target) = first_target(settings, "camera")? {
+                let prim = self
+                    .stage
+                    .prim(target)
+                    .map_err(|e| prim_error(settings.path(), e))?;
+                return self.require_type(&prim, types::CAMERA, "render settings camera");
+            }
+        }
+        inventory
+            .cameras
+            .first()
+            .cloned()
+            .ok_or_else(|| stage_error(path, "no Camera prim in the stage (and none requested)"))
+    }
+
+    fn camera(&mut self, prim: &Prim) -> Result<Camera, SceneError> {
+        let t = self.time;
+        let clip =
+            read_vec2(prim, "clippingRange", t)?.ok_or_else(|| missing(prim, "clippingRange"))?;
+        Ok(Camera {
+            prim_path: prim.path().to_string(),
+            camera_to_world: self.world_transform(prim)?,
+            focal_length: require_f64(prim, "focalLength", t)?,
+            horizontal_aperture: require_f64(prim, "horizontalAperture", t)?,
+            vertical_aperture: require_f64(prim, "verticalAperture", t)?,
+            horizontal_aperture_offset: read_f64(prim, "horizontalApertureOffset", t)?
+                .unwrap_or(0.0),
+            vertical_aperture_offset: read_f64(prim, "verticalApertureOffset", t)?.unwrap_or(0.0),
+            clipping_range: (clip[0], clip[1]),
+        })
+    }
+
+    // ----- lights -------------------------------------------------------------
+
+    fn distant_light(&mut self, prim: &Prim) -> Result<DistantLight, SceneError> {
+        let t = self.time;
+        let to_world = self.world_transform(prim)?;
+        // The light emits along its local −Z, so the direction towards it is +Z.
+        let z = to_world.transform_vector3(glam::DVec3::Z);
+        let direction = z
+            .try_normalize()
+            .ok_or_else(|| prim_error(prim.path(), "degenerate transform (zero Z axis)"))?;
+        Ok(DistantLight {
+            prim_path: prim.path().to_string(),
+            direction: direction.to_array(),
+            intensity: read_f64(prim, "inputs:intensity", t)?.unwrap_or(1.0),
+            exposure: read_f64(prim, "inputs:exposure", t)?.unwrap_or(0.0),
+            color: read_vec3(prim, "inputs:color", t)?.unwrap_or([1.0; 3]),
+            angle_degrees: read_f64(prim, "inputs:angle", t)?.unwrap_or(0.53),
+        })
+    }
+
+    fn dome_light(&mut self, prim: &Prim) -> Result<DomeLight, SceneError> {
+        let t = self.time;
+        let texture = prim.attribute("inputs:texture:file");
+        let texture_file = match authored(&texture, prim)? {
+            true => read_asset(prim, "inputs:texture:file", t)?
+                .filter(|a| !a.authored_path.is_empty())
+                .map(|a| {
+                    a.resolved_path()
+                        .unwrap_or(a.authored_path.as_str())
+                        .to_string()
+                }),
+            false => None,
+        };
+        Ok(DomeLight {
+            prim_path: prim.path().to_string(),
+            intensity: read_f64(prim, "inputs:intensity", t)?.unwrap_or(1.0),
+            exposure: read_f64(prim, "inputs:exposure", t)?.unwrap_or(0.0),
+            color: read_vec3(prim, "inputs:color", t)?.unwrap_or([1.0; 3]),
+            texture_file,
+        })
+    }
+
+    // ----- volumes ------------------------------------------------------------
+
+    fn volume(&mut self, prim: &Prim) -> Result<Volume, SceneError> {
+        let t = self.time;
+        let (fields, relationship_count) = self.fields(prim)?;
+        if relationship_count == 0 {
+            return Err(prim_error(
+                prim.path(),
+                "volume has no field:* relationships with targets",
+            ));
+        }
+        let density_name = read_string(prim, tokens::DENSITY_FIELD, t)?
+            .unwrap_or_else(|| DEFAULT_DENSITY_FIELD.to_string());
+        let density = self.density_field(prim, &density_name, &fields)?;
+        Ok(Volume {
+            prim_path: prim.path().to_string(),
+            volume_to_world: self.world_transform(prim)?,
+            density,
+            density_scale: read_f64(prim, tokens::DENSITY_SCALE, t)?.unwrap_or(1.0),
+            absorption: read_vec3(prim, tokens::ABSORPTION, t)?.unwrap_or([0.1; 3]),
+            scattering: read_vec3(prim, tokens::SCATTERING, t)?.unwrap_or([0.9; 3]),
+            anisotropy: read_f64(prim, tokens::ANISOTROPY, t)?.unwrap_or(0.0),
+            fields,
+        })
+    }
+
+    /// The density field: the relationship `field:<name>`, which must exist and
+    /// target an OpenVDBAsset (the only field type the renderer reads).
+    fn density_field(
+        &self,
+        prim: &Prim,
+        name: &str,
+        fields: &[(String, Field)],
+    ) -> Result<Field, SceneError> {
+        if let Some((_, field)) = fields.iter().find(|(n, _)| n == name) {
+            return Ok(field.clone());
+        }
+        let rel = format!("{FIELD_PREFIX}{name}");
+        match first_target(prim, &rel)? {
+            None => Err(prim_error(
+                prim.path(),
+                format!(
+                    "density field relationship `{rel}` (from {}) is missing or has no target",
+                    tokens::DENSITY_FIELD
+                ),
+            )),
+            Some(target) => Err(prim_error(
+                prim.path(),
+                format!(
+                    "density field `{rel}` targets {target}, which is not an OpenVDBAsset prim"
+                ),
+            )),
+        }
+    }
+
+    /// Every `field:*` relationship whose target is an OpenVDBAsset. A target that
+    /// does not exist is an error (the stage is broken); a field of another type
+    /// (e.g. Field3DAsset) is left out, since Nimbus cannot read it. Also returns
+    /// how many targeted `field:*` relationships there were, of any type.
+    fn fields(&self, prim: &Prim) -> Result<(Vec<(String, Field)>, usize), SceneError> {
+        let mut fields = Vec::new();
+        let mut relationship_count = 0;
+        let rels = prim
+            .relationships()
+            .map_err(|e| prim_error(prim.path(), e))?;
+        for rel in rels {
+            let Some(name) = rel.name().strip_prefix(FIELD_PREFIX).map(str::to_string) else {
+                continue;
+            };
+            let Some(target) = rel
+                .targets()
+                .map_err(|e| prim_error(rel.path(), e))?
+                .into_iter()
+                .next()
+            else {
+                continue;
+            };
+            relationship_count += 1;
+            let target_prim = self
+                .stage
+                .prim(target.clone())
+                .map_err(|e| prim_error(rel.path(), e))?;
+            if !is_valid(&target_prim)? {
+                return Err(prim_error(
+                    prim.path(),
+                    format!(
+                        "field relationship `{}` targets {target}, which does not exist",
+                        rel.name()
+                    ),
+                ));
+            }
+            if target_prim
+                .is_a(types::OPENVDB_ASSET)
+                .map_err(|e| prim_error(&target, e))?
+            {
+                fields.push((name, self.field(&target_prim)?));
+            }
+        }
+        fields.sort_by(|a, b| a.0.cmp(&b.0));
+        Ok((fields, relationship_count))
+    }
+
+    fn field(&self, prim: &Prim) -> Result<Field, SceneError> {
+        let t = self.time;
+        let asset = read_asset(prim, "filePath", t)?
+            .filter(|a| !a.authored_path.is_empty())
+            .ok_or_else(|| prim_error(prim.path(), "filePath is not authored"))?;
+        let index_attr = prim.attribute("fieldIndex");
+        let field_index = match authored(&index_attr, prim)? {
+            true => read_i64(prim, "fieldIndex", t)?
+                .map(|i| {
+                    i32::try_from(i).map_err(|_| {
+                        prim_error(prim.path(), format!("fieldIndex {i} out of range"))
+                    })
+                })
+                .transpose()?,
+            false => None,
+        };
+        Ok(Field {
+            prim_path: prim.path().to_string(),
+            file: asset_location(prim, &asset)?,
+            field_name: read_string(prim, "fieldName", t)?.unwrap_or_default(),
+            field_index,
+        })
+    }
+
+    // ----- render settings ----------------------------------------------------
+
+    /// The prim `renderSettingsPrimPath` names, else the first RenderSettings prim.
+    fn settings_prim(
+        &self,
+        inventory: &Inventory,
+        path: &Path,
+    ) -> Result<Option<Prim>, SceneError> {
+        let named = self
+            .stage
+            .render_settings_prim_path()
+            .map_err(|e| stage_error(path, format!("renderSettingsPrimPath: {e}")))?
+            .filter(|p| !p.is_empty());
+        match named {
+            Some(named) => {
+                let prim = self.stage.prim(named.as_str()).map_err(|e| {
+                    stage_error(path, format!("renderSettingsPrimPath `{named}`: {e}"))
+                })?;
+                self.require_type(&prim, types::RENDER_SETTINGS, "renderSettingsPrimPath")
+                    .map(Some)
+            }
+            None => Ok(inventory.render_settings.first().cloned()),
+        }
+    }
+
+    fn render_settings(&self, prim: &Prim) -> Result<RenderSettings, SceneError> {
+        let t = self.time;
+        let defaults = RenderSettings::default();
+        let resolution = match read_int2(prim, "resolution", t)? {
+            Some([w, h]) => (
+                to_u32(prim, "resolution", w)?,
+                to_u32(prim, "resolution", h)?,
+            ),
+            None => defaults.resolution,
+        };
+        let samples = read_i64(prim, tokens::SAMPLES, t)?;
+        let max_depth = read_i64(prim, tokens::MAX_DEPTH, t)?;
+        let seed = read_i64(prim, tokens::SEED, t)?;
+        Ok(RenderSettings {
+            prim_path: Some(prim.path().to_string()),
+            resolution,
+            samples: samples
+                .map(|v| to_u32(prim, tokens::SAMPLES, v))
+                .transpose()?
+                .unwrap_or(defaults.samples),
+            max_depth: max_depth
+                .map(|v| to_u32(prim, tokens::MAX_DEPTH, v))
+                .transpose()?
+                .unwrap_or(defaults.max_depth),
+            seed: seed
+                .map(|v| {
+                    u64::try_from(v).map_err(|_| {
+                        prim_error(prim.path(), format!("{} = {v} is negative", tokens::SEED))
+                    })
+                })
+                .transpose()?
+                .unwrap_or(defaults.seed),
+            products: self.products(prim)?,
+        })
+    }
+
+    fn products(&self, settings: &Prim) -> Result<Vec<RenderProduct>, SceneError> {
+        let mut products = Vec::new();
+        for target in targets(settings, "products")? {
+            let prim = self.target_prim(settings, &target, types::RENDER_PRODUCT)?;
+            let product_name =
+                read_string(&prim, "productName", self.time)?.filter(|n| !n.is_empty());
+            let mut vars = Vec::new();
+            for var_path in targets(&prim, "orderedVars")? {
+                let var = self.target_prim(&prim, &var_path, types::RENDER_VAR)?;
+                vars.push(RenderVar {
+                    prim_path: var.path().to_string(),
+                    source_name: read_string(&var, "sourceName", self.time)?.unwrap_or_default(),
+                    data_type: read_string(&var, "dataType", self.time)?.unwrap_or_default(),
+                });
+            }
+            products.push(RenderProduct {
+                prim_path: prim.path().to_string(),
+                product_name,
+                vars,
+            });
+        }
+        Ok(products)
+    }
+
+    // ----- prim lookups ---------------------------------------------------------
+
+    /// The prim a relationship of `owner` targets, which must exist and be a `ty`.
+    fn target_prim(&self, owner: &Prim, target: &sdf::Path, ty: &str) -> Result<Prim, SceneError> {
+        let prim = self
+            .stage
+            .prim(target.clone())
+            .map_err(|e| prim_error(owner.path(), e))?;
+        self.require_type(&prim, ty, &format!("target of {}", owner.path()))
+    }
+
+    fn require_type(&self, prim: &Prim, ty: &str, role: &str) -> Result<Prim, SceneError> {
+        if !is_valid(prim)? {
+            return Err(prim_error(prim.path(), format!("{role}: no such prim")));
+        }
+        if !prim.is_a(ty).map_err(|e| prim_error(prim.path(), e))? {
+            let actual = prim
+                .type_name()
+                .ok()
+                .flatten()
+                .map(|t| t.to_string())
+                .unwrap_or_default();
+            return Err(prim_error(
+                prim.path(),
+                format!("{role}: expected a {ty} prim, found type `{actual}`"),
+            ));
+        }
+        Ok(prim.clone())
+    }
+}
+
+fn prim_error_str(prim: &str, message: impl Display) -> SceneError {
+    SceneError::Prim {
+        prim: prim.to_string(),
+        message: message.to_string(),
+    }
+}
+
+fn is_valid(prim: &Prim) -> Result<bool, SceneError> {
+    prim.is_valid().map_err(|e| prim_error(prim.path(), e))
+}
+
+fn missing(prim: &Prim, attr: &str) -> SceneError {
+    prim_error(
+        prim.path(),
+        format!("`{attr}` has no value (and no schema fallback)"),
+    )
+}
+
+fn to_u32(prim: &Prim, attr: &str, v: i64) -> Result<u32, SceneError> {
+    u32::try_from(v).map_err(|_| prim_error(prim.path(), format!("`{attr}` = {v} is out of range")))
+}
+
+/// Converts openusd's row-major, row-vector matrix (p' = p·M) into a glam
+/// column-vector matrix (p' = M·p), which is its transpose. Reading the
+/// row-major array as column-major *is* that transpose.
+pub(crate) fn to_dmat4(m: &gf::Matrix4d) -> DMat4 {
+    DMat4::from_cols_array(&m.0)
+}
+
+// ----- relationships -------------------------------------------------------------
+
+fn targets(prim: &Prim, rel: &str) -> Result<Vec<sdf::Path>, SceneError> {
+    let rel = prim.relationship(rel);
+    rel.targets().map_err(|e| prim_error(rel.path(), e))
+}
+
+fn first_target(prim: &Prim, rel: &str) -> Result<Option<sdf::Path>, SceneError> {
+    Ok(targets(prim, rel)?.into_iter().next())
+}
+
+// ----- typed attribute reads ---------------------------------------------------------
+//
+// Reads go through `sdf::Value` and accept every numeric precision an author
+// might have used (float, double, half), since stages in the wild are not
+// consistent about it. `None` means neither an opinion nor a schema fallback.
+
+fn authored(attr: &usd::Attribute, prim: &Prim) -> Result<bool, SceneError> {
+    attr.has_authored_value()
+        .map_err(|e| prim_error(prim.path(), format!("{}: {e}", attr.name())))
+}
+
+fn read_value(
+    prim: &Prim,
+    name: &str,
+    time: Option<TimeCode>,
+) -> Result<Option<Value>, SceneError> {
+    prim.attribute(name)
+        .get_at::<Value>(time)
+        .map_err(|e| prim_error(prim.path(), format!("cannot read `{name}`: {e}")))
+}
+
+fn wrong_type(prim: &Prim, name: &str, expected: &str, value: &Value) -> SceneError {
+    prim_error(
+        prim.path(),
+        format!("`{name}` should be {expected}, found {value:?}"),
+    )
+}
+
+fn read_f64(prim: &Prim, name: &str, time: Option<TimeCode>) -> Result<Option<f64>, SceneError> {
+    let Some(value) = read_value(prim, name, time)? else {
+        return Ok(None);
+    };
+    match value {
+        Value::Float(v) => Ok(Some(f64::from(v))),
+        Value::Double(v) => Ok(Some(v)),
+        Value::Half(v) => Ok(Some(f64::from(v))),
+        Value::Int(v) => Ok(Some(f64::from(v))),
+        other => Err(wrong_type(prim, name, "a number", &other)),
+    }
+}
+
+fn require_f64(prim: &Prim, name: &str, time: Option<TimeCode>) -> Result<f64, SceneError> {
+    read_f64(prim, name, time)?.ok_or_else(|| missing(prim, name))
+}
+
+fn read_i64(prim: &Prim, name: &str, time: Option<TimeCode>) -> Result<Option<i64>, SceneError> {
+    let Some(value) = read_value(prim, name, time)? else {
+        return Ok(None);
+    };
+    match value {
+        Value::Int(v) => Ok(Some(i64::from(v))),
+        Value::Int64(v) => Ok(Some(v)),
+        Value::Uint(v) => Ok(Some(i64::from(v))),
+        Value::Uint64(v) => i64::try_from(v)
+            .map(Some)
+            .map_err(|_| wrong_type(prim, name, "an int", &value)),
+        Value::Uchar(v) => Ok(Some(i64::from(v))),
+        other => Err(wrong_type(prim, name, "an int", &other)),
+    }
+}
+
+fn read_vec3(
+    prim: &Prim,
+    name: &str,
+    time: Option<TimeCode>,
+) -> Result<Option<[f64; 3]>, SceneError> {
+    let Some(value) = read_value(prim, name, time)? else {
+        return Ok(None);
+    };
+    match value {
+        Value::Vec3f(v) => Ok(Some([v.x, v.y, v.z].map(f64::from))),
+        Value::Vec3d(v) => Ok(Some([v.x, v.y, v.z])),
+        Value::Vec3h(v) => Ok(Some([v.x, v.y, v.z].map(f64::from))),
+        other => Err(wrong_type(prim, name, "a 3-vector/colour", &other)),
+    }
+}
+
+fn read_vec2(
+    prim: &Prim,
+    name: &str,
+    time: Option<TimeCode>,
+) -> Result<Option<[f64; 2]>, SceneError> {
+    let Some(value) = read_value(prim, name, time)? else {
+        return Ok(None);
+    };
+    match value {
+        Value::Vec2f(v) => Ok(Some([v.x, v.y].map(f64::from))),
+        Value::Vec2d(v) => Ok(Some([v.x, v.y])),
+        Value::Vec2h(v) => Ok(Some([v.x, v.y].map(f64::from))),
+        other => Err(wrong_type(prim, name, "a 2-vector", &other)),
+    }
+}
+
+fn read_int2(
+    prim: &Prim,
+    name: &str,
+    time: Option<TimeCode>,
+) -> Result<Option<[i64; 2]>, SceneError> {
+    let Some(value) = read_value(prim, name, time)? else {
+        return Ok(None);
+    };
+    match value {
+        Value::Vec2i(v) => Ok(Some([i64::from(v.x), i64::from(v.y)])),
+        other => Err(wrong_type(prim, name, "an int2", &other)),
+    }
+}
+
+fn read_string(
+    prim: &Prim,
+    name: &str,
+    time: Option<TimeCode>,
+) -> Result<Option<String>, SceneError> {
+    let Some(value) = read_value(prim, name, time)? else {
+        return Ok(None);
+    };
+    match value {
+        Value::Token(t) => Ok(Some(t.to_string())),
+        Value::String(s) => Ok(Some(s)),
+        other => Err(wrong_type(prim, name, "a token or string", &other)),
+    }
+}
+
+fn read_asset(
+    prim: &Prim,
+    name: &str,
+    time: Option<TimeCode>,
+) -> Result<Option<sdf::AssetPath>, SceneError> {
+    let Some(value) = read_value(prim, name, time)? else {
+        return Ok(None);
+    };
+    match value {
+        Value::AssetPath(a) => Ok(Some(a)),
+        other => Err(wrong_type(prim, name, "an asset path", &other)),
+    }
+}
+
+// ----- assets ----------------------------------------------------------------------------
+
+/// Where a field's file is. openusd resolves the asset path against the layer
+/// that authored it during value resolution; a path inside a .usdz resolves to
+/// the package-relative form `pkg.usdz[member]`, whose bytes are read here
+/// through the resolver (the renderer cannot open them as a file).
+fn asset_location(prim: &Prim, asset: &sdf::AssetPath) -> Result<AssetLocation, SceneError> {
+    let authored = &asset.authored_path;
+    let resolved = match asset.resolved_path().filter(|r| !r.is_empty()) {
+        Some(resolved) => resolved.to_string(),
+        None => {
+            resolve_from_package_root(&prim.attribute("filePath"), authored).ok_or_else(|| {
+                prim_error(
+                    prim.path(),
+                    format!("filePath @{authored}@ does not resolve to an existing file"),
+                )
+            })?
+        }
+    };
+    let resolved = resolved.as_str();
+    if !openusd::ar::is_package_relative_path(resolved) {
+        return Ok(AssetLocation::File(PathBuf::from(resolved)));
+    }
+    let (package, member) = openusd::ar::split_package_relative_path_outer(resolved)
+        .ok_or_else(|| prim_error(prim.path(), format!("malformed package path {resolved}")))?;
+    let bytes = read_packaged(resolved).map_err(|e| {
+        prim_error(
+            prim.path(),
+            format!("cannot read @{authored}@ from {resolved}: {e}"),
+        )
+    })?;
+    Ok(AssetLocation::Packaged {
+        package: PathBuf::from(package),
+        member,
+        bytes: Arc::new(bytes),
     })
+}
+
+/// pxr's Ar treats a relative path without a leading `./` or `../` as a search
+/// path: when it does not resolve next to the authoring layer and that layer is
+/// inside a package, it is looked up from the package root. UsdUtils'
+/// usdz packager relies on this (it rewrites some dependencies to `0/file.vdb`
+/// inside a layer in a subdirectory); openusd 0.8 only anchors to the layer, so
+/// the lookup is retried here for the package of each layer with an opinion.
+fn resolve_from_package_root(attr: &usd::Attribute, authored: &str) -> Option<String> {
+    use openusd::ar::Resolver;
+    let search_path_style = !authored.is_empty()
+        && !authored.starts_with("./")
+        && !authored.starts_with("../")
+        && !Path::new(authored).is_absolute()
+        && !openusd::ar::is_package_relative_path(authored);
+    if !search_path_style {
+        return None;
+    }
+    let resolver = openusd::ar::DefaultResolver::new();
+    let sites = attr.property_stack().ok()?;
+    sites.iter().find_map(|site| {
+        let package = package_of_layer(&site.layer)?;
+        let candidate = openusd::ar::join_package_relative_path(&package, authored);
+        resolver
+            .resolve(&candidate)
+            .map(|r| r.to_string_lossy().into_owned())
+    })
+}
+
+/// The outermost package a layer identifier lives in (or is), if any.
+fn package_of_layer(layer: &str) -> Option<String> {
+    if openusd::ar::is_package_relative_path(layer) {
+        return openusd::ar::split_package_relative_path_outer(layer).map(|(package, _)| package);
+    }
+    layer
+        .to_ascii_lowercase()
+        .ends_with(".usdz")
+        .then(|| layer.to_string())
+}
+
+fn read_packaged(resolved: &str) -> std::io::Result<Vec<u8>> {
+    use openusd::ar::Resolver;
+    let resolver = openusd::ar::DefaultResolver::new();
+    let mut asset = resolver.open_asset(&openusd::ar::ResolvedPath::new(resolved))?;
+    let mut bytes = Vec::new();
+    asset.read_to_end(&mut bytes)?;
+    Ok(bytes)
 }
