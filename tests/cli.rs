@@ -377,3 +377,89 @@ fn bad_input_fails_cleanly_and_leaves_existing_output_untouched() {
         .collect();
     assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
 }
+
+/// The tracker comes from the stage's render settings unless a flag overrides it; an
+/// unknown tracker token or render var is a clear error.
+#[test]
+fn tracker_settings_from_stage_and_flags() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::copy(
+        root().join("scenes/chromatic/chromatic.vdb"),
+        d.join("chromatic.vdb"),
+    )
+    .unwrap();
+    let text = std::fs::read_to_string(root().join("scenes/chromatic/chromatic.usda")).unwrap();
+    let write = |name: &str, extra: &str, var: &str| {
+        let t = text
+            .replace(
+                "int nimbus:seed = 1",
+                &format!("int nimbus:seed = 1\n        {extra}"),
+            )
+            .replace(
+                "uniform string sourceName = \"lookups\"",
+                &format!("uniform string sourceName = \"{var}\""),
+            );
+        let p = d.join(name);
+        std::fs::write(&p, t).unwrap();
+        p
+    };
+    let stats = d.join("s.json");
+    let out = d.join("o.exr");
+    let run = |stage: &Path, extra: &[&str]| {
+        let mut a = vec![
+            "render",
+            stage.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--res",
+            "8x6",
+            "--spp",
+            "1",
+            "--stats",
+            stats.to_str().unwrap(),
+        ];
+        a.extend_from_slice(extra);
+        nimbus(&a)
+    };
+    let tracker = || -> String {
+        let j: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+        format!(
+            "{} {} {}",
+            j["tracker"].as_str().unwrap(),
+            j["scheme"].as_str().unwrap(),
+            j["transmittance"].as_str().unwrap()
+        )
+    };
+    let s = write(
+        "a.usda",
+        "token nimbus:tracker = \"spectral\"\n        token nimbus:scheme = \"max\"\n        token nimbus:transmittance = \"residual-ratio\"",
+        "max_throughput",
+    );
+    let o = run(&s, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(tracker(), "spectral max residual-ratio");
+    assert!(
+        channels(&out).iter().any(|c| c.0 == "max_throughput"),
+        "render var max_throughput written"
+    );
+    let o = run(
+        &s,
+        &[
+            "--tracker",
+            "decomposition",
+            "--scheme",
+            "avg",
+            "--transmittance",
+            "ratio",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(tracker(), "decomposition avg ratio");
+
+    let bad = write("b.usda", "token nimbus:tracker = \"warp-drive\"", "lookups");
+    assert_clean_error(&run(&bad, &[]), "nimbus:tracker");
+    let bad = write("c.usda", "", "nosuchaov");
+    assert_clean_error(&run(&bad, &[]), "nosuchaov");
+}

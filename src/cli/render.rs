@@ -7,13 +7,13 @@ use crate::render::camera::CameraRays;
 use crate::render::film::Aov;
 use crate::render::job::{medium_for_scene, RenderJob};
 use crate::render::lights::Lights;
-use crate::scene::{load_stage, LoadOptions};
+use crate::scene::{load_stage, LoadOptions, RenderSettings};
 use crate::track::{
     scheme::SchemeOptions, SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind,
 };
 use crate::volume::vdb;
 use anyhow::{bail, Context, Result};
-use clap::Args;
+use clap::{Args, ValueEnum};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -51,18 +51,20 @@ pub struct RenderArgs {
     /// Edge of a majorant cell in voxels; 0 = one global majorant for the volume.
     #[arg(long, default_value_t = 8)]
     pub majorant_cell: u32,
-    /// Free-path sampler.
-    #[arg(long, value_enum, default_value_t = TrackerKind::Delta)]
-    pub tracker: TrackerKind,
-    /// Event probabilities for `spectral` and `spectral-decomposition`.
-    #[arg(long, value_enum, default_value_t = SchemeKind::HistAvg)]
-    pub scheme: SchemeKind,
-    /// Shadow-ray transmittance estimator.
-    #[arg(long, value_enum, default_value_t = TransmittanceKind::Ratio)]
-    pub transmittance: TransmittanceKind,
-    /// Control of `decomposition-weighted`, from 0 (cell minimum) to 1 (cell maximum).
-    #[arg(long, default_value_t = 0.5)]
-    pub control: f32,
+    /// Free-path sampler (overrides nimbus:tracker; default delta).
+    #[arg(long, value_enum)]
+    pub tracker: Option<TrackerKind>,
+    /// Event probabilities for `spectral` and `spectral-decomposition` (overrides
+    /// nimbus:scheme; default hist-avg).
+    #[arg(long, value_enum)]
+    pub scheme: Option<SchemeKind>,
+    /// Shadow-ray transmittance estimator (overrides nimbus:transmittance; default ratio).
+    #[arg(long, value_enum)]
+    pub transmittance: Option<TransmittanceKind>,
+    /// Control of `decomposition-weighted`, from 0 (cell minimum) to 1 (cell maximum)
+    /// (overrides nimbus:control; default 0.5).
+    #[arg(long)]
+    pub control: Option<f32>,
     /// Reduced termination rates: scattering and null take their maximum proportions,
     /// absorption the rest (spectral schemes).
     #[arg(long)]
@@ -104,8 +106,7 @@ const MAX_FILM_BYTES: u64 = 8 << 30;
 
 pub fn run(args: RenderArgs) -> Result<()> {
     let wall = Instant::now();
-    let tracking = tracker_settings(&args)?;
-    let aovs = requested_aovs(&args.aovs)?;
+    let mut aovs = requested_aovs(&args.aovs)?;
     check_writable(&args.output)?;
     if let Some(s) = &args.stats {
         check_writable(s)?;
@@ -116,6 +117,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
     };
     let scene = load_stage(&args.stage, &opts)?;
     let settings = &scene.settings;
+    let tracking = tracker_settings(&args, settings)?;
+    add_render_var_aovs(settings, &mut aovs)?;
     let (width, height) = args.res.unwrap_or(settings.resolution);
     let spp = args.spp.unwrap_or(settings.samples);
     let max_depth = args.max_depth.unwrap_or(settings.max_depth);
@@ -238,9 +241,51 @@ pub fn run(args: RenderArgs) -> Result<()> {
     Ok(())
 }
 
-fn tracker_settings(args: &RenderArgs) -> Result<TrackerSettings> {
-    if !(args.control.is_finite() && (0.0..=1.0).contains(&args.control)) {
-        bail!("--control must lie in [0, 1], got {}", args.control);
+/// Tracker settings: flags override the stage's render settings, which override the
+/// defaults.
+fn tracker_settings(args: &RenderArgs, stage: &RenderSettings) -> Result<TrackerSettings> {
+    fn from_stage<T: ValueEnum>(
+        stage: &RenderSettings,
+        attr: &str,
+        value: &Option<String>,
+    ) -> Result<Option<T>> {
+        let Some(v) = value else { return Ok(None) };
+        T::from_str(v, false).map(Some).map_err(|_| {
+            let known: Vec<String> = T::value_variants()
+                .iter()
+                .filter_map(|x| x.to_possible_value())
+                .map(|p| p.get_name().to_string())
+                .collect();
+            anyhow::anyhow!(
+                "{}: {attr} = \"{v}\" is not one of {}",
+                stage.prim_path.as_deref().unwrap_or("render settings"),
+                known.join(", ")
+            )
+        })
+    }
+    let d = TrackerSettings::default();
+    let tracker = args
+        .tracker
+        .or(from_stage(stage, "nimbus:tracker", &stage.tracker)?)
+        .unwrap_or(d.tracker);
+    let scheme = args
+        .scheme
+        .or(from_stage(stage, "nimbus:scheme", &stage.scheme)?)
+        .unwrap_or(d.scheme);
+    let transmittance = args
+        .transmittance
+        .or(from_stage(
+            stage,
+            "nimbus:transmittance",
+            &stage.transmittance,
+        )?)
+        .unwrap_or(d.transmittance);
+    let control = args
+        .control
+        .or(stage.control.map(|c| c as f32))
+        .unwrap_or(0.5);
+    if !(control.is_finite() && (0.0..=1.0).contains(&control)) {
+        bail!("the decomposition control must lie in [0, 1], got {control}");
     }
     if !(args.majorant_scale.is_finite() && args.majorant_scale > 0.0) {
         bail!(
@@ -249,10 +294,10 @@ fn tracker_settings(args: &RenderArgs) -> Result<TrackerSettings> {
         );
     }
     Ok(TrackerSettings {
-        tracker: args.tracker,
-        scheme: args.scheme,
-        transmittance: args.transmittance,
-        control: args.control,
+        tracker,
+        scheme,
+        transmittance,
+        control,
         options: SchemeOptions {
             reduced_termination: args.reduced_termination,
             no_absorption_events: args.no_absorption_events,
@@ -274,4 +319,35 @@ fn requested_aovs(names: &[String]) -> Result<Vec<Aov>> {
         }
     }
     Ok(aovs)
+}
+
+/// Adds the AOVs the stage's render vars name. `color` (also `C`, `Ci`, `rgb`) is R, G, B;
+/// `alpha`/`a` is A; the other AOVs go by their channel names.
+fn add_render_var_aovs(settings: &RenderSettings, aovs: &mut Vec<Aov>) -> Result<()> {
+    for product in &settings.products {
+        for var in &product.vars {
+            let name = var.source_name.trim();
+            let wanted: Vec<Aov> = match name {
+                "color" | "C" | "Ci" | "rgb" | "RGB" => vec![Aov::R, Aov::G, Aov::B],
+                "alpha" | "a" | "A" => vec![Aov::A],
+                other => match Aov::from_name(other) {
+                    Some(a) => vec![a],
+                    None => {
+                        let known: Vec<_> = Aov::ALL.iter().map(|a| a.channel_name()).collect();
+                        bail!(
+                            "{}: sourceName \"{other}\" is not an AOV Nimbus knows; known: color, alpha, {}",
+                            var.prim_path,
+                            known.join(", ")
+                        );
+                    }
+                },
+            };
+            for a in wanted {
+                if !aovs.contains(&a) {
+                    aovs.push(a);
+                }
+            }
+        }
+    }
+    Ok(())
 }

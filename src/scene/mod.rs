@@ -141,6 +141,12 @@ pub struct RenderSettings {
     pub seed: u64,
     /// Render products with their render vars (AOVs).
     pub products: Vec<RenderProduct>,
+    /// `nimbus:tracker`, `nimbus:scheme`, `nimbus:transmittance` (token names as the
+    /// CLI spells them) and `nimbus:control`, when the stage sets them.
+    pub tracker: Option<String>,
+    pub scheme: Option<String>,
+    pub transmittance: Option<String>,
+    pub control: Option<f64>,
 }
 
 impl Default for RenderSettings {
@@ -152,6 +158,10 @@ impl Default for RenderSettings {
             max_depth: 64,
             seed: 0,
             products: Vec::new(),
+            tracker: None,
+            scheme: None,
+            transmittance: None,
+            control: None,
         }
     }
 }

@@ -43,6 +43,10 @@ pub mod tokens {
     pub const SAMPLES: &str = "nimbus:samples";
     pub const MAX_DEPTH: &str = "nimbus:maxDepth";
     pub const SEED: &str = "nimbus:seed";
+    pub const TRACKER: &str = "nimbus:tracker";
+    pub const SCHEME: &str = "nimbus:scheme";
+    pub const TRANSMITTANCE: &str = "nimbus:transmittance";
+    pub const CONTROL: &str = "nimbus:control";
 }
 
 /// Why the embedded schema could not be registered. This is a build defect (the

@@ -526,6 +526,10 @@ impl Loader<'_> {
                 .transpose()?
                 .unwrap_or(defaults.seed),
             products: self.products(prim)?,
+            tracker: read_string(prim, tokens::TRACKER, t)?,
+            scheme: read_string(prim, tokens::SCHEME, t)?,
+            transmittance: read_string(prim, tokens::TRANSMITTANCE, t)?,
+            control: read_f64(prim, tokens::CONTROL, t)?,
         })
     }
 

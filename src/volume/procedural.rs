@@ -112,7 +112,7 @@ pub fn cloud_density(p: DVec3) -> f64 {
         shape = shape.max(1.0 - d);
     }
     let n = fbm(p * 3.0 + DVec3::new(11.3, 4.7, 2.1), 5);
-    let v = (shape * 2.2 + (n - 0.5) * 1.4).clamp(0.0, 1.0);
+    let v = (shape * 3.0 + (n - 0.5) * 1.6).clamp(0.0, 1.0);
     // Smooth edge ramp.
     v * v * (3.0 - 2.0 * v)
 }
