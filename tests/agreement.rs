@@ -1,13 +1,23 @@
 //! Every tracker renders the example scenes to the same image as a high-sample `delta`
 //! reference, within statistical error; decomposition saves density lookups.
 //!
-//! Estimator: per pixel, the mean luminance over spp samples, with its variance from
-//! the per-pixel sample variance (the `variance` AOV) divided by spp. Pixels are pooled
-//! into blocks (mean of the block's pixel means; variance Σ var_i/n_i / P²) so the CLT
-//! holds at modest spp even for heavy-tailed trackers. For each block,
-//! z = (tracker − reference)/sqrt(var_t + var_ref); every |z| must be < 4.5. Across
-//! 2 scenes × 12 configurations × 36 blocks (864 two-sided tests) the chance of a false
-//! alarm under the null is about 864 × 6.8e-6 ≈ 0.6%.
+//! Per pixel i the estimate is the mean luminance x_i over n samples; its variance is
+//! estimated by the `variance` AOV v_i / n. For a tracker image x (n = 1024 spp, seed
+//! fixed) against the reference r (delta, 4096 spp):
+//!
+//! 1. Image mean: z = Σ(x_i − r_i) / sqrt(Σ(v_i/n + w_i/N)); |z| < 4.5.
+//! 2. Per-pixel agreement as a relative-MSE bound: S = Σ(x_i − r_i)² / Σ(v_i/n + w_i/N)
+//!    is 1 in expectation for unbiased estimators (bias adds Σ b_i² to the numerator);
+//!    under a Gaussian approximation S ~ χ²_m/m over the m pixels with non-zero variance,
+//!    so S < 1 + 5·sqrt(2/m).
+//!
+//! Why not per-pixel or per-block z-scores: the sun-lit wisps of the cloud and the
+//! weighted trackers on the chromatic medium give skewed, heavy-tailed per-sample
+//! distributions; at 1024 spp the sample variance of a pixel or small block often misses
+//! the rare large values and block z-scores beyond 4.5 appeared with shifted seeds for
+//! unbiased trackers (delta against delta included). The image-level sums pool 10⁵–10⁶
+//! samples, where the normal approximation holds. The tests still catch bias: delta with
+//! its majorant scaled by 0.3 (biased) fails (checked by hand with the config below).
 
 use nimbus::render::camera::CameraRays;
 use nimbus::render::film::Film;
@@ -20,7 +30,6 @@ use std::path::PathBuf;
 
 const W: u32 = 24;
 const H: u32 = 18;
-const BLOCK: (u32, u32) = (4, 3);
 
 struct Setup {
     medium: Medium,
@@ -54,25 +63,44 @@ fn render(s: &Setup, tracking: TrackerSettings, spp: u32, seed: u64) -> Film {
     .render(&|| {})
 }
 
-/// Block means and variances of the mean, for the luminance of a film.
-fn blocks(f: &Film) -> Vec<(f64, f64)> {
-    let mut out = Vec::new();
-    for by in 0..H / BLOCK.1 {
-        for bx in 0..W / BLOCK.0 {
-            let (mut m, mut v, mut n) = (0.0, 0.0, 0.0);
-            for y in by * BLOCK.1..(by + 1) * BLOCK.1 {
-                for x in bx * BLOCK.0..(bx + 1) * BLOCK.0 {
-                    let p = &f.pixels[(y * W + x) as usize];
-                    let k = (p.samples - p.nonfinite) as f64;
-                    m += p.lum / k;
-                    v += p.luminance_variance() / k;
-                    n += 1.0;
-                }
-            }
-            out.push((m / n, v / (n * n)));
+/// Per-pixel mean luminance and the variance of that mean, for pixels with samples.
+fn pixels(f: &Film) -> Vec<(f64, f64)> {
+    f.pixels
+        .iter()
+        .map(|p| {
+            let k = (p.samples - p.nonfinite) as f64;
+            (p.lum / k, p.luminance_variance() / k)
+        })
+        .collect()
+}
+
+/// (image-mean z, S, S's bound) of `x` against the reference `r`.
+fn agreement(x: &[(f64, f64)], r: &[(f64, f64)]) -> (f64, f64, f64) {
+    let (mut diff, mut sq, mut var, mut m) = (0.0, 0.0, 0.0, 0usize);
+    for ((xm, xv), (rm, rv)) in x.iter().zip(r) {
+        diff += xm - rm;
+        sq += (xm - rm).powi(2);
+        var += xv + rv;
+        if xv + rv > 0.0 {
+            m += 1;
         }
     }
-    out
+    if var == 0.0 {
+        return (
+            if diff.abs() < 1e-6 {
+                0.0
+            } else {
+                f64::INFINITY
+            },
+            1.0,
+            1.0,
+        );
+    }
+    (
+        diff / var.sqrt(),
+        sq / var,
+        1.0 + 5.0 * (2.0 / m.max(1) as f64).sqrt(),
+    )
 }
 
 fn settings(tracker: TrackerKind, scheme: SchemeKind) -> TrackerSettings {
@@ -93,7 +121,12 @@ fn trackers_agree_with_delta_reference() {
     use TrackerKind::*;
     for scene in ["chromatic", "cloud"] {
         let s = setup(scene);
-        let reference = blocks(&render(&s, settings(Delta, Avg), 512, 1000));
+        let reference = pixels(&render(
+            &s,
+            settings(Delta, Avg),
+            4096,
+            1000 + seed_offset(),
+        ));
         let mut configs = vec![
             ("naive-delta", settings(NaiveDelta, Avg)),
             ("delta", settings(Delta, Avg)),
@@ -131,23 +164,14 @@ fn trackers_agree_with_delta_reference() {
             },
         ));
         for (i, (name, t)) in configs.into_iter().enumerate() {
-            let film = render(&s, t, 64, 2000 + i as u64);
-            let b = blocks(&film);
-            for (k, ((mt, vt), (mr, vr))) in b.iter().zip(&reference).enumerate() {
-                let sd = (vt + vr).sqrt();
-                if sd == 0.0 {
-                    assert!(
-                        (mt - mr).abs() < 1e-9,
-                        "{scene} {name} block {k}: {mt} vs {mr}"
-                    );
-                    continue;
-                }
-                let z = (mt - mr) / sd;
-                assert!(
-                    z.abs() < 4.5,
-                    "{scene} {name} block {k}: {mt} vs reference {mr}, z = {z:.2}"
-                );
-            }
+            let film = render(&s, t, 1024, 2000 + i as u64 + seed_offset());
+            let (z, ratio, bound) = agreement(&pixels(&film), &reference);
+            eprintln!("{scene} {name}: image-mean z = {z:.2}, S = {ratio:.3} (bound {bound:.3})");
+            assert!(
+                z.abs() < 4.5,
+                "{scene} {name}: image mean differs from the reference, z = {z:.2}"
+            );
+            assert!(ratio < bound, "{scene} {name}: squared error {ratio:.3}× what the variance predicts (bound {bound:.3})");
         }
     }
 }
@@ -198,4 +222,13 @@ fn delta_reports_violations_with_non_bounding_majorant() {
     assert!(f.totals().0.majorant_violations > 0);
     let f = render(&s, settings(TrackerKind::Delta, SchemeKind::Avg), 4, 3);
     assert_eq!(f.totals().0.majorant_violations, 0);
+}
+
+/// Seeds are fixed so the test is deterministic; `NIMBUS_TEST_SEED_OFFSET` shifts them to
+/// check by hand that passing is not an accident of one seed.
+fn seed_offset() -> u64 {
+    std::env::var("NIMBUS_TEST_SEED_OFFSET")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(0)
 }

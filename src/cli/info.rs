@@ -103,10 +103,7 @@ pub fn run(args: InfoArgs) -> Result<()> {
                     Ok((raw, g))
                 }) {
                 Ok((raw, g)) => {
-                    let wb = raw.world_bounds().map(|(lo, hi)| {
-                        let m = v.volume_to_world;
-                        (m.transform_point3(lo), m.transform_point3(hi))
-                    });
+                    let wb = raw.world_bounds(v.volume_to_world);
                     println!(
                         "    loaded '{}': {} active voxels, {} leaves, {} tiles, background {}, {} bricks ({:.1} MiB), sanitized voxels {}",
                         raw.name,
@@ -119,7 +116,7 @@ pub fn run(args: InfoArgs) -> Result<()> {
                         g.sanitized_voxels
                     );
                     if let Some((lo, hi)) = wb {
-                        println!("    world bounds (approx., volume transform applied to corners): {lo:?} .. {hi:?}");
+                        println!("    world bounds (active voxel centres): {lo:?} .. {hi:?}");
                     }
                 }
                 Err(e) => println!("    cannot load: {e:#}"),

@@ -143,7 +143,8 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                         break;
                     }
                     if depth >= RR_DEPTH {
-                        let q = track::max3(throughput).min(1.0);
+                        // Weighted trackers make throughputs signed: survive by magnitude.
+                        let q = track::max3(throughput.map(f32::abs)).min(1.0);
                         if !(rng.gen::<f32>() < q) {
                             break;
                         }

@@ -122,8 +122,10 @@ impl RawGrid {
         any.then_some((lo, hi))
     }
 
-    /// World-space axis-aligned bounds of the active region (voxel centres), or `None`.
-    pub fn world_bounds(&self) -> Option<(DVec3, DVec3)> {
+    /// World-space axis-aligned bounds of the active voxel centres under
+    /// `volume_to_world · index_to_world` (the box around the eight transformed corners),
+    /// or `None` for an empty grid.
+    pub fn world_bounds(&self, volume_to_world: DMat4) -> Option<(DVec3, DVec3)> {
         let (lo, hi) = self.active_index_bounds()?;
         let mut wlo = DVec3::splat(f64::INFINITY);
         let mut whi = DVec3::splat(f64::NEG_INFINITY);
@@ -133,7 +135,7 @@ impl RawGrid {
                 if c & 2 == 0 { lo[1] } else { hi[1] } as f64,
                 if c & 4 == 0 { lo[2] } else { hi[2] } as f64,
             );
-            let w = self.index_to_world.transform_point3(p);
+            let w = (volume_to_world * self.index_to_world).transform_point3(p);
             wlo = wlo.min(w);
             whi = whi.max(w);
         }

@@ -199,23 +199,4 @@ impl Medium {
         counters.density_lookups += 1;
         self.density.sample_trilinear(p.to_array())
     }
-
-    /// World-space bounds of the region the majorant structure covers.
-    pub fn world_bounds(&self) -> Option<(DVec3, DVec3)> {
-        let (lo, hi) = self.majorants.index_region()?;
-        let m = self.world_to_index.inverse();
-        let mut wlo = DVec3::splat(f64::INFINITY);
-        let mut whi = DVec3::splat(f64::NEG_INFINITY);
-        for c in 0..8 {
-            let p = DVec3::new(
-                if c & 1 == 0 { lo.x } else { hi.x } as f64,
-                if c & 2 == 0 { lo.y } else { hi.y } as f64,
-                if c & 4 == 0 { lo.z } else { hi.z } as f64,
-            );
-            let w = m.transform_point3(p);
-            wlo = wlo.min(w);
-            whi = whi.max(w);
-        }
-        Some((wlo, whi))
-    }
 }
