@@ -24,13 +24,7 @@ pub fn write_atomically(
         path: path.display().to_string(),
         message,
     };
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    if path.is_dir() {
-        return Err(err("it is a directory".into()));
-    }
+    let dir = target_dir(path).map_err(err)?;
     let mut tmp = tempfile::Builder::new()
         .prefix(".nimbus-")
         .suffix(".tmp")
@@ -55,13 +49,7 @@ pub fn check_writable(path: &Path) -> Result<(), OutputError> {
         path: path.display().to_string(),
         message,
     };
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    if path.is_dir() {
-        return Err(err("it is a directory".into()));
-    }
+    let dir = target_dir(path).map_err(err)?;
     tempfile::Builder::new()
         .prefix(".nimbus-check-")
         .tempfile_in(dir)
@@ -72,4 +60,15 @@ pub fn check_writable(path: &Path) -> Result<(), OutputError> {
                 dir.display()
             ))
         })
+}
+
+/// The folder a new `path` goes into; an existing directory at `path` is an error.
+fn target_dir(path: &Path) -> Result<&Path, String> {
+    if path.is_dir() {
+        return Err("it is a directory".into());
+    }
+    Ok(match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    })
 }

@@ -10,9 +10,10 @@
 //! and treated as a null collision with unit weight (biased, and reported, never
 //! silent). `weighted-delta` is the estimator that stays unbiased there.
 
-use super::{exp_step, FreePath, FreePathSampler, Query, Spectrum};
+use super::{walk_collisions, FreePath, FreePathSampler, Query, Spectrum};
 use crate::volume::medium::Counters;
 use rand::Rng;
+use std::ops::ControlFlow;
 
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Delta;
@@ -29,50 +30,38 @@ impl FreePathSampler for Delta {
         let sg = q.sigma;
         let avg_a = super::avg(sg.a);
         let avg_s = super::avg(sg.s);
-        for seg in q.medium.majorants.walk(q.ray.o, q.ray.d, q.tmin, q.tmax) {
-            c.cells_visited += 1;
-            let mu_bar = seg.dmax * sg.t_max * q.majorant_scale;
-            if !(mu_bar > 0.0) {
-                continue; // empty cell: skipped without a lookup
+        walk_collisions(q, rng, c, |t, mu_bar, rng, c| {
+            let d = q.medium.density(q.ray.at(t), c);
+            // P★ = avg_λ μ★(λ) / μ̄.
+            let pa = d * avg_a / mu_bar;
+            let ps = d * avg_s / mu_bar;
+            let pn = 1.0 - pa - ps;
+            // A tolerance for rounding where the density equals the majorant.
+            if pn < -1e-5 {
+                c.majorant_violations += 1;
             }
-            let mut t = seg.t0;
-            loop {
-                t += exp_step(rng, mu_bar);
-                if t >= seg.t1 {
-                    break;
+            let u: f32 = rng.gen();
+            if u < pa {
+                c.real_collisions += 1;
+                return ControlFlow::Break(FreePath::Absorb { t });
+            }
+            if u < pa + ps {
+                c.real_collisions += 1;
+                for ch in 0..3 {
+                    throughput[ch] *= d * sg.s[ch] / (mu_bar * ps);
                 }
-                let d = q.medium.density(q.ray.at(t), c);
-                // P★ = avg_λ μ★(λ) / μ̄.
-                let pa = d * avg_a / mu_bar;
-                let ps = d * avg_s / mu_bar;
-                let pn = 1.0 - pa - ps;
-                // A tolerance for rounding where the density equals the majorant.
-                if pn < -1e-5 {
-                    c.majorant_violations += 1;
-                }
-                let u: f32 = rng.gen();
-                if u < pa {
-                    c.real_collisions += 1;
-                    return FreePath::Absorb { t };
-                }
-                if u < pa + ps {
-                    c.real_collisions += 1;
-                    for ch in 0..3 {
-                        throughput[ch] *= d * sg.s[ch] / (mu_bar * ps);
-                    }
-                    c.observe_throughput(*throughput);
-                    return FreePath::Scatter { t };
-                }
-                c.null_collisions += 1;
-                if pn <= 0.0 {
-                    continue;
-                }
+                c.observe_throughput(*throughput);
+                return ControlFlow::Break(FreePath::Scatter { t });
+            }
+            c.null_collisions += 1;
+            if pn > 0.0 {
                 for ch in 0..3 {
                     throughput[ch] *= (mu_bar - d * sg.t[ch]) / (mu_bar * pn);
                 }
                 c.observe_throughput(*throughput);
             }
-        }
-        FreePath::Escape
+            ControlFlow::Continue(())
+        })
+        .unwrap_or(FreePath::Escape)
     }
 }

@@ -16,6 +16,7 @@ pub mod spectral;
 
 use crate::volume::medium::{Counters, IndexRay, Medium, Sigma};
 use rand::Rng;
+use std::ops::ControlFlow;
 
 pub use crate::volume::medium::Spectrum;
 
@@ -57,6 +58,38 @@ pub trait FreePathSampler: Sync {
 /// Estimates transmittance along a shadow ray.
 pub trait TransmittanceEstimator: Sync {
     fn transmittance<R: Rng>(&self, q: &Query, rng: &mut R, c: &mut Counters) -> Spectrum;
+}
+
+/// Walks the tentative collisions of the null-collision process whose majorant is
+/// μ̄ = d_max·max σt (times `q.majorant_scale`) in each cell along the query's ray,
+/// restarting the exponential at every cell boundary and skipping empty cells without
+/// a lookup. `at(t, μ̄, rng, counters)` decides each collision; breaking returns its
+/// value, running off the end returns `None`. (pbrt-v4's `SampleT_maj`, monomorphised.)
+#[inline(always)]
+pub fn walk_collisions<R: Rng, T>(
+    q: &Query,
+    rng: &mut R,
+    c: &mut Counters,
+    mut at: impl FnMut(f32, f32, &mut R, &mut Counters) -> ControlFlow<T>,
+) -> Option<T> {
+    for seg in q.medium.majorants.walk(q.ray.o, q.ray.d, q.tmin, q.tmax) {
+        c.cells_visited += 1;
+        let mu_bar = seg.dmax * q.sigma.t_max * q.majorant_scale;
+        if !(mu_bar > 0.0) {
+            continue; // empty cell: skipped without a lookup
+        }
+        let mut t = seg.t0;
+        loop {
+            t += exp_step(rng, mu_bar);
+            if t >= seg.t1 {
+                break;
+            }
+            if let ControlFlow::Break(v) = at(t, mu_bar, rng, c) {
+                return Some(v);
+            }
+        }
+    }
+    None
 }
 
 /// An exponential step with rate `mu` (`mu > 0`): −ln(1 − u)/μ. `1 − u` lies in (0, 1],

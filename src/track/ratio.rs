@@ -11,9 +11,10 @@
 //! channel magnitude drops below [`RR_THRESHOLD`], the estimate survives with
 //! probability [`RR_SURVIVAL`] and is divided by it, which keeps it unbiased.
 
-use super::{exp_step, Query, Spectrum, TransmittanceEstimator};
+use super::{exp_step, walk_collisions, Query, Spectrum, TransmittanceEstimator};
 use crate::volume::medium::Counters;
 use rand::Rng;
+use std::ops::ControlFlow;
 
 pub const RR_THRESHOLD: f32 = 0.1;
 pub const RR_SURVIVAL: f32 = 0.5;
@@ -44,28 +45,18 @@ impl TransmittanceEstimator for Ratio {
     fn transmittance<R: Rng>(&self, q: &Query, rng: &mut R, c: &mut Counters) -> Spectrum {
         let sg = q.sigma;
         let mut tr = [1f32; 3];
-        for seg in q.medium.majorants.walk(q.ray.o, q.ray.d, q.tmin, q.tmax) {
-            c.cells_visited += 1;
-            let mu_bar = seg.dmax * sg.t_max * q.majorant_scale;
-            if !(mu_bar > 0.0) {
-                continue;
+        walk_collisions(q, rng, c, |t, mu_bar, rng, c| {
+            let d = q.medium.density(q.ray.at(t), c);
+            c.null_collisions += 1;
+            for ch in 0..3 {
+                tr[ch] *= 1.0 - d * sg.t[ch] / mu_bar;
             }
-            let mut t = seg.t0;
-            loop {
-                t += exp_step(rng, mu_bar);
-                if t >= seg.t1 {
-                    break;
-                }
-                let d = q.medium.density(q.ray.at(t), c);
-                c.null_collisions += 1;
-                for ch in 0..3 {
-                    tr[ch] *= 1.0 - d * sg.t[ch] / mu_bar;
-                }
-                if !roulette(&mut tr, rng) {
-                    return tr;
-                }
+            if roulette(&mut tr, rng) {
+                ControlFlow::Continue(())
+            } else {
+                ControlFlow::Break(())
             }
-        }
+        });
         tr
     }
 }
