@@ -62,7 +62,8 @@ pub struct RenderArgs {
     #[arg(long, value_enum)]
     pub transmittance: Option<TransmittanceKind>,
     /// Control of `decomposition-weighted`, from 0 (cell minimum) to 1 (cell maximum)
-    /// (overrides nimbus:control; default 0.5).
+    /// (overrides nimbus:control; default 0.05: higher controls make the signed residual weights
+    /// grow geometrically, see the README).
     #[arg(long)]
     pub control: Option<f32>,
     /// Reduced termination rates: scattering and null take their maximum proportions,
@@ -283,7 +284,7 @@ fn tracker_settings(args: &RenderArgs, stage: &RenderSettings) -> Result<Tracker
     let control = args
         .control
         .or(stage.control.map(|c| c as f32))
-        .unwrap_or(0.5);
+        .unwrap_or(d.control);
     if !(control.is_finite() && (0.0..=1.0).contains(&control)) {
         bail!("the decomposition control must lie in [0, 1], got {control}");
     }

@@ -215,7 +215,7 @@ impl Default for TrackerSettings {
             tracker: TrackerKind::Delta,
             scheme: SchemeKind::HistAvg,
             transmittance: TransmittanceKind::Ratio,
-            control: 0.0,
+            control: 0.05,
             options: scheme::SchemeOptions::default(),
             majorant_scale: 1.0,
         }
