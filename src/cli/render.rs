@@ -154,7 +154,28 @@ pub fn run(args: RenderArgs) -> Result<()> {
             );
         }
     }
-    let camera = CameraRays::new(&scene.camera, width, height);
+    let c = &scene.camera;
+    let positive = |v: f64| v.is_finite() && v > 0.0;
+    if !(positive(c.focal_length)
+        && positive(c.horizontal_aperture)
+        && positive(c.vertical_aperture))
+    {
+        bail!(
+            "camera {}: focal length {} and apertures {}x{} must be positive",
+            c.prim_path,
+            c.focal_length,
+            c.horizontal_aperture,
+            c.vertical_aperture
+        );
+    }
+    if !(c.clipping_range.0.is_finite() && c.clipping_range.1 > c.clipping_range.0) {
+        bail!(
+            "camera {}: clipping range {:?} is empty",
+            c.prim_path,
+            c.clipping_range
+        );
+    }
+    let camera = CameraRays::new(c, width, height);
     let job = RenderJob {
         medium: &medium,
         lights: &lights,
