@@ -334,3 +334,54 @@ fn trackers_agree_across_depths() {
         }
     }
 }
+
+/// Build time for a 1000³-voxel-equivalent sparse grid (5% of the 125³ bricks filled,
+/// ~100k bricks). A benchmark rather than a test (`cargo t --test majorant -- --ignored
+/// --nocapture`); it asserts only a generous ceiling.
+#[test]
+#[ignore]
+fn build_time_on_a_1000_cubed_sparse_grid() {
+    use nimbus::volume::grid::{RawGrid, RawLeaf};
+    let mut rng = Pcg32::seed_from_u64(9);
+    let mut leaves = Vec::new();
+    for bz in 0..125 {
+        for by in 0..125 {
+            for bx in 0..125 {
+                // Clustered occupancy: a thick shell around the centre plus sparse noise.
+                let r = ((bx as f32 - 62.0).powi(2) + (by as f32 - 62.0).powi(2) + (bz as f32 - 62.0).powi(2)).sqrt();
+                if !((40.0..42.0).contains(&r) || rng.gen_bool(0.02)) {
+                    continue;
+                }
+                let base: f32 = rng.gen_range(0.1..2.0);
+                leaves.push(RawLeaf {
+                    origin: [bx * 8, by * 8, bz * 8],
+                    values: (0..512).map(|_| base * rng.gen_range(0.5f32..1.5)).collect(),
+                    active: [u64::MAX; 8],
+                });
+            }
+        }
+    }
+    let n = leaves.len();
+    let raw = RawGrid {
+        name: "density".into(),
+        class: "fog volume".into(),
+        background: 0.0,
+        leaves,
+        tiles: Vec::new(),
+        index_to_world: DMat4::IDENTITY,
+    };
+    let grid = Grid::from_raw(&raw).unwrap();
+    drop(raw);
+    for depth in [4, 8, 10, 16] {
+        let tree = MajorantTree::build(&grid, MajorantSpec::Octree { depth });
+        eprintln!(
+            "{n} bricks, depth {depth}: {} levels, leaves {:?} of {:?} voxels, {:.2} s, {:.1} MiB",
+            tree.levels(),
+            tree.dims(),
+            tree.leaf_edge(),
+            tree.build_seconds(),
+            tree.memory_bytes() as f64 / 1048576.0
+        );
+        assert!(tree.build_seconds() < 60.0);
+    }
+}
