@@ -1,6 +1,7 @@
 //! `nimbus bench octree`: the supplement's Tables 1 and 2 on a stage — delta and
 //! decomposition tracking at several majorant octree depths, with cells visited,
-//! density lookups and time.
+//! density lookups and time. `delta` shadow rays use ratio tracking, `decomposition`
+//! shadow rays residual ratio tracking.
 //!
 //! The time split (lookup / traversal / other) is not measured yet: those CSV columns
 //! are left empty and only `total_seconds` (wall time of the render) is filled in.
@@ -10,7 +11,7 @@ use crate::render::camera::CameraRays;
 use crate::render::job::{medium_for_scene_with, RenderJob};
 use crate::render::lights::Lights;
 use crate::scene::{load_stage, LoadOptions};
-use crate::track::{TrackerKind, TrackerSettings};
+use crate::track::{TrackerKind, TrackerSettings, TransmittanceKind};
 use crate::volume::majorant::{MajorantSpec, MAX_DEPTH};
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
@@ -119,8 +120,16 @@ fn octree(args: OctreeArgs) -> Result<()> {
                 spp,
                 max_depth: s.max_depth,
                 seed,
+                // Shadow rays pair with the free-path sampler: ratio tracking with
+                // delta, residual ratio tracking (control + residual, lookups only for
+                // the residual) with decomposition — otherwise most lookups of both rows
+                // would be the same ratio-tracked shadow rays.
                 tracking: TrackerSettings {
                     tracker,
+                    transmittance: match tracker {
+                        TrackerKind::Decomposition => TransmittanceKind::ResidualRatio,
+                        _ => TransmittanceKind::Ratio,
+                    },
                     ..TrackerSettings::default()
                 },
             };

@@ -81,6 +81,8 @@ pub struct MajorantTree {
     /// Finest (leaf) level first, root last.
     levels: Vec<Level>,
     spec: MajorantSpec,
+    /// See [`MajorantTree::margin`].
+    margin: f32,
     build_seconds: f64,
 }
 
@@ -88,12 +90,11 @@ pub struct MajorantTree {
 pub type MajorantGrid = MajorantTree;
 
 impl MajorantTree {
-    /// Builds the structure over `grid`'s active region. Each leaf's voxel range is
-    /// dilated by one voxel on each side: trilinear reconstruction at a point reads the
-    /// 2×2×2 voxels around it, which reach one voxel past the cell, and the extra voxel on
-    /// the low side absorbs rounding of positions computed right at a cell face (the walk
-    /// relies on that margin, see [`TreeWalk`]). Coarser levels are unions of their
-    /// children, so they bound the reconstruction too.
+    /// Builds the structure over `grid`'s active region. Octree leaves take the min/max
+    /// over the exact support of the trilinear reconstruction in the cell (voxels
+    /// `a..=b` of the closed cell `[a, b]`), widened by a margin δ for rounding; flat-grid
+    /// cells keep the historical one-voxel dilation on each side. Coarser levels are
+    /// unions of their children, so they bound the reconstruction too.
     pub fn build(grid: &Grid, spec: MajorantSpec) -> MajorantTree {
         let start = Instant::now();
         let Some((lo, hi)) = grid.index_bounds else {
@@ -101,6 +102,7 @@ impl MajorantTree {
                 origin: Vec3::ZERO,
                 levels: Vec::new(),
                 spec,
+                margin: 0.0,
                 build_seconds: start.elapsed().as_secs_f64(),
             };
         };
@@ -122,6 +124,12 @@ impl MajorantTree {
             }
         };
         let dims = [0, 1, 2].map(|a| ((extent[a] + leaf_edge[a] - 1) / leaf_edge[a]).max(1) as i32);
+        // Voxels read beyond a leaf's own support. The exact support of the trilinear
+        // reconstruction over the closed cell [a, b] is voxels a..=b; the flat grid keeps
+        // its historical extra voxel on each side (identical renders), the octree takes
+        // the exact support and covers rounding with the margin `delta` below instead —
+        // at one-voxel leaves that is 2³ voxels per bound instead of 4³.
+        let pad = if hierarchical { 0 } else { 1 };
         let n = dims.iter().map(|&d| d as usize).product::<usize>();
         let bounds: Vec<[f32; 2]> = (0..n)
             .into_par_iter()
@@ -132,14 +140,31 @@ impl MajorantTree {
                     (i / dims[0] as i64) % dims[1] as i64,
                     i / (dims[0] as i64 * dims[1] as i64),
                 ];
-                let vlo = [0, 1, 2].map(|a| (rlo[a] as i64 + c[a] * leaf_edge[a] - 1) as i32);
+                let vlo = [0, 1, 2].map(|a| (rlo[a] as i64 + c[a] * leaf_edge[a] - pad) as i32);
                 let vhi = [0, 1, 2].map(|a| {
-                    (rlo[a] as i64 + (c[a] + 1) * leaf_edge[a] + 1).min(i32::MAX as i64) as i32
+                    (rlo[a] as i64 + (c[a] + 1) * leaf_edge[a] + pad).min(i32::MAX as i64) as i32
                 });
                 let (mn, mx) = grid.value_range(vlo, vhi);
                 [mn, mx]
             })
             .collect();
+        let mut bounds = bounds;
+        let mut margin = 0.0;
+        if hierarchical {
+            // Trilinear reconstruction changes by at most (largest voxel difference ≤
+            // global max) per voxel moved along an axis, so bounds widened by
+            // δ = 2⁻¹⁰·max hold for points within an L1 distance of 2⁻¹⁰ voxels of the
+            // cell: enough for f32 rounding of `o + t·d` (index coordinates up to a few
+            // thousand) and for the walk's 1e-4-voxel slivers. Empty leaves stay exactly
+            // empty, so they still cost no lookup.
+            margin = bounds.iter().fold(0f32, |m, b| m.max(b[1])) * (1.0 / 1024.0);
+            let delta = margin;
+            bounds.par_iter_mut().for_each(|b| {
+                if b[1] > 0.0 {
+                    *b = [(b[0] - delta).max(0.0), b[1] + delta];
+                }
+            });
+        }
         let edge = Vec3::new(
             leaf_edge[0] as f32,
             leaf_edge[1] as f32,
@@ -160,8 +185,15 @@ impl MajorantTree {
             origin: Vec3::new(rlo[0] as f32, rlo[1] as f32, rlo[2] as f32),
             levels,
             spec,
+            margin,
             build_seconds: start.elapsed().as_secs_f64(),
         }
+    }
+
+    /// The rounding margin δ added to every non-empty octree leaf's bounds (0 for the
+    /// flat grid).
+    pub fn margin(&self) -> f32 {
+        self.margin
     }
 
     pub fn spec(&self) -> MajorantSpec {
@@ -306,9 +338,11 @@ fn reduce(child: &Level) -> Level {
 /// leaves it through the node's exit face. Restartable by construction: the walk's only
 /// state is the current `t`, and callers keep their own `t` and move to the next segment.
 ///
-/// A point computed exactly on a face can round into the node behind it; the walk then
-/// hands out that node for a sliver of at most 1e-4 voxels, which its bounds still cover
-/// (every cell's bounds hold one voxel beyond it, see [`MajorantTree::build`]).
+/// A point computed exactly on a face can round into the node behind it (its exit is
+/// then not ahead of the point); the walk then locates the point 1e-4 voxels further on
+/// and hands out that node from the face: the sliver lies within 1e-4 voxels of the
+/// node, where its bounds still hold (octree bounds hold within 2⁻¹⁰ voxels of a cell,
+/// flat-grid bounds within one voxel, see [`MajorantTree::build`]).
 pub struct TreeWalk<'a> {
     tree: &'a MajorantTree,
     o: Vec3,
@@ -367,11 +401,40 @@ impl Iterator for TreeWalk<'_> {
         if !(self.t < self.t_end) {
             return None;
         }
+        let t0 = self.t;
+        let (level, c, idx) = self.locate(t0);
+        let mut t1 = self.exit(level, c);
+        let (level, idx) = if t1 > t0 {
+            (level, idx)
+        } else {
+            // Rounding put the point behind the face it just crossed: locate a point a
+            // sliver further on instead (see the type's doc).
+            let (level, c, idx) = self.locate((t0 + self.min_step).max(t0.next_up()));
+            t1 = self.exit(level, c);
+            if !(t1 > t0) {
+                t1 = (t0 + self.min_step).max(t0.next_up()).min(self.t_end);
+            }
+            (level, idx)
+        };
+        self.t = t1;
+        let b = level.bounds[idx];
+        Some(Segment {
+            t0,
+            t1,
+            dmin: b[0],
+            dmax: b[1],
+        })
+    }
+}
+
+impl<'a> TreeWalk<'a> {
+    /// The first terminal node, descending from the root, that contains the point at `t`.
+    #[inline(always)]
+    fn locate(&self, t: f32) -> (&'a Level, [i32; 3], usize) {
         let tree = self.tree;
-        let rel = self.o + self.d * self.t - tree.origin;
-        // Descend from the root to the first terminal node containing the point.
+        let rel = self.o + self.d * t - tree.origin;
         let mut k = tree.levels.len() - 1;
-        let (level, c, idx) = loop {
+        loop {
             let l = &tree.levels[k];
             let mut c = [0i32; 3];
             for a in 0..3 {
@@ -386,30 +449,23 @@ impl Iterator for TreeWalk<'_> {
             }
             let idx = l.index(c);
             if k == 0 || l.terminal[idx] {
-                break (l, c, idx);
+                return (l, c, idx);
             }
             k -= 1;
-        };
+        }
+    }
+
+    /// Where the ray leaves cell `c` of `level` (clipped to the walk's end).
+    #[inline(always)]
+    fn exit(&self, level: &Level, c: [i32; 3]) -> f32 {
         let mut t1 = self.t_end;
         for a in 0..3 {
             if self.d[a] != 0.0 {
                 let side = (self.d[a] > 0.0) as i32;
-                let face = tree.origin[a] + (c[a] + side) as f32 * level.edge[a];
+                let face = self.tree.origin[a] + (c[a] + side) as f32 * level.edge[a];
                 t1 = t1.min((face - self.o[a]) * self.inv_d[a]);
             }
         }
-        let t0 = self.t;
-        if !(t1 > t0) {
-            // Rounding put the point behind the face it just crossed (see the type's doc).
-            t1 = (t0 + self.min_step).max(t0.next_up()).min(self.t_end);
-        }
-        self.t = t1;
-        let b = level.bounds[idx];
-        Some(Segment {
-            t0,
-            t1,
-            dmin: b[0],
-            dmax: b[1],
-        })
+        t1
     }
 }
