@@ -29,7 +29,11 @@ fn blob_grid(seed: u64, dims: i32) -> Grid {
                 rng.gen_range(0.0..dims as f64),
                 rng.gen_range(0.0..dims as f64),
             );
-            (c, rng.gen_range(2.0..dims as f64 / 3.0), rng.gen_range(0.1..3.0))
+            (
+                c,
+                rng.gen_range(2.0..dims as f64 / 3.0),
+                rng.gen_range(0.1..3.0),
+            )
         })
         .collect();
     let d = dims as f64;
@@ -71,8 +75,7 @@ fn real_grids() -> Vec<(String, Grid)> {
             eprintln!("skipping {f}: {} not found", path.display());
             continue;
         }
-        match nimbus::volume::vdb::read_float_grid(&AssetLocation::File(path), grid, None)
-        {
+        match nimbus::volume::vdb::read_float_grid(&AssetLocation::File(path), grid, None) {
             Ok(raw) => out.push((f.to_string(), Grid::from_raw(&raw).unwrap())),
             Err(e) => eprintln!("skipping {f}: {e}"),
         }
@@ -222,7 +225,11 @@ fn walk_covers_rays_once_with_leaf_bounds() {
             }
             assert!(!segs.is_empty(), "ray {o:?} {d:?} missed the region");
             let scale = 1e-4 * (1.0 + e1.abs());
-            assert!((segs[0].t0 as f64 - e0).abs() < scale, "{} vs {e0}", segs[0].t0);
+            assert!(
+                (segs[0].t0 as f64 - e0).abs() < scale,
+                "{} vs {e0}",
+                segs[0].t0
+            );
             assert!((segs.last().unwrap().t1 as f64 - e1).abs() < scale);
             for w in segs.windows(2) {
                 assert_eq!(w[0].t1, w[1].t0, "gap or overlap");
@@ -333,7 +340,10 @@ fn trackers_agree_across_depths() {
     let reference = estimates(&medium(grid(), 1), n, 1);
     for depth in [2, 4, 6, 8] {
         let e = estimates(&medium(grid(), depth), n, 100 + depth as u64);
-        for (k, name) in ["delta escape", "decomposition escape", "ratio T"].iter().enumerate() {
+        for (k, name) in ["delta escape", "decomposition escape", "ratio T"]
+            .iter()
+            .enumerate()
+        {
             let (m0, s0) = reference[k];
             let (m1, s1) = e[k];
             let se = (s0 * s0 + s1 * s1).sqrt();
@@ -357,14 +367,19 @@ fn build_time_on_a_1000_cubed_sparse_grid() {
         for by in 0..125 {
             for bx in 0..125 {
                 // Clustered occupancy: a thick shell around the centre plus sparse noise.
-                let r = ((bx as f32 - 62.0).powi(2) + (by as f32 - 62.0).powi(2) + (bz as f32 - 62.0).powi(2)).sqrt();
+                let r = ((bx as f32 - 62.0).powi(2)
+                    + (by as f32 - 62.0).powi(2)
+                    + (bz as f32 - 62.0).powi(2))
+                .sqrt();
                 if !((40.0..42.0).contains(&r) || rng.gen_bool(0.02)) {
                     continue;
                 }
                 let base: f32 = rng.gen_range(0.1..2.0);
                 leaves.push(RawLeaf {
                     origin: [bx * 8, by * 8, bz * 8],
-                    values: (0..512).map(|_| base * rng.gen_range(0.5f32..1.5)).collect(),
+                    values: (0..512)
+                        .map(|_| base * rng.gen_range(0.5f32..1.5))
+                        .collect(),
                     active: [u64::MAX; 8],
                 });
             }
@@ -418,7 +433,11 @@ fn smoke_leaf_tightness() {
                     }
                 }
             }
-            eprintln!("{name} depth {depth}: {n} non-empty leaves, Σmin/Σmax {:.3}, mean max {:.3}", smin / smax, smax / n as f64);
+            eprintln!(
+                "{name} depth {depth}: {n} non-empty leaves, Σmin/Σmax {:.3}, mean max {:.3}",
+                smin / smax,
+                smax / n as f64
+            );
         }
     }
 }

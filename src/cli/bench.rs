@@ -159,7 +159,14 @@ fn octree(args: OctreeArgs) -> Result<()> {
     );
     println!(
         "{:>5} {:<14} {:>16} {:>16} {:>10} {:>10} {:>12} {:>10}",
-        "depth", "tracker", "cells visited", "density lookups", "lookups×", "total s", "build s", "memory"
+        "depth",
+        "tracker",
+        "cells visited",
+        "density lookups",
+        "lookups×",
+        "total s",
+        "build s",
+        "memory"
     );
     for r in &rows {
         // Lookups relative to delta tracking at the same depth.

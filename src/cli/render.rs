@@ -6,12 +6,12 @@ use crate::output::{check_writable, write_atomically};
 use crate::render::camera::CameraRays;
 use crate::render::film::Aov;
 use crate::render::job::{medium_for_scene_with, RenderJob};
-use crate::volume::majorant::{MajorantSpec, MAX_DEPTH};
 use crate::render::lights::Lights;
 use crate::scene::{load_stage, LoadOptions, RenderSettings};
 use crate::track::{
     scheme::SchemeOptions, SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind,
 };
+use crate::volume::majorant::{MajorantSpec, MAX_DEPTH};
 use crate::volume::vdb;
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};

@@ -235,9 +235,9 @@ impl MajorantTree {
 
     /// Largest density anywhere (the global majorant).
     pub fn max_density(&self) -> f32 {
-        self.levels.last().map_or(0.0, |l| {
-            l.bounds.iter().fold(0f32, |m, b| m.max(b[1]))
-        })
+        self.levels
+            .last()
+            .map_or(0.0, |l| l.bounds.iter().fold(0f32, |m, b| m.max(b[1])))
     }
 
     /// Continuous index-space box covered by the leaves.
@@ -296,7 +296,11 @@ fn reduce(child: &Level) -> Level {
         .into_par_iter()
         .map(|i| {
             let i = i as i32;
-            let p = [i % dims[0], (i / dims[0]) % dims[1], i / (dims[0] * dims[1])];
+            let p = [
+                i % dims[0],
+                (i / dims[0]) % dims[1],
+                i / (dims[0] * dims[1]),
+            ];
             let mut b = [f32::INFINITY, f32::NEG_INFINITY];
             let mut kids = [[0f32; 2]; 8];
             let mut nk = 0;
@@ -352,6 +356,8 @@ pub struct TreeWalk<'a> {
     min_step: f32,
     t: f32,
     t_end: f32,
+    /// Level of the previous step's node: where the next descent starts (see `locate`).
+    level: usize,
 }
 
 impl<'a> TreeWalk<'a> {
@@ -364,6 +370,7 @@ impl<'a> TreeWalk<'a> {
             min_step: 1e-4 / d.abs().max_element(),
             t: 0.0,
             t_end: -1.0,
+            level: usize::MAX - 1,
         };
         let Some((lo, hi)) = tree.index_region() else {
             return walk;
@@ -377,7 +384,10 @@ impl<'a> TreeWalk<'a> {
                 }
                 continue;
             }
-            let (mut ta, mut tb) = ((lo[a] - o[a]) * walk.inv_d[a], (hi[a] - o[a]) * walk.inv_d[a]);
+            let (mut ta, mut tb) = (
+                (lo[a] - o[a]) * walk.inv_d[a],
+                (hi[a] - o[a]) * walk.inv_d[a],
+            );
             if ta > tb {
                 std::mem::swap(&mut ta, &mut tb);
             }
@@ -428,12 +438,16 @@ impl Iterator for TreeWalk<'_> {
 }
 
 impl<'a> TreeWalk<'a> {
-    /// The first terminal node, descending from the root, that contains the point at `t`.
+    /// The first terminal node containing the point at `t`, descending from one level
+    /// above the previous step's node rather than from the root. That is lossless: below
+    /// a terminal node every node is terminal with the same bounds, so starting too low
+    /// only splits a merged node into smaller segments with identical bounds, while
+    /// climbing one level per step still crosses long empty stretches in few steps.
     #[inline(always)]
-    fn locate(&self, t: f32) -> (&'a Level, [i32; 3], usize) {
+    fn locate(&mut self, t: f32) -> (&'a Level, [i32; 3], usize) {
         let tree = self.tree;
         let rel = self.o + self.d * t - tree.origin;
-        let mut k = tree.levels.len() - 1;
+        let mut k = (self.level + 1).min(tree.levels.len() - 1);
         loop {
             let l = &tree.levels[k];
             let mut c = [0i32; 3];
@@ -449,6 +463,7 @@ impl<'a> TreeWalk<'a> {
             }
             let idx = l.index(c);
             if k == 0 || l.terminal[idx] {
+                self.level = k;
                 return (l, c, idx);
             }
             k -= 1;
