@@ -441,3 +441,59 @@ fn smoke_leaf_tightness() {
         }
     }
 }
+
+/// `nimbus bench octree --csv` writes exactly the documented columns, one row per
+/// (depth, tracker) with exact integer counts; `render --octree-depth --stats` reports
+/// the octree's depth, build time and memory.
+#[test]
+fn bench_csv_and_render_stats() {
+    use std::process::Command;
+    let stage = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cloud/cloud.usda");
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("bench.csv");
+    let out = Command::new(env!("CARGO_BIN_EXE_nimbus"))
+        .args(["bench", "octree", stage, "--depths", "1,3", "--spp", "1"])
+        .args(["--res", "8x6", "--csv"])
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(
+        lines[0],
+        "depth,tracker,cells_visited,density_lookups,lookup_seconds,traversal_seconds,other_seconds,total_seconds"
+    );
+    assert_eq!(lines.len(), 5);
+    for (line, (depth, tracker)) in lines[1..].iter().zip([
+        ("1", "delta"),
+        ("1", "decomposition"),
+        ("3", "delta"),
+        ("3", "decomposition"),
+    ]) {
+        let f: Vec<&str> = line.split(',').collect();
+        assert_eq!(f.len(), 8, "{line}");
+        assert_eq!((f[0], f[1]), (depth, tracker));
+        f[2].parse::<u64>().unwrap();
+        assert!(f[3].parse::<u64>().unwrap() > 0);
+        assert!(f[7].parse::<f64>().unwrap() > 0.0);
+    }
+    let stats = dir.path().join("stats.json");
+    let out = Command::new(env!("CARGO_BIN_EXE_nimbus"))
+        .args(["render", stage, "--spp", "1", "--res", "8x6", "--octree-depth", "5"])
+        .arg("-o")
+        .arg(dir.path().join("x.exr"))
+        .arg("--stats")
+        .arg(&stats)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    assert_eq!(json["octree_depth"], 5);
+    assert_eq!(json["octree_levels"], 5);
+    assert!(json["octree_build_seconds"].as_f64().unwrap() >= 0.0);
+    assert!(json["octree_memory_bytes"].as_u64().unwrap() > 0);
+    assert!(json["cells_visited"].as_u64().unwrap() > 0);
+    assert!(json["density_lookups"].as_u64().unwrap() > 0);
+}
