@@ -457,7 +457,11 @@ fn bench_csv_and_render_stats() {
         .arg(&csv)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let text = std::fs::read_to_string(&csv).unwrap();
     let lines: Vec<&str> = text.lines().collect();
     assert_eq!(
@@ -480,14 +484,27 @@ fn bench_csv_and_render_stats() {
     }
     let stats = dir.path().join("stats.json");
     let out = Command::new(env!("CARGO_BIN_EXE_nimbus"))
-        .args(["render", stage, "--spp", "1", "--res", "8x6", "--octree-depth", "5"])
+        .args([
+            "render",
+            stage,
+            "--spp",
+            "1",
+            "--res",
+            "8x6",
+            "--octree-depth",
+            "5",
+        ])
         .arg("-o")
         .arg(dir.path().join("x.exr"))
         .arg("--stats")
         .arg(&stats)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
     assert_eq!(json["octree_depth"], 5);
