@@ -2,6 +2,7 @@
 
 use crate::scene::{load_stage, LoadOptions};
 use crate::volume::grid::Grid;
+use crate::volume::majorant::{MajorantSpec, MajorantTree, MAX_DEPTH};
 use crate::volume::vdb;
 use anyhow::Result;
 use clap::Args;
@@ -14,6 +15,9 @@ pub struct InfoArgs {
     /// Time code to evaluate the stage at.
     #[arg(long)]
     pub frame: Option<f64>,
+    /// Majorant octree depth to build and describe (default 8).
+    #[arg(long, default_value_t = 8)]
+    pub octree_depth: u32,
 }
 
 pub fn run(args: InfoArgs) -> Result<()> {
@@ -118,6 +122,20 @@ pub fn run(args: InfoArgs) -> Result<()> {
                     if let Some((lo, hi)) = wb {
                         println!("    world bounds (active voxel centres): {lo:?} .. {hi:?}");
                     }
+                    let depth = args.octree_depth.clamp(1, MAX_DEPTH);
+                    let t = MajorantTree::build(&g, MajorantSpec::Octree { depth });
+                    let e = t.leaf_edge();
+                    println!(
+                        "    majorant octree depth {depth}: {} levels, {:?} leaves of {}x{}x{} voxels, max density {}, built in {:.3} s, {:.2} MiB",
+                        t.levels(),
+                        t.dims(),
+                        e[0],
+                        e[1],
+                        e[2],
+                        t.max_density(),
+                        t.build_seconds(),
+                        t.memory_bytes() as f64 / 1048576.0
+                    );
                 }
                 Err(e) => println!("    cannot load: {e:#}"),
             }

@@ -1,5 +1,6 @@
-//! Command-line subcommands: `render` and `info`.
+//! Command-line subcommands: `render`, `info` and `bench`.
 
+mod bench;
 mod info;
 mod render;
 
@@ -23,6 +24,9 @@ pub enum Command {
     Render(render::RenderArgs),
     /// Describe a stage: volumes, fields, grids, camera, lights, render settings.
     Info(info::InfoArgs),
+    /// Benchmarks (`bench octree`: trackers at several majorant octree depths).
+    #[command(subcommand)]
+    Bench(bench::BenchCommand),
 }
 
 /// Runs the CLI; errors are printed as `nimbus: error: …` with a non-zero exit.
@@ -41,6 +45,7 @@ pub fn main() -> ExitCode {
     let result = match cli.command {
         Command::Render(a) => render::run(a),
         Command::Info(a) => info::run(a),
+        Command::Bench(c) => bench::run(c),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -5,12 +5,13 @@ use crate::output::stats::RenderStats;
 use crate::output::{check_writable, write_atomically};
 use crate::render::camera::CameraRays;
 use crate::render::film::Aov;
-use crate::render::job::{medium_for_scene, RenderJob};
+use crate::render::job::{medium_for_scene_with, RenderJob};
 use crate::render::lights::Lights;
 use crate::scene::{load_stage, LoadOptions, RenderSettings};
 use crate::track::{
     scheme::SchemeOptions, SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind,
 };
+use crate::volume::majorant::{MajorantSpec, MAX_DEPTH};
 use crate::volume::vdb;
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
@@ -48,9 +49,14 @@ pub struct RenderArgs {
     /// Maximum scattering depth (overrides nimbus:maxDepth).
     #[arg(long)]
     pub max_depth: Option<u32>,
-    /// Edge of a majorant cell in voxels; 0 = one global majorant for the volume.
+    /// Edge of a majorant cell in voxels; 0 = one global majorant for the volume
+    /// (a flat grid; ignored when --octree-depth is given).
     #[arg(long, default_value_t = 8)]
     pub majorant_cell: u32,
+    /// Majorant octree depth: 1 = one cell for the volume, d = 2^(d-1) leaf cells per
+    /// axis (capped at voxel resolution). Overrides --majorant-cell and nimbus:octreeDepth.
+    #[arg(long)]
+    pub octree_depth: Option<u32>,
     /// Free-path sampler (overrides nimbus:tracker; default delta).
     #[arg(long, value_enum)]
     pub tracker: Option<TrackerKind>,
@@ -142,7 +148,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
             MAX_FILM_BYTES >> 30
         );
     }
-    let medium = medium_for_scene(&scene, args.majorant_cell)?;
+    let spec = majorant_spec(args.octree_depth, settings, args.majorant_cell)?;
+    let medium = medium_for_scene_with(&scene, spec)?;
     let load_seconds = wall.elapsed().as_secs_f64();
 
     let lights = Lights::from_scene(&scene);
@@ -246,6 +253,13 @@ pub fn run(args: RenderArgs) -> Result<()> {
             nonfinite_samples: nonfinite,
             sanitized_voxels: medium.density.sanitized_voxels,
             majorant_cells: medium.majorants.cell_count(),
+            octree_depth: match medium.majorants.spec() {
+                MajorantSpec::Octree { depth } => Some(depth),
+                MajorantSpec::Uniform { .. } => None,
+            },
+            octree_levels: medium.majorants.levels(),
+            octree_build_seconds: medium.majorants.build_seconds(),
+            octree_memory_bytes: medium.majorants.memory_bytes(),
             vdb_reader: vdb::active_reader().name().into(),
         };
         let json = serde_json::to_string_pretty(&stats)?;
@@ -261,6 +275,33 @@ pub fn run(args: RenderArgs) -> Result<()> {
         totals.density_lookups as f64 / (width as f64 * height as f64 * spp as f64)
     );
     Ok(())
+}
+
+/// The majorant structure: `--octree-depth`, else the stage's `nimbus:octreeDepth`
+/// (0 there means the flat grid), else the flat `--majorant-cell` grid.
+pub fn majorant_spec(
+    octree_depth: Option<u32>,
+    stage: &RenderSettings,
+    majorant_cell: u32,
+) -> Result<MajorantSpec> {
+    let from_stage = match stage.octree_depth {
+        None | Some(0) => None,
+        Some(d) => Some(u32::try_from(d).map_err(|_| {
+            anyhow::anyhow!(
+                "{}: nimbus:octreeDepth = {d} must lie in 0..={MAX_DEPTH}",
+                stage.prim_path.as_deref().unwrap_or("render settings")
+            )
+        })?),
+    };
+    match octree_depth.or(from_stage) {
+        Some(depth) if !(1..=MAX_DEPTH).contains(&depth) => {
+            bail!("the octree depth must lie in 1..={MAX_DEPTH}, got {depth}")
+        }
+        Some(depth) => Ok(MajorantSpec::Octree { depth }),
+        None => Ok(MajorantSpec::Uniform {
+            cell_voxels: majorant_cell,
+        }),
+    }
 }
 
 /// Tracker settings: flags override the stage's render settings, which override the

@@ -27,6 +27,13 @@ pub struct RenderStats {
     pub majorant_violations: u64,
     pub nonfinite_samples: u64,
     pub sanitized_voxels: u64,
+    /// Leaf cells of the majorant structure.
     pub majorant_cells: usize,
+    /// `--octree-depth` as requested (null for the flat `--majorant-cell` grid).
+    pub octree_depth: Option<u32>,
+    /// Levels actually built (depth capped at voxel resolution; 1 for a flat grid).
+    pub octree_levels: usize,
+    pub octree_build_seconds: f64,
+    pub octree_memory_bytes: usize,
     pub vdb_reader: String,
 }

@@ -10,6 +10,7 @@ use crate::track::{
     self, Dispatch, FreePathSampler, TrackerKind, TrackerSettings, TransmittanceEstimator,
 };
 use crate::volume::grid::Grid;
+use crate::volume::majorant::MajorantSpec;
 use crate::volume::medium::Medium;
 use crate::volume::vdb;
 use anyhow::{bail, Context};
@@ -67,8 +68,15 @@ impl RenderJob<'_> {
     }
 }
 
-/// Loads the density grid of the scene's volume and builds its medium.
+/// Loads the density grid of the scene's volume and builds its medium with a flat
+/// majorant grid of `cell_voxels` cells.
 pub fn medium_for_scene(scene: &Scene, cell_voxels: u32) -> anyhow::Result<Medium> {
+    medium_for_scene_with(scene, MajorantSpec::Uniform { cell_voxels })
+}
+
+/// Loads the density grid of the scene's volume and builds its medium with the
+/// majorant structure `spec`.
+pub fn medium_for_scene_with(scene: &Scene, spec: MajorantSpec) -> anyhow::Result<Medium> {
     let Some(volume) = scene.volumes.first() else {
         bail!(
             "{}: the stage has no visible UsdVolVolume prim to render",
@@ -93,7 +101,7 @@ pub fn medium_for_scene(scene: &Scene, cell_voxels: u32) -> anyhow::Result<Mediu
             field.file, grid.name, grid.sanitized_voxels
         );
     }
-    Ok(Medium::new(
+    Ok(Medium::with_majorants(
         &volume.prim_path,
         grid,
         volume.volume_to_world,
@@ -101,6 +109,6 @@ pub fn medium_for_scene(scene: &Scene, cell_voxels: u32) -> anyhow::Result<Mediu
         volume.absorption,
         volume.scattering,
         volume.anisotropy,
-        cell_voxels,
+        spec,
     )?)
 }

@@ -147,6 +147,8 @@ pub struct RenderSettings {
     pub scheme: Option<String>,
     pub transmittance: Option<String>,
     pub control: Option<f64>,
+    /// `nimbus:octreeDepth` when the stage sets it (0 = the flat majorant grid).
+    pub octree_depth: Option<i64>,
 }
 
 impl Default for RenderSettings {
@@ -162,6 +164,7 @@ impl Default for RenderSettings {
             scheme: None,
             transmittance: None,
             control: None,
+            octree_depth: None,
         }
     }
 }

@@ -47,6 +47,7 @@ pub mod tokens {
     pub const SCHEME: &str = "nimbus:scheme";
     pub const TRANSMITTANCE: &str = "nimbus:transmittance";
     pub const CONTROL: &str = "nimbus:control";
+    pub const OCTREE_DEPTH: &str = "nimbus:octreeDepth";
 }
 
 /// Why the embedded schema could not be registered. This is a build defect (the

@@ -530,6 +530,7 @@ impl Loader<'_> {
             scheme: read_string(prim, tokens::SCHEME, t)?,
             transmittance: read_string(prim, tokens::TRANSMITTANCE, t)?,
             control: read_f64(prim, tokens::CONTROL, t)?,
+            octree_depth: read_i64(prim, tokens::OCTREE_DEPTH, t)?,
         })
     }
 

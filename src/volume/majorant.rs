@@ -1,13 +1,32 @@
-//! The majorant structure: a uniform grid of cells over the density grid, each with the
-//! minimum and maximum of the *reconstructed* density inside it, and a DDA that walks a
-//! ray through the cells as segments of constant bounds.
+//! The majorant structure: a min/max hierarchy (an octree stored as a pyramid of grids)
+//! over the density grid, each cell holding the minimum and maximum of the
+//! *reconstructed* density inside it, and a walk that hands a ray out as segments of
+//! constant bounds.
 //!
 //! Trackers never see the cells, only [`Segment`]s, so the structure is a parameter of
-//! the tracking code rather than baked into it (an octree can hand out the same
-//! segments). A cell size of 0 gives one cell for the whole volume: a global majorant.
+//! the tracking code rather than baked into it.
+//!
+//! Two shapes, one walk ([`MajorantSpec`]):
+//! - `Uniform { cell_voxels }` (`--majorant-cell`): one level of cells of that edge
+//!   (0 = one cell for the whole volume, a global majorant). Kept so renders without
+//!   `--octree-depth` hand out exactly the segments they always did.
+//! - `Octree { depth }` (`--octree-depth`): depth 1 is one cell for the volume, depth d
+//!   has 2^(d−1) leaf cells per axis over the volume's bounds (capped at one voxel, and at
+//!   [`MAX_LEAF_CELLS`] leaves), with every coarser level of the octree above them.
+//!
+//! Why a pyramid of dense levels rather than a pointer octree: the leaves are built in
+//! parallel straight from the brick pool ([`Grid::value_range`] skips absent bricks in
+//! O(1)), every coarser level is a parallel 2×2×2 min/max reduction of the one below (no
+//! voxel is read twice), and a node's children are found by index arithmetic, so the
+//! walk needs no pointers. Sparsity is in the *walk*: a node is marked terminal when its
+//! whole subtree carries its own bounds (empty space, constant regions), so the walk
+//! stops descending there and crosses the node in one step. Merging such nodes is
+//! lossless: every segment still carries exactly the bounds of the leaf it covers.
 
 use crate::volume::grid::Grid;
 use glam::Vec3;
+use rayon::prelude::*;
+use std::time::Instant;
 
 /// A stretch `[t0, t1)` of a ray over which the density lies in `[dmin, dmax]`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -18,137 +37,357 @@ pub struct Segment {
     pub dmax: f32,
 }
 
-pub struct MajorantGrid {
-    /// Continuous index-space corner of cell (0,0,0).
-    origin: Vec3,
-    /// Cell edge in index units (voxels).
-    cell: Vec3,
-    dims: [i32; 3],
-    /// (min, max) density per cell, x fastest.
-    bounds: Vec<(f32, f32)>,
+/// Which majorant structure to build.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MajorantSpec {
+    /// One level of cells with this edge in voxels; 0 = one cell for the whole volume.
+    Uniform { cell_voxels: u32 },
+    /// An octree of this depth (≥ 1); depth 1 is one cell for the whole volume.
+    Octree { depth: u32 },
 }
 
-impl MajorantGrid {
-    /// Builds per-cell bounds. Each cell's voxel range is dilated by one voxel on each
-    /// side: trilinear reconstruction at a point reads the 2×2×2 voxels around it, which
-    /// reach one voxel past the cell, and the extra voxel on the low side absorbs
-    /// rounding of positions computed right at a cell face.
-    pub fn build(grid: &Grid, cell_voxels: u32) -> MajorantGrid {
+/// Most leaf cells an octree may have (8 bytes of bounds and one flag each: ~300 MB).
+/// Past it the leaves are made coarser, so a deep octree over a huge grid degrades to
+/// fewer levels instead of exhausting memory.
+pub const MAX_LEAF_CELLS: u64 = 1 << 25;
+
+/// Deepest octree accepted: 2^30 cells per axis is beyond any grid's voxel resolution,
+/// so deeper requests are capped at the voxel resolution anyway.
+pub const MAX_DEPTH: u32 = 31;
+
+/// One level of the pyramid: a dense grid of cells over the region.
+struct Level {
+    /// Cell edge in index units (voxels), per axis.
+    edge: Vec3,
+    inv_edge: Vec3,
+    dims: [i32; 3],
+    /// (min, max) density per cell, x fastest.
+    bounds: Vec<[f32; 2]>,
+    /// The walk may stop at this cell: every leaf below it has exactly its bounds.
+    /// Always true on the leaf level.
+    terminal: Vec<bool>,
+}
+
+impl Level {
+    #[inline(always)]
+    fn index(&self, c: [i32; 3]) -> usize {
+        ((c[2] * self.dims[1] + c[1]) * self.dims[0] + c[0]) as usize
+    }
+}
+
+pub struct MajorantTree {
+    /// Continuous index-space corner of cell (0,0,0) on every level.
+    origin: Vec3,
+    /// Finest (leaf) level first, root last.
+    levels: Vec<Level>,
+    spec: MajorantSpec,
+    /// See [`MajorantTree::margin`].
+    margin: f32,
+    build_seconds: f64,
+}
+
+/// The old name: the flat grid is the one-level case of the tree.
+pub type MajorantGrid = MajorantTree;
+
+impl MajorantTree {
+    /// Builds the structure over `grid`'s active region. Octree leaves take the min/max
+    /// over the exact support of the trilinear reconstruction in the cell (voxels
+    /// `a..=b` of the closed cell `[a, b]`), widened by a margin δ for rounding; flat-grid
+    /// cells keep the historical one-voxel dilation on each side. Coarser levels are
+    /// unions of their children, so they bound the reconstruction too.
+    pub fn build(grid: &Grid, spec: MajorantSpec) -> MajorantTree {
+        let start = Instant::now();
         let Some((lo, hi)) = grid.index_bounds else {
-            return MajorantGrid {
+            return MajorantTree {
                 origin: Vec3::ZERO,
-                cell: Vec3::ONE,
-                dims: [0; 3],
-                bounds: Vec::new(),
+                levels: Vec::new(),
+                spec,
+                margin: 0.0,
+                build_seconds: start.elapsed().as_secs_f64(),
             };
         };
         // The region where the field can differ from the background: the active voxel
         // centres, widened by one voxel (where interpolation falls off to background).
         let rlo = [0, 1, 2].map(|a| lo[a] - 1);
         let rhi = [0, 1, 2].map(|a| hi[a] + 1);
-        let extent = [0, 1, 2].map(|a| rhi[a] - rlo[a]);
-        let cell = if cell_voxels == 0 {
-            extent.map(|e| e.max(1))
-        } else {
-            [cell_voxels as i32; 3]
+        let extent = [0, 1, 2].map(|a| (rhi[a] as i64 - rlo[a] as i64).max(1));
+        let (leaf_edge, hierarchical) = match spec {
+            MajorantSpec::Uniform { cell_voxels: 0 } => (extent, false),
+            MajorantSpec::Uniform { cell_voxels } => ([cell_voxels as i64; 3], false),
+            MajorantSpec::Octree { depth } => {
+                let n = 1i64 << (depth.clamp(1, MAX_DEPTH) - 1);
+                let mut edge = extent.map(|e| ((e + n - 1) / n).max(1));
+                while cells(extent, edge) > MAX_LEAF_CELLS {
+                    edge = edge.map(|e| e * 2);
+                }
+                (edge, true)
+            }
         };
-        let dims = [0, 1, 2].map(|a| ((extent[a] + cell[a] - 1) / cell[a]).max(1));
-        let n = (dims[0] * dims[1] * dims[2]) as usize;
-        let bounds: Vec<(f32, f32)> = {
-            use rayon::prelude::*;
-            (0..n)
-                .into_par_iter()
-                .map(|i| {
-                    let i = i as i32;
-                    let c = [
-                        i % dims[0],
-                        (i / dims[0]) % dims[1],
-                        i / (dims[0] * dims[1]),
-                    ];
-                    let vlo = [0, 1, 2].map(|a| rlo[a] + c[a] * cell[a] - 1);
-                    let vhi = [0, 1, 2].map(|a| rlo[a] + (c[a] + 1) * cell[a] + 1);
-                    grid.value_range(vlo, vhi)
-                })
-                .collect()
-        };
-        MajorantGrid {
-            origin: Vec3::new(rlo[0] as f32, rlo[1] as f32, rlo[2] as f32),
-            cell: Vec3::new(cell[0] as f32, cell[1] as f32, cell[2] as f32),
+        let dims = [0, 1, 2].map(|a| ((extent[a] + leaf_edge[a] - 1) / leaf_edge[a]).max(1) as i32);
+        // Voxels read beyond a leaf's own support. The exact support of the trilinear
+        // reconstruction over the closed cell [a, b] is voxels a..=b; the flat grid keeps
+        // its historical extra voxel on each side (identical renders), the octree takes
+        // the exact support and covers rounding with the margin `delta` below instead —
+        // at one-voxel leaves that is 2³ voxels per bound instead of 4³.
+        let pad = if hierarchical { 0 } else { 1 };
+        let n = dims.iter().map(|&d| d as usize).product::<usize>();
+        let bounds: Vec<[f32; 2]> = (0..n)
+            .into_par_iter()
+            .map(|i| {
+                let i = i as i64;
+                let c = [
+                    i % dims[0] as i64,
+                    (i / dims[0] as i64) % dims[1] as i64,
+                    i / (dims[0] as i64 * dims[1] as i64),
+                ];
+                let vlo = [0, 1, 2].map(|a| (rlo[a] as i64 + c[a] * leaf_edge[a] - pad) as i32);
+                let vhi = [0, 1, 2].map(|a| {
+                    (rlo[a] as i64 + (c[a] + 1) * leaf_edge[a] + pad).min(i32::MAX as i64) as i32
+                });
+                let (mn, mx) = grid.value_range(vlo, vhi);
+                [mn, mx]
+            })
+            .collect();
+        let mut bounds = bounds;
+        let mut margin = 0.0;
+        if hierarchical {
+            // Trilinear reconstruction changes by at most (largest voxel difference ≤
+            // global max) per voxel moved along an axis, so bounds widened by
+            // δ = 2⁻¹⁰·max hold for points within an L1 distance of 2⁻¹⁰ voxels of the
+            // cell: enough for f32 rounding of `o + t·d` (index coordinates up to a few
+            // thousand) and for the walk's 1e-4-voxel slivers. Empty leaves stay exactly
+            // empty, so they still cost no lookup.
+            margin = bounds.iter().fold(0f32, |m, b| m.max(b[1])) * (1.0 / 1024.0);
+            let delta = margin;
+            bounds.par_iter_mut().for_each(|b| {
+                if b[1] > 0.0 {
+                    *b = [(b[0] - delta).max(0.0), b[1] + delta];
+                }
+            });
+        }
+        let edge = Vec3::new(
+            leaf_edge[0] as f32,
+            leaf_edge[1] as f32,
+            leaf_edge[2] as f32,
+        );
+        let mut levels = vec![Level {
+            edge,
+            inv_edge: edge.recip(),
             dims,
+            terminal: vec![true; n],
             bounds,
+        }];
+        while hierarchical && levels.last().is_some_and(|l| l.dims != [1, 1, 1]) {
+            let parent = reduce(levels.last().expect("non-empty"));
+            levels.push(parent);
+        }
+        MajorantTree {
+            origin: Vec3::new(rlo[0] as f32, rlo[1] as f32, rlo[2] as f32),
+            levels,
+            spec,
+            margin,
+            build_seconds: start.elapsed().as_secs_f64(),
         }
     }
 
-    pub fn cell_count(&self) -> usize {
-        self.bounds.len()
+    /// The rounding margin δ added to every non-empty octree leaf's bounds (0 for the
+    /// flat grid).
+    pub fn margin(&self) -> f32 {
+        self.margin
     }
 
+    pub fn spec(&self) -> MajorantSpec {
+        self.spec
+    }
+
+    /// Number of leaf cells.
+    pub fn cell_count(&self) -> usize {
+        self.levels.first().map_or(0, |l| l.bounds.len())
+    }
+
+    /// Leaf cells per axis.
     pub fn dims(&self) -> [i32; 3] {
-        self.dims
+        self.levels.first().map_or([0; 3], |l| l.dims)
+    }
+
+    /// Leaf cell edge in voxels, per axis.
+    pub fn leaf_edge(&self) -> [f32; 3] {
+        self.levels.first().map_or([0.0; 3], |l| l.edge.to_array())
+    }
+
+    /// Levels of the hierarchy (1 for a flat grid): the effective octree depth.
+    pub fn levels(&self) -> usize {
+        self.levels.len()
+    }
+
+    /// Wall time of [`MajorantTree::build`].
+    pub fn build_seconds(&self) -> f64 {
+        self.build_seconds
+    }
+
+    /// Bytes held by the bounds and flags of every level.
+    pub fn memory_bytes(&self) -> usize {
+        self.levels
+            .iter()
+            .map(|l| l.bounds.len() * std::mem::size_of::<[f32; 2]>() + l.terminal.len())
+            .sum()
     }
 
     /// Largest density anywhere (the global majorant).
     pub fn max_density(&self) -> f32 {
-        self.bounds.iter().fold(0f32, |m, b| m.max(b.1))
+        self.levels
+            .last()
+            .map_or(0.0, |l| l.bounds.iter().fold(0f32, |m, b| m.max(b[1])))
     }
 
-    /// Continuous index-space box covered by the cells.
+    /// Continuous index-space box covered by the leaves.
     pub fn index_region(&self) -> Option<(Vec3, Vec3)> {
-        if self.bounds.is_empty() {
+        let l = self.levels.first()?;
+        let d = Vec3::new(l.dims[0] as f32, l.dims[1] as f32, l.dims[2] as f32);
+        Some((self.origin, self.origin + d * l.edge))
+    }
+
+    /// Bounds of leaf cell `c` (for tests and tools).
+    pub fn leaf_bounds(&self, c: [i32; 3]) -> Option<(f32, f32)> {
+        let l = self.levels.first()?;
+        if (0..3).any(|a| c[a] < 0 || c[a] >= l.dims[a]) {
             return None;
         }
-        let d = Vec3::new(
-            self.dims[0] as f32,
-            self.dims[1] as f32,
-            self.dims[2] as f32,
-        );
-        Some((self.origin, self.origin + d * self.cell))
+        let b = l.bounds[l.index(c)];
+        Some((b[0], b[1]))
+    }
+
+    /// Continuous index-space box of leaf cell `c` (not clamped to the region).
+    pub fn leaf_box(&self, c: [i32; 3]) -> Option<(Vec3, Vec3)> {
+        let l = self.levels.first()?;
+        let lo = self.origin + Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32) * l.edge;
+        Some((lo, lo + l.edge))
+    }
+
+    /// The leaf cell containing the index-space point `p`, if it lies in the region.
+    pub fn leaf_at(&self, p: Vec3) -> Option<[i32; 3]> {
+        let l = self.levels.first()?;
+        let rel = (p - self.origin) * l.inv_edge;
+        let c = [0, 1, 2].map(|a| rel[a].floor());
+        (0..3)
+            .all(|a| c[a] >= 0.0 && c[a] < l.dims[a] as f32)
+            .then(|| c.map(|x| x as i32))
     }
 
     /// Starts a walk along `o + t·d` for `t` in `[tmin, tmax)`.
-    pub fn walk(&self, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> CellWalk<'_> {
-        CellWalk::new(self, o, d, tmin, tmax)
+    pub fn walk(&self, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> TreeWalk<'_> {
+        TreeWalk::new(self, o, d, tmin, tmax)
     }
 }
 
-/// Amanatides–Woo traversal of the majorant cells along a ray, yielding one segment per
-/// cell in order along the ray. Restartable by construction: callers keep their own `t`
-/// and simply move on to the next segment.
-pub struct CellWalk<'a> {
-    grid: &'a MajorantGrid,
-    cell: [i32; 3],
-    step: [i32; 3],
-    t_next: [f32; 3],
-    t_delta: [f32; 3],
-    t: f32,
-    t_end: f32,
+fn cells(extent: [i64; 3], edge: [i64; 3]) -> u64 {
+    (0..3)
+        .map(|a| ((extent[a] + edge[a] - 1) / edge[a]).max(1) as u64)
+        .product()
 }
 
-impl<'a> CellWalk<'a> {
-    fn new(grid: &'a MajorantGrid, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> CellWalk<'a> {
-        let mut walk = CellWalk {
-            grid,
-            cell: [0; 3],
-            step: [0; 3],
-            t_next: [f32::INFINITY; 3],
-            t_delta: [f32::INFINITY; 3],
+/// The parent level of `child`: each cell the min/max of its (up to) 2×2×2 children,
+/// terminal when every child is terminal with the same bounds (nothing is lost by
+/// stopping there).
+fn reduce(child: &Level) -> Level {
+    let dims = child.dims.map(|d| (d + 1) / 2);
+    let n = dims.iter().map(|&d| d as usize).product::<usize>();
+    let (bounds, terminal): (Vec<[f32; 2]>, Vec<bool>) = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let i = i as i32;
+            let p = [
+                i % dims[0],
+                (i / dims[0]) % dims[1],
+                i / (dims[0] * dims[1]),
+            ];
+            let mut b = [f32::INFINITY, f32::NEG_INFINITY];
+            let mut kids = [[0f32; 2]; 8];
+            let mut nk = 0;
+            let mut all_terminal = true;
+            for k in 0..8 {
+                let c = [
+                    2 * p[0] + (k & 1),
+                    2 * p[1] + ((k >> 1) & 1),
+                    2 * p[2] + (k >> 2),
+                ];
+                if (0..3).any(|a| c[a] >= child.dims[a]) {
+                    continue;
+                }
+                let j = child.index(c);
+                let cb = child.bounds[j];
+                b[0] = b[0].min(cb[0]);
+                b[1] = b[1].max(cb[1]);
+                all_terminal &= child.terminal[j];
+                kids[nk] = cb;
+                nk += 1;
+            }
+            let uniform = kids[..nk].iter().all(|k| *k == b);
+            (b, all_terminal && uniform)
+        })
+        .unzip();
+    let edge = child.edge * 2.0;
+    Level {
+        edge,
+        inv_edge: edge.recip(),
+        dims,
+        bounds,
+        terminal,
+    }
+}
+
+/// Walks a ray through the hierarchy, yielding one segment per terminal node in order
+/// along the ray. Each step locates the current point by descending from the root to
+/// the first terminal node (empty or constant subtrees are crossed in one step) and
+/// leaves it through the node's exit face. Restartable by construction: the walk's only
+/// state is the current `t`, and callers keep their own `t` and move to the next segment.
+///
+/// A point computed exactly on a face can round into the node behind it (its exit is
+/// then not ahead of the point); the walk then locates the point 1e-4 voxels further on
+/// and hands out that node from the face: the sliver lies within 1e-4 voxels of the
+/// node, where its bounds still hold (octree bounds hold within 2⁻¹⁰ voxels of a cell,
+/// flat-grid bounds within one voxel, see [`MajorantTree::build`]).
+pub struct TreeWalk<'a> {
+    tree: &'a MajorantTree,
+    o: Vec3,
+    d: Vec3,
+    inv_d: Vec3,
+    /// Smallest step in `t` when rounding stalls the walk (1e-4 voxels along the ray).
+    min_step: f32,
+    t: f32,
+    t_end: f32,
+    /// Level of the previous step's node: where the next descent starts (see `locate`).
+    level: usize,
+}
+
+impl<'a> TreeWalk<'a> {
+    fn new(tree: &'a MajorantTree, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> TreeWalk<'a> {
+        let mut walk = TreeWalk {
+            tree,
+            o,
+            d,
+            inv_d: d.recip(),
+            min_step: 1e-4 / d.abs().max_element(),
             t: 0.0,
             t_end: -1.0,
+            level: usize::MAX - 1,
         };
-        let Some((lo, hi)) = grid.index_region() else {
+        let Some((lo, hi)) = tree.index_region() else {
             return walk;
         };
-        // Slab test against the cell region.
+        // Slab test against the region.
         let (mut t0, mut t1) = (tmin, tmax);
         for a in 0..3 {
             if d[a] == 0.0 {
-                if o[a] < lo[a] || o[a] >= hi[a] {
+                if !(o[a] >= lo[a] && o[a] < hi[a]) {
                     return walk;
                 }
                 continue;
             }
-            let inv = 1.0 / d[a];
-            let (mut ta, mut tb) = ((lo[a] - o[a]) * inv, (hi[a] - o[a]) * inv);
+            let (mut ta, mut tb) = (
+                (lo[a] - o[a]) * walk.inv_d[a],
+                (hi[a] - o[a]) * walk.inv_d[a],
+            );
             if ta > tb {
                 std::mem::swap(&mut ta, &mut tb);
             }
@@ -158,30 +397,13 @@ impl<'a> CellWalk<'a> {
         if !(t0 < t1) {
             return walk;
         }
-        let p = o + d * t0;
-        for a in 0..3 {
-            let rel = (p[a] - grid.origin[a]) / grid.cell[a];
-            let c = (rel.floor() as i32).clamp(0, grid.dims[a] - 1);
-            walk.cell[a] = c;
-            if d[a] > 0.0 {
-                walk.step[a] = 1;
-                let face = grid.origin[a] + (c + 1) as f32 * grid.cell[a];
-                walk.t_next[a] = t0 + (face - p[a]) / d[a];
-                walk.t_delta[a] = grid.cell[a] / d[a];
-            } else if d[a] < 0.0 {
-                walk.step[a] = -1;
-                let face = grid.origin[a] + c as f32 * grid.cell[a];
-                walk.t_next[a] = t0 + (face - p[a]) / d[a];
-                walk.t_delta[a] = -grid.cell[a] / d[a];
-            }
-        }
         walk.t = t0;
         walk.t_end = t1;
         walk
     }
 }
 
-impl Iterator for CellWalk<'_> {
+impl Iterator for TreeWalk<'_> {
     type Item = Segment;
 
     #[inline]
@@ -189,33 +411,76 @@ impl Iterator for CellWalk<'_> {
         if !(self.t < self.t_end) {
             return None;
         }
-        let a = if self.t_next[0] < self.t_next[1] {
-            if self.t_next[0] < self.t_next[2] {
-                0
-            } else {
-                2
-            }
-        } else if self.t_next[1] < self.t_next[2] {
-            1
+        let t0 = self.t;
+        let (level, c, idx) = self.locate(t0);
+        let mut t1 = self.exit(level, c);
+        let (level, idx) = if t1 > t0 {
+            (level, idx)
         } else {
-            2
-        };
-        let t1 = self.t_next[a].min(self.t_end).max(self.t);
-        let dims = self.grid.dims;
-        let idx = ((self.cell[2] * dims[1] + self.cell[1]) * dims[0] + self.cell[0]) as usize;
-        let (dmin, dmax) = self.grid.bounds[idx];
-        let seg = Segment {
-            t0: self.t,
-            t1,
-            dmin,
-            dmax,
+            // Rounding put the point behind the face it just crossed: locate a point a
+            // sliver further on instead (see the type's doc).
+            let (level, c, idx) = self.locate((t0 + self.min_step).max(t0.next_up()));
+            t1 = self.exit(level, c);
+            if !(t1 > t0) {
+                t1 = (t0 + self.min_step).max(t0.next_up()).min(self.t_end);
+            }
+            (level, idx)
         };
         self.t = t1;
-        self.cell[a] += self.step[a];
-        self.t_next[a] += self.t_delta[a];
-        if self.cell[a] < 0 || self.cell[a] >= dims[a] {
-            self.t_end = self.t; // left the grid
+        let b = level.bounds[idx];
+        Some(Segment {
+            t0,
+            t1,
+            dmin: b[0],
+            dmax: b[1],
+        })
+    }
+}
+
+impl<'a> TreeWalk<'a> {
+    /// The first terminal node containing the point at `t`, descending from one level
+    /// above the previous step's node rather than from the root. That is lossless: below
+    /// a terminal node every node is terminal with the same bounds, so starting too low
+    /// only splits a merged node into smaller segments with identical bounds, while
+    /// climbing one level per step still crosses long empty stretches in few steps.
+    #[inline(always)]
+    fn locate(&mut self, t: f32) -> (&'a Level, [i32; 3], usize) {
+        let tree = self.tree;
+        let rel = self.o + self.d * t - tree.origin;
+        let mut k = (self.level + 1).min(tree.levels.len() - 1);
+        loop {
+            let l = &tree.levels[k];
+            let mut c = [0i32; 3];
+            for a in 0..3 {
+                let x = rel[a] * l.inv_edge[a];
+                // On a face, take the cell the ray is entering.
+                let f = if self.d[a] < 0.0 {
+                    x.ceil() - 1.0
+                } else {
+                    x.floor()
+                };
+                c[a] = (f as i32).clamp(0, l.dims[a] - 1);
+            }
+            let idx = l.index(c);
+            if k == 0 || l.terminal[idx] {
+                self.level = k;
+                return (l, c, idx);
+            }
+            k -= 1;
         }
-        Some(seg)
+    }
+
+    /// Where the ray leaves cell `c` of `level` (clipped to the walk's end).
+    #[inline(always)]
+    fn exit(&self, level: &Level, c: [i32; 3]) -> f32 {
+        let mut t1 = self.t_end;
+        for a in 0..3 {
+            if self.d[a] != 0.0 {
+                let side = (self.d[a] > 0.0) as i32;
+                let face = self.tree.origin[a] + (c[a] + side) as f32 * level.edge[a];
+                t1 = t1.min((face - self.o[a]) * self.inv_d[a]);
+            }
+        }
+        t1
     }
 }

@@ -7,7 +7,7 @@
 //! per world unit length, whatever the grid's voxel size or the volume's transform).
 
 use crate::volume::grid::Grid;
-use crate::volume::majorant::MajorantGrid;
+use crate::volume::majorant::{MajorantSpec, MajorantTree};
 use glam::{DMat4, DVec3, Vec3};
 
 /// RGB coefficients, one per channel.
@@ -117,7 +117,7 @@ pub struct Medium {
     pub sigma: Sigma,
     /// Henyey–Greenstein asymmetry.
     pub g: f32,
-    pub majorants: MajorantGrid,
+    pub majorants: MajorantTree,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -129,6 +129,7 @@ pub enum MediumError {
 impl Medium {
     /// Builds a medium. `cell_voxels` is the edge of a majorant cell in voxels
     /// (0 = one cell for the whole volume, i.e. a global majorant).
+    #[allow(clippy::too_many_arguments)]
     pub fn new(
         prim_path: &str,
         density: Grid,
@@ -138,6 +139,30 @@ impl Medium {
         scattering: [f64; 3],
         anisotropy: f64,
         cell_voxels: u32,
+    ) -> Result<Medium, MediumError> {
+        Self::with_majorants(
+            prim_path,
+            density,
+            volume_to_world,
+            density_scale,
+            absorption,
+            scattering,
+            anisotropy,
+            MajorantSpec::Uniform { cell_voxels },
+        )
+    }
+
+    /// Builds a medium with the majorant structure `spec` (a flat grid or an octree).
+    #[allow(clippy::too_many_arguments)]
+    pub fn with_majorants(
+        prim_path: &str,
+        density: Grid,
+        volume_to_world: DMat4,
+        density_scale: f64,
+        absorption: [f64; 3],
+        scattering: [f64; 3],
+        anisotropy: f64,
+        spec: MajorantSpec,
     ) -> Result<Medium, MediumError> {
         let invalid = |message: String| MediumError::Invalid {
             prim: prim_path.to_string(),
@@ -171,7 +196,7 @@ impl Medium {
                 "nimbus:anisotropy must lie in (-1, 1), got {anisotropy}"
             )));
         }
-        let majorants = MajorantGrid::build(&density, cell_voxels);
+        let majorants = MajorantTree::build(&density, spec);
         Ok(Medium {
             prim_path: prim_path.to_string(),
             density,
@@ -180,6 +205,11 @@ impl Medium {
             g: anisotropy as f32,
             majorants,
         })
+    }
+
+    /// Rebuilds the majorant structure (e.g. to compare octree depths on one grid).
+    pub fn set_majorants(&mut self, spec: MajorantSpec) {
+        self.majorants = MajorantTree::build(&self.density, spec);
     }
 
     /// Maps a world-space ray (any direction length; `t` is measured in units of it).
