@@ -1,5 +1,6 @@
 //! Command-line subcommands: `render` and `info`.
 
+mod compare;
 mod info;
 mod render;
 
@@ -23,6 +24,8 @@ pub enum Command {
     Render(render::RenderArgs),
     /// Describe a stage: volumes, fields, grids, camera, lights, render settings.
     Info(info::InfoArgs),
+    /// Compare two EXRs per channel: MSE, relative MSE (second image = reference), RMSE.
+    Compare(compare::CompareArgs),
 }
 
 /// Runs the CLI; errors are printed as `nimbus: error: …` with a non-zero exit.
@@ -41,6 +44,7 @@ pub fn main() -> ExitCode {
     let result = match cli.command {
         Command::Render(a) => render::run(a),
         Command::Info(a) => info::run(a),
+        Command::Compare(a) => compare::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
