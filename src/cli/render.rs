@@ -533,3 +533,46 @@ fn add_render_var_aovs(settings: &RenderSettings, aovs: &mut Vec<Aov>) -> Result
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::PassSchedule;
+
+    #[test]
+    fn schedule_starts_with_one_sample_then_doubles_up_to_the_cap() {
+        let mut s = PassSchedule::new(10, None, None);
+        let mut sizes = Vec::new();
+        while let Some(n) = s.next(0.0, 0.0) {
+            sizes.push(n);
+            s.finished(n, 0.001 * n as f64);
+        }
+        assert_eq!(sizes, [1, 2, 4, 3]);
+    }
+
+    #[test]
+    fn schedule_fits_the_time_budget() {
+        // 0.1 s per sample, 1 s budget, 0.25 s spent after the first pass.
+        let mut s = PassSchedule::new(u32::MAX, Some(1.0), None);
+        assert_eq!(s.next(0.0, 0.0), Some(1));
+        s.finished(1, 0.1);
+        assert_eq!(s.next(0.25, 0.0), Some(2)); // doubling bound
+        s.finished(2, 0.2);
+        assert_eq!(s.next(0.45, 0.0), Some(4)); // 0.55 s left fit 5, doubling allows 4
+        s.finished(4, 0.4);
+        assert_eq!(s.next(0.85, 0.0), Some(1)); // 0.15 s left: one sample
+        s.finished(1, 0.1);
+        assert_eq!(s.next(0.96, 0.0), None); // 0.04 s left < half a sample
+    }
+
+    #[test]
+    fn schedule_shortens_passes_to_meet_checkpoints() {
+        let mut s = PassSchedule::new(1000, None, Some(4.0));
+        s.finished(8, 0.5); // 1/16 s per sample
+                            // 3 s to the next checkpoint fit 48 samples; doubling allows 16.
+        assert_eq!(s.next(1.0, 0.0), Some(16));
+        // 0.5 s to it: 8.
+        assert_eq!(s.next(3.5, 0.0), Some(8));
+        // Past due: one sample, then the checkpoint is written.
+        assert_eq!(s.next(4.5, 0.0), Some(1));
+    }
+}
