@@ -1,8 +1,10 @@
 //! Command-line subcommands: `render` and `info`.
 
-mod compare;
 mod info;
 mod render;
+// `compare` is declared apart from the other modules to keep merges with parallel
+// branches conflict-free.
+mod compare;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -22,10 +24,10 @@ pub struct Cli {
 pub enum Command {
     /// Render a USD stage to an EXR.
     Render(render::RenderArgs),
-    /// Describe a stage: volumes, fields, grids, camera, lights, render settings.
-    Info(info::InfoArgs),
     /// Compare two EXRs per channel: MSE, relative MSE (second image = reference), RMSE.
     Compare(compare::CompareArgs),
+    /// Describe a stage: volumes, fields, grids, camera, lights, render settings.
+    Info(info::InfoArgs),
 }
 
 /// Runs the CLI; errors are printed as `nimbus: error: …` with a non-zero exit.
@@ -43,8 +45,8 @@ pub fn main() -> ExitCode {
     };
     let result = match cli.command {
         Command::Render(a) => render::run(a),
-        Command::Info(a) => info::run(a),
         Command::Compare(a) => compare::run(a),
+        Command::Info(a) => info::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

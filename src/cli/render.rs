@@ -4,10 +4,9 @@ use crate::output::exr::{write_exr, ExrMetadata};
 use crate::output::stats::RenderStats;
 use crate::output::{check_writable, write_atomically};
 use crate::render::camera::CameraRays;
-use crate::render::film::{Aov, Film};
+use crate::render::film::Aov;
 use crate::render::job::{medium_for_scene, RenderJob};
 use crate::render::lights::Lights;
-use crate::render::progressive::{render_progressive, Budget, Progress};
 use crate::scene::{load_stage, LoadOptions, RenderSettings};
 use crate::track::{
     scheme::SchemeOptions, SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind,
@@ -19,6 +18,9 @@ use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
+
+use crate::render::film::Film;
+use crate::render::progressive::{render_progressive, Budget, Progress};
 
 #[derive(Args, Debug)]
 pub struct RenderArgs {
