@@ -321,25 +321,6 @@ pub fn run(args: RenderArgs) -> Result<()> {
     Ok(())
 }
 
-/// Installs a Ctrl-C / SIGTERM handler: the first signal asks the render to stop after
-/// the current pass and write what it has; a second one exits at once (the last
-/// checkpoint, written atomically, stays valid).
-fn install_interrupt_handler() -> Arc<AtomicBool> {
-    let flag = Arc::new(AtomicBool::new(false));
-    let f = flag.clone();
-    let r = ctrlc::set_handler(move || {
-        if f.swap(true, Ordering::SeqCst) {
-            eprintln!("\nnimbus: stopped at once; the last written file is intact");
-            std::process::exit(130);
-        }
-        eprintln!("\nnimbus: stopping after the current pass (signal again to quit at once)");
-    });
-    if let Err(e) = r {
-        eprintln!("nimbus: warning: cannot catch Ctrl-C/SIGTERM ({e}); a stopped render loses its unwritten passes");
-    }
-    flag
-}
-
 /// Tracker settings: flags override the stage's render settings, which override the
 /// defaults.
 fn tracker_settings(args: &RenderArgs, stage: &RenderSettings) -> Result<TrackerSettings> {
@@ -449,4 +430,23 @@ fn add_render_var_aovs(settings: &RenderSettings, aovs: &mut Vec<Aov>) -> Result
         }
     }
     Ok(())
+}
+
+/// Installs a Ctrl-C / SIGTERM handler: the first signal asks the render to stop after
+/// the current pass and write what it has; a second one exits at once (the last
+/// checkpoint, written atomically, stays valid).
+fn install_interrupt_handler() -> Arc<AtomicBool> {
+    let flag = Arc::new(AtomicBool::new(false));
+    let f = flag.clone();
+    let r = ctrlc::set_handler(move || {
+        if f.swap(true, Ordering::SeqCst) {
+            eprintln!("\nnimbus: stopped at once; the last written file is intact");
+            std::process::exit(130);
+        }
+        eprintln!("\nnimbus: stopping after the current pass (signal again to quit at once)");
+    });
+    if let Err(e) = r {
+        eprintln!("nimbus: warning: cannot catch Ctrl-C/SIGTERM ({e}); a stopped render loses its unwritten passes");
+    }
+    flag
 }
