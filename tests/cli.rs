@@ -463,3 +463,291 @@ fn tracker_settings_from_stage_and_flags() {
     let bad = write("c.usda", "", "nosuchaov");
     assert_clean_error(&run(&bad, &[]), "nosuchaov");
 }
+
+/// Writes an EXR with f32 channels `(name, values)`, optionally inside a named layer.
+fn write_test_exr(
+    path: &Path,
+    w: usize,
+    h: usize,
+    layer: Option<&str>,
+    chans: &[(&str, Vec<f32>)],
+) {
+    use exr::prelude::*;
+    let channels: Vec<AnyChannel<FlatSamples>> = chans
+        .iter()
+        .map(|(n, v)| AnyChannel::new(*n, FlatSamples::F32(v.clone())))
+        .collect();
+    let mut attrs = LayerAttributes::default();
+    attrs.layer_name = layer.map(Text::from);
+    let layer = Layer::new(
+        (w, h),
+        attrs,
+        Encoding::FAST_LOSSLESS,
+        AnyChannels::sort(channels.into()),
+    );
+    Image::from_layer(layer).write().to_file(path).unwrap();
+}
+
+fn compare_json(a: &Path, b: &Path) -> serde_json::Value {
+    let o = nimbus(&[
+        "compare",
+        a.to_str().unwrap(),
+        b.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
+#[test]
+fn compare_reports_known_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (w, h) = (4, 2);
+    // Reference: R = 1, G = 0, B = 2. Test: R off by 0.5 everywhere, G off by 0.1 in
+    // half the pixels, B exact except one pixel at 1e6 (clamped to 65504).
+    let refc = vec![
+        ("R", vec![1.0; 8]),
+        ("G", vec![0.0; 8]),
+        ("B", vec![2.0; 8]),
+    ];
+    let mut b_test = vec![2.0f32; 8];
+    b_test[3] = 1e6;
+    let test = vec![
+        ("R", vec![1.5; 8]),
+        (
+            "G",
+            (0..8).map(|i| if i % 2 == 0 { 0.1 } else { 0.0 }).collect(),
+        ),
+        ("B", b_test),
+    ];
+    let (a, b) = (d.join("a.exr"), d.join("b.exr"));
+    write_test_exr(&a, w, h, None, &test);
+    write_test_exr(&b, w, h, None, &refc);
+    let j = compare_json(&a, &b);
+    let ch = |i: usize, k: &str| j["channels"][i][k].as_f64().unwrap();
+    let close = |x: f64, y: f64| (x - y).abs() <= 1e-6 * y.abs().max(1e-6);
+    assert_eq!(j["channels"][0]["channel"], "R");
+    assert!(close(ch(0, "mse"), 0.25));
+    assert!(close(ch(0, "rmse"), 0.5));
+    assert!(close(ch(0, "relmse"), 0.25 / 1.01));
+    assert!(close(ch(0, "mean_a"), 1.5));
+    assert!(close(ch(0, "mean_b"), 1.0));
+    let g_d2 = (0.1f32 as f64).powi(2);
+    assert!(close(ch(1, "mse"), g_d2 / 2.0));
+    assert!(close(ch(1, "relmse"), g_d2 / 0.01 / 2.0));
+    let b_d2 = (65504.0f64 - 2.0).powi(2);
+    assert!(close(ch(2, "mse"), b_d2 / 8.0));
+    assert!(close(ch(2, "relmse"), b_d2 / 4.01 / 8.0));
+    // An image against itself: zero error.
+    let z = compare_json(&b, &b);
+    assert_eq!(z["rgb"]["mse"].as_f64().unwrap(), 0.0);
+
+    // RGBA inside a named layer (`rgba.R` on read-back) is found.
+    let layered = d.join("layered.exr");
+    write_test_exr(&layered, w, h, Some("rgba"), &test);
+    let jl = compare_json(&layered, &b);
+    assert_eq!(jl["channels"][0]["mse"], j["channels"][0]["mse"]);
+    // So are channels named `beauty.R` etc. without a layer attribute.
+    let dotted = d.join("dotted.exr");
+    let dotted_chans: Vec<(&str, Vec<f32>)> = vec![
+        ("beauty.R", test[0].1.clone()),
+        ("beauty.G", test[1].1.clone()),
+        ("beauty.B", test[2].1.clone()),
+    ];
+    write_test_exr(&dotted, w, h, None, &dotted_chans);
+    assert_eq!(compare_json(&dotted, &b)["rgb"], j["rgb"]);
+
+    // Text output has the table.
+    let o = nimbus(&["compare", a.to_str().unwrap(), b.to_str().unwrap()]);
+    assert!(o.status.success());
+    assert!(String::from_utf8_lossy(&o.stdout).contains("relMSE"));
+
+    // Different sizes, a missing channel, a file that is not an EXR: clean errors.
+    let small = d.join("small.exr");
+    write_test_exr(
+        &small,
+        2,
+        2,
+        None,
+        &[
+            ("R", vec![0.0; 4]),
+            ("G", vec![0.0; 4]),
+            ("B", vec![0.0; 4]),
+        ],
+    );
+    let o = nimbus(&["compare", small.to_str().unwrap(), b.to_str().unwrap()]);
+    assert_clean_error(&o, "differ in size");
+    let nog = d.join("nog.exr");
+    write_test_exr(
+        &nog,
+        w,
+        h,
+        None,
+        &[("R", vec![0.0; 8]), ("B", vec![0.0; 8])],
+    );
+    let o = nimbus(&["compare", nog.to_str().unwrap(), b.to_str().unwrap()]);
+    assert_clean_error(&o, "no channel G");
+    let junk = d.join("junk.exr");
+    std::fs::write(&junk, b"not an exr").unwrap();
+    let o = nimbus(&["compare", a.to_str().unwrap(), junk.to_str().unwrap()]);
+    assert_clean_error(&o, "junk.exr");
+}
+
+fn stats_json(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+#[test]
+fn time_limit_is_honoured_within_one_pass() {
+    let dir = tempfile::tempdir().unwrap();
+    let stage = root().join("scenes/cloud/cloud.usda");
+    let out = dir.path().join("t.exr");
+    let stats = dir.path().join("t.json");
+    let limit = 1.5;
+    let o = nimbus(&[
+        "render",
+        stage.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--res",
+        "48x36",
+        "--spp",
+        "1000000",
+        "--time-limit",
+        &limit.to_string(),
+        "--stats",
+        stats.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j = stats_json(&stats);
+    let spp = j["samples_per_pixel"].as_u64().unwrap();
+    let secs = j["render_seconds"].as_f64().unwrap();
+    let max_pass = j["max_pass_seconds"].as_f64().unwrap();
+    let passes = j["passes"].as_u64().unwrap();
+    assert!(spp > 1 && spp < 1_000_000, "spp {spp}");
+    assert!(passes >= 2, "passes {passes}");
+    assert!(
+        (secs - limit).abs() <= max_pass + 0.05,
+        "render took {secs} s for a {limit} s budget (longest pass {max_pass} s)"
+    );
+    assert_eq!(j["interrupted"], false);
+    let meta = nimbus::output::exr::read_i32_attribute(&out, "nimbus:spp").unwrap();
+    assert_eq!(meta, Some(spp as i32));
+
+    // The cap wins when it comes first.
+    let o = nimbus(&[
+        "render",
+        stage.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--res",
+        "16x12",
+        "--spp",
+        "3",
+        "--time-limit",
+        "30",
+        "--stats",
+        stats.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(stats_json(&stats)["samples_per_pixel"], 3);
+
+    for bad in ["0", "-1", "nan"] {
+        let o = nimbus(&[
+            "render",
+            stage.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--time-limit",
+            bad,
+        ]);
+        assert!(!o.status.success());
+        assert!(!stderr(&o).contains("panicked"));
+    }
+}
+
+#[cfg(unix)]
+#[test]
+fn interrupted_render_keeps_finished_passes() {
+    let dir = tempfile::tempdir().unwrap();
+    let stage = root().join("scenes/cloud/cloud.usda");
+    let out = dir.path().join("i.exr");
+    let stats = dir.path().join("i.json");
+    let child = Command::new(env!("CARGO_BIN_EXE_nimbus"))
+        .args([
+            "render",
+            stage.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--res",
+            "40x30",
+            "--seed",
+            "17",
+            "--time-limit",
+            "120",
+            "--checkpoint",
+            "0.3",
+            "--stats",
+            stats.to_str().unwrap(),
+        ])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Wait for the first checkpoint, then ask the render to stop.
+    let t0 = std::time::Instant::now();
+    while !out.exists() {
+        assert!(t0.elapsed().as_secs() < 60, "no checkpoint written");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let checkpoint_spp = nimbus::output::exr::read_i32_attribute(&out, "nimbus:spp")
+        .unwrap()
+        .unwrap();
+    assert!(checkpoint_spp >= 1);
+    unsafe { libc::kill(child.id() as i32, libc::SIGTERM) };
+    let o = child.wait_with_output().unwrap();
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(e.contains("interrupted"), "{e}");
+    assert!(!e.contains("panicked"), "{e}");
+    let j = stats_json(&stats);
+    assert_eq!(j["interrupted"], true);
+    let spp = j["samples_per_pixel"].as_u64().unwrap();
+    assert_eq!(
+        nimbus::output::exr::read_i32_attribute(&out, "nimbus:spp").unwrap(),
+        Some(spp as i32)
+    );
+    assert!(spp >= checkpoint_spp as u64);
+    // No temporary files left behind.
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().ends_with(".tmp"))
+        .collect();
+    assert!(leftovers.is_empty());
+
+    // The same seed and sample count, uninterrupted: the same pixels, bit for bit.
+    let full = dir.path().join("full.exr");
+    let spp_s = spp.to_string();
+    let o = nimbus(&[
+        "render",
+        stage.to_str().unwrap(),
+        "-o",
+        full.to_str().unwrap(),
+        "--res",
+        "40x30",
+        "--seed",
+        "17",
+        "--spp",
+        &spp_s,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (a, b) = (channels(&out), channels(&full));
+    for name in ["R", "G", "B", "A", "lookups"] {
+        let (x, y) = (channel(&a, name), channel(&b, name));
+        assert!(
+            x.iter().zip(y).all(|(p, q)| p.to_bits() == q.to_bits()),
+            "channel {name} differs"
+        );
+    }
+}

@@ -3,6 +3,9 @@
 mod bench;
 mod info;
 mod render;
+// `compare` is declared apart from the other modules to keep merges with parallel
+// branches conflict-free.
+mod compare;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -22,6 +25,8 @@ pub struct Cli {
 pub enum Command {
     /// Render a USD stage to an EXR.
     Render(render::RenderArgs),
+    /// Compare two EXRs per channel: MSE, relative MSE (second image = reference), RMSE.
+    Compare(compare::CompareArgs),
     /// Describe a stage: volumes, fields, grids, camera, lights, render settings.
     Info(info::InfoArgs),
     /// Benchmarks (`bench octree`: trackers at several majorant octree depths).
@@ -44,6 +49,7 @@ pub fn main() -> ExitCode {
     };
     let result = match cli.command {
         Command::Render(a) => render::run(a),
+        Command::Compare(a) => compare::run(a),
         Command::Info(a) => info::run(a),
         Command::Bench(c) => bench::run(c),
     };

@@ -16,7 +16,12 @@ use crate::volume::vdb;
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::Instant;
+
+use crate::render::film::Film;
+use crate::render::progressive::{render_progressive, Budget, Progress};
 
 #[derive(Args, Debug)]
 pub struct RenderArgs {
@@ -88,6 +93,15 @@ pub struct RenderArgs {
     /// real_collisions, null_collisions, control_collisions, max_throughput, variance.
     #[arg(long, value_delimiter = ',')]
     pub aovs: Vec<String>,
+    /// Render in passes until this many seconds of rendering (loading excluded) are
+    /// spent, then write; `--spp` caps the samples (without `--spp` there is no cap). The
+    /// budget is kept to within one pass.
+    #[arg(long, value_name = "SECONDS")]
+    pub time_limit: Option<f64>,
+    /// Write the EXR (and stats) every this many seconds of rendering, after the pass
+    /// that crosses the interval, so a stopped render keeps its finished passes.
+    #[arg(long, value_name = "SECONDS")]
+    pub checkpoint: Option<f64>,
 }
 
 /// Parses "WxH" with both sides positive.
@@ -139,8 +153,22 @@ pub fn run(args: RenderArgs) -> Result<()> {
     if spp == 0 {
         bail!("samples per pixel must be at least 1");
     }
-    let film_bytes =
-        width as u64 * height as u64 * std::mem::size_of::<crate::render::film::Pixel>() as u64;
+    for (flag, v) in [
+        ("--time-limit", args.time_limit),
+        ("--checkpoint", args.checkpoint),
+    ] {
+        if let Some(v) = v {
+            if !(v.is_finite() && v > 0.0) {
+                bail!("{flag} must be a positive number of seconds, got {v}");
+            }
+        }
+    }
+    // With a time budget and no explicit --spp, the budget alone decides.
+    let spp = match (args.time_limit, args.spp) {
+        (Some(_), None) => u32::MAX,
+        _ => spp,
+    };
+    let film_bytes = width as u64 * height as u64 * Film::BYTES_PER_PIXEL as u64;
     if film_bytes > MAX_FILM_BYTES {
         bail!(
             "resolution {width}x{height} needs {:.1} GiB of film memory, more than the {} GiB limit",
@@ -199,52 +227,59 @@ pub fn run(args: RenderArgs) -> Result<()> {
         .num_threads(args.threads.unwrap_or(0))
         .build()
         .context("cannot start worker threads")?;
-    let bar = indicatif::ProgressBar::new(height as u64);
+    let interrupted = install_interrupt_handler();
+    let bar = if spp == u32::MAX {
+        indicatif::ProgressBar::new_spinner()
+    } else {
+        indicatif::ProgressBar::new(spp as u64 * height as u64)
+    };
     bar.set_style(
         indicatif::ProgressStyle::with_template(
-            "{spinner} rendering [{bar:40}] {pos}/{len} rows, {elapsed} elapsed, ETA {eta}",
+            "{spinner} rendering [{bar:40}] {msg}, {elapsed} elapsed, ETA {eta}",
         )
         .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
-    let render_start = Instant::now();
-    let film = pool.install(|| job.render(&|| bar.inc(1)));
-    let render_seconds = render_start.elapsed().as_secs_f64();
-    bar.finish_and_clear();
-
-    let (totals, _samples, nonfinite) = film.totals();
     let tracker = tracking.tracker.name().to_string();
-    write_exr(
-        &args.output,
-        &film,
-        &aovs,
-        &ExrMetadata {
-            stage: args.stage.display().to_string(),
-            tracker: tracker.clone(),
-            spp,
-            render_seconds,
-        },
-    )?;
-    if nonfinite > 0 {
-        eprintln!("nimbus: warning: {nonfinite} samples were NaN or infinite and were dropped");
-    }
-    if let Some(path) = &args.stats {
+    // Writes the EXR and the stats for the samples done so far (every pixel has the
+    // same count after each pass).
+    let write_outputs = |film: &Film, p: &Progress| -> Result<()> {
+        let (totals, _samples, nonfinite) = film.totals();
+        write_exr(
+            &args.output,
+            film,
+            &aovs,
+            &ExrMetadata {
+                stage: args.stage.display().to_string(),
+                tracker: tracker.clone(),
+                spp: p.spp,
+                render_seconds: p.seconds,
+            },
+        )?;
+        let Some(path) = &args.stats else {
+            return Ok(());
+        };
+        let samples = width as f64 * height as f64 * p.spp as f64;
         let stats = RenderStats {
             stage: args.stage.display().to_string(),
-            samples_per_pixel: spp,
+            samples_per_pixel: p.spp,
+            passes: p.passes,
+            max_pass_seconds: p.max_pass_seconds,
+            spp_cap: (spp != u32::MAX).then_some(spp),
+            time_limit_seconds: args.time_limit,
+            interrupted: p.interrupted,
             width,
             height,
             wall_seconds: wall.elapsed().as_secs_f64(),
             load_seconds,
-            render_seconds,
+            render_seconds: p.seconds,
             threads: pool.current_num_threads(),
             seed,
-            tracker,
+            tracker: tracker.clone(),
             scheme: tracking.scheme.name().into(),
             transmittance: tracking.transmittance.name().into(),
             residual_lookups: totals.residual_lookups,
             control_collisions: totals.control_collisions,
-            max_throughput_mean: totals.max_throughput
-                / (width as f64 * height as f64 * spp as f64),
+            max_throughput_mean: totals.max_throughput / samples,
             density_lookups: totals.density_lookups,
             real_collisions: totals.real_collisions,
             null_collisions: totals.null_collisions,
@@ -267,12 +302,56 @@ pub fn run(args: RenderArgs) -> Result<()> {
             use std::io::Write;
             f.write_all(json.as_bytes()).map_err(|e| e.to_string())
         })?;
+        Ok(())
+    };
+
+    let budget = Budget {
+        spp_cap: spp,
+        time_limit: args.time_limit,
+        checkpoint: args.checkpoint,
+    };
+    let (film, p) = render_progressive(
+        &job,
+        &pool,
+        &budget,
+        &interrupted,
+        &|n| bar.inc(n as u64),
+        |film, p| {
+            bar.set_message(format!("{} spp in {} passes", p.spp, p.passes));
+            if p.checkpoint_due {
+                write_outputs(film, p).context("writing a checkpoint")?;
+            }
+            Ok::<(), anyhow::Error>(())
+        },
+    )?;
+    bar.finish_and_clear();
+    if p.spp == 0 {
+        // Nothing rendered: keep whatever file is there rather than write a black image.
+        bail!(
+            "interrupted before the first pass finished; {} was not written",
+            args.output.display()
+        );
+    }
+    write_outputs(&film, &p)?;
+    let (totals, _samples, nonfinite) = film.totals();
+    if nonfinite > 0 {
+        eprintln!("nimbus: warning: {nonfinite} samples were NaN or infinite and were dropped");
+    }
+    if p.interrupted {
+        bail!(
+            "interrupted: wrote {} with the {} samples per pixel finished in {} passes",
+            args.output.display(),
+            p.spp,
+            p.passes
+        );
     }
     eprintln!(
-        "nimbus: wrote {} ({width}x{height}, {spp} spp, {:.2} s, {:.1} lookups/sample)",
+        "nimbus: wrote {} ({width}x{height}, {} spp in {} passes, {:.2} s, {:.1} lookups/sample)",
         args.output.display(),
-        render_seconds,
-        totals.density_lookups as f64 / (width as f64 * height as f64 * spp as f64)
+        p.spp,
+        p.passes,
+        p.seconds,
+        totals.density_lookups as f64 / (width as f64 * height as f64 * p.spp as f64)
     );
     Ok(())
 }
@@ -413,4 +492,23 @@ fn add_render_var_aovs(settings: &RenderSettings, aovs: &mut Vec<Aov>) -> Result
         }
     }
     Ok(())
+}
+
+/// Installs a Ctrl-C / SIGTERM handler: the first signal asks the render to stop after
+/// the current pass and write what it has; a second one exits at once (the last
+/// checkpoint, written atomically, stays valid).
+fn install_interrupt_handler() -> Arc<AtomicBool> {
+    let flag = Arc::new(AtomicBool::new(false));
+    let f = flag.clone();
+    let r = ctrlc::set_handler(move || {
+        if f.swap(true, Ordering::SeqCst) {
+            eprintln!("\nnimbus: stopped at once; the last written file is intact");
+            std::process::exit(130);
+        }
+        eprintln!("\nnimbus: stopping after the current pass (signal again to quit at once)");
+    });
+    if let Err(e) = r {
+        eprintln!("nimbus: warning: cannot catch Ctrl-C/SIGTERM ({e}); a stopped render loses its unwritten passes");
+    }
+    flag
 }

@@ -84,3 +84,60 @@ pub fn read_channels(
         .collect();
     Ok((w, h, chans))
 }
+
+/// Reads every f32/f16/u32 channel of every layer (part) of an EXR as f32, for
+/// `compare`. Channels of a named layer are returned as `layer.channel`, so an image
+/// whose RGBA sits in a layer (`rgba.R`, or a part named `beauty`) is still found.
+/// Layers whose size differs from the first layer's are left out (they cannot be
+/// compared pixel by pixel with it).
+pub fn read_all_channels(path: &Path) -> ChannelsResult {
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .all_layers()
+        .all_attributes()
+        .from_file(path)
+        .map_err(|e| format!("{}: cannot read as EXR: {e}", path.display()))?;
+    let Some(first) = image.layer_data.first() else {
+        return Err(format!("{}: the EXR has no layers", path.display()));
+    };
+    let size = first.size;
+    let mut chans = Vec::new();
+    for layer in image.layer_data.iter().filter(|l| l.size == size) {
+        let prefix = layer
+            .attributes
+            .layer_name
+            .as_ref()
+            .map(|n| format!("{n}."))
+            .unwrap_or_default();
+        for c in &layer.channel_data.list {
+            chans.push((
+                format!("{prefix}{}", c.name),
+                c.sample_data.values_as_f32().collect(),
+            ));
+        }
+    }
+    Ok((size.width(), size.height(), chans))
+}
+
+type ChannelsResult = std::result::Result<(usize, usize, Vec<(String, Vec<f32>)>), String>;
+
+/// The integer attribute `key` (e.g. `nimbus:spp`) of an EXR's first layer or header.
+pub fn read_i32_attribute(path: &Path, key: &str) -> std::result::Result<Option<i32>, String> {
+    let meta = ::exr::meta::MetaData::read_from_file(path, false)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    let Some(h) = meta.headers.first() else {
+        return Ok(None);
+    };
+    let key = Text::from(key);
+    let v = h
+        .own_attributes
+        .other
+        .get(&key)
+        .or_else(|| h.shared_attributes.other.get(&key));
+    Ok(match v {
+        Some(AttributeValue::I32(i)) => Some(*i),
+        _ => None,
+    })
+}

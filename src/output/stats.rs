@@ -5,7 +5,16 @@ use serde::Serialize;
 #[derive(Serialize, Debug, Clone)]
 pub struct RenderStats {
     pub stage: String,
+    /// Samples actually taken per pixel (every pixel has the same count).
     pub samples_per_pixel: u32,
+    /// Progressive passes the samples were taken in.
+    pub passes: u32,
+    pub max_pass_seconds: f64,
+    /// The `--spp` cap (absent when only a time limit bounds the render).
+    pub spp_cap: Option<u32>,
+    pub time_limit_seconds: Option<f64>,
+    /// Stopped by Ctrl-C / SIGTERM before the cap or budget was reached.
+    pub interrupted: bool,
     pub width: u32,
     pub height: u32,
     pub wall_seconds: f64,

@@ -1,6 +1,7 @@
 //! The film: per-pixel accumulators (f64 sums, integer counters) and the AOVs derived
 //! from them.
 
+use crate::render::sampler::{pixel_sampler, Sampler};
 use crate::volume::medium::Counters;
 
 /// Everything accumulated for one pixel over its samples.
@@ -136,9 +137,28 @@ pub struct Film {
     pub height: u32,
     /// Row-major, y down.
     pub pixels: Vec<Pixel>,
+    /// Each pixel's random stream, carried from one pass to the next so a render of N
+    /// samples in any number of passes draws exactly the numbers a single pass would
+    /// (and so gives the same image bit for bit).
+    pub samplers: Vec<Sampler>,
 }
 
 impl Film {
+    /// An empty film whose pixel streams start where a render with `seed` starts.
+    pub fn new(width: u32, height: u32, seed: u64) -> Film {
+        let n = width as usize * height as usize;
+        Film {
+            width,
+            height,
+            pixels: vec![Pixel::default(); n],
+            samplers: (0..n as u64).map(|i| pixel_sampler(seed, i)).collect(),
+        }
+    }
+
+    /// Bytes of film memory per pixel (accumulators and random stream).
+    pub const BYTES_PER_PIXEL: usize =
+        std::mem::size_of::<Pixel>() + std::mem::size_of::<Sampler>();
+
     pub fn channel(&self, aov: Aov) -> Vec<f32> {
         self.pixels.iter().map(|p| aov.value(p)).collect()
     }

@@ -41,36 +41,49 @@ pub struct SampleResult {
 }
 
 impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
-    /// Renders all pixels; `progress` is called once per finished row (from any thread).
+    /// Renders all pixels with `self.spp` samples in one pass; `progress` is called once
+    /// per finished row (from any thread).
     pub fn render(&self, progress: &(dyn Fn() + Sync)) -> Film {
-        let w = self.width as usize;
-        let mut pixels = vec![Pixel::default(); w * self.height as usize];
-        pixels.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-            for (x, px) in row.iter_mut().enumerate() {
-                *px = self.render_pixel(x as u32, y as u32);
-            }
-            progress();
-        });
-        Film {
-            width: self.width,
-            height: self.height,
-            pixels,
-        }
+        let mut film = Film::new(self.width, self.height, self.seed);
+        self.render_pass(&mut film, self.spp, progress);
+        film
     }
 
+    /// Adds `n` samples to every pixel of `film` (a film from [`Film::new`] with this
+    /// integrator's size and seed), continuing each pixel's random stream.
+    pub fn render_pass(&self, film: &mut Film, n: u32, progress: &(dyn Fn() + Sync)) {
+        let w = self.width as usize;
+        assert_eq!(film.pixels.len(), w * self.height as usize, "film size");
+        film.pixels
+            .par_chunks_mut(w)
+            .zip(film.samplers.par_chunks_mut(w))
+            .enumerate()
+            .for_each(|(y, (row, rngs))| {
+                for (x, (px, rng)) in row.iter_mut().zip(rngs).enumerate() {
+                    self.add_samples(px, rng, x as u32, y as u32, n);
+                }
+                progress();
+            });
+    }
+
+    /// Renders one pixel with `self.spp` samples from the start of its stream.
     pub fn render_pixel(&self, x: u32, y: u32) -> Pixel {
         let index = y as u64 * self.width as u64 + x as u64;
         let mut rng = pixel_sampler(self.seed, index);
         let mut px = Pixel::default();
-        for _ in 0..self.spp {
+        self.add_samples(&mut px, &mut rng, x, y, self.spp);
+        px
+    }
+
+    fn add_samples(&self, px: &mut Pixel, rng: &mut Sampler, x: u32, y: u32, n: u32) {
+        for _ in 0..n {
             let mut counters = Counters::default();
             let jx: f64 = rng.gen();
             let jy: f64 = rng.gen();
-            let s = self.sample(x as f64 + jx, y as f64 + jy, &mut rng, &mut counters);
+            let s = self.sample(x as f64 + jx, y as f64 + jy, rng, &mut counters);
             px.add_sample(s.rgb, s.alpha);
             px.counters.add(&counters);
         }
-        px
     }
 
     /// One path through image position (`fx`, `fy`).

@@ -28,18 +28,34 @@ pub struct RenderJob<'a> {
 }
 
 impl RenderJob<'_> {
-    /// Renders on the current rayon pool; `progress` is called once per finished row.
+    /// Renders `spp` samples per pixel in one pass on the current rayon pool; `progress`
+    /// is called once per finished row.
     pub fn render(&self, progress: &(dyn Fn() + Sync)) -> Film {
-        struct Run<'j, 'p> {
+        let mut film = self.new_film();
+        self.render_pass(&mut film, self.spp, progress);
+        film
+    }
+
+    /// An empty film for this job (its size, pixel streams seeded from its seed).
+    pub fn new_film(&self) -> Film {
+        Film::new(self.width, self.height, self.seed)
+    }
+
+    /// Adds `n` samples per pixel to `film` (progressive rendering: any split of N
+    /// samples into passes gives the same film as one pass of N).
+    pub fn render_pass(&self, film: &mut Film, n: u32, progress: &(dyn Fn() + Sync)) {
+        struct Pass<'j, 'p, 'f> {
             job: &'j RenderJob<'j>,
+            film: &'f mut Film,
+            n: u32,
             progress: &'p (dyn Fn() + Sync),
         }
-        impl Dispatch<Film> for Run<'_, '_> {
+        impl Dispatch<()> for Pass<'_, '_, '_> {
             fn run<F: FreePathSampler, E: TransmittanceEstimator>(
                 self,
                 free_path: F,
                 transmittance: E,
-            ) -> Film {
+            ) {
                 let j = self.job;
                 Integrator {
                     free_path,
@@ -51,17 +67,19 @@ impl RenderJob<'_> {
                     camera: j.camera,
                     width: j.width,
                     height: j.height,
-                    spp: j.spp,
+                    spp: self.n,
                     max_depth: j.max_depth,
                     seed: j.seed,
                 }
-                .render(self.progress)
+                .render_pass(self.film, self.n, self.progress)
             }
         }
         track::dispatch(
             &self.tracking,
-            Run {
+            Pass {
                 job: self,
+                film,
+                n,
                 progress,
             },
         )

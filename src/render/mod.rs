@@ -7,4 +7,5 @@ pub mod integrator;
 pub mod job;
 pub mod lights;
 pub mod phase;
+pub mod progressive;
 pub mod sampler;
