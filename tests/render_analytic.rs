@@ -55,22 +55,34 @@ fn camera() -> CameraRays {
     CameraRays::new(&cam, 9, 9)
 }
 
-fn samples(medium: &Medium, lights: &Lights, max_depth: u32, n: usize) -> Vec<[f64; 3]> {
-    let cam = camera();
-    let it = Integrator {
+/// Delta tracking with ratio-tracked shadows over the 9×9 test camera.
+fn integrator<'a>(
+    medium: &'a Medium,
+    lights: &'a Lights,
+    camera: &'a CameraRays,
+    spp: u32,
+    max_depth: u32,
+    seed: u64,
+) -> Integrator<'a, Delta, Ratio> {
+    Integrator {
         free_path: Delta,
         transmittance: Ratio,
         single_channel: false,
         majorant_scale: 1.0,
         medium,
         lights,
-        camera: &cam,
+        camera,
         width: 9,
         height: 9,
-        spp: 1,
+        spp,
         max_depth,
-        seed: 5,
-    };
+        seed,
+    }
+}
+
+fn samples(medium: &Medium, lights: &Lights, max_depth: u32, n: usize) -> Vec<[f64; 3]> {
+    let cam = camera();
+    let it = integrator(medium, lights, &cam, 1, max_depth, 5);
     let mut rng = pixel_sampler(5, 40);
     let mut c = Counters::default();
     (0..n)
@@ -131,20 +143,7 @@ fn render_is_deterministic_across_thread_counts() {
         environment: [1.0; 3],
     };
     let cam = camera();
-    let it = Integrator {
-        free_path: Delta,
-        transmittance: Ratio,
-        single_channel: false,
-        majorant_scale: 1.0,
-        medium: &m,
-        lights: &lights,
-        camera: &cam,
-        width: 9,
-        height: 9,
-        spp: 4,
-        max_depth: 16,
-        seed: 9,
-    };
+    let it = integrator(&m, &lights, &cam, 4, 16, 9);
     let render = |threads| {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
@@ -170,20 +169,7 @@ fn passes_accumulate_like_a_single_pass() {
         environment: [1.0; 3],
     };
     let cam = camera();
-    let it = Integrator {
-        free_path: Delta,
-        transmittance: Ratio,
-        single_channel: false,
-        majorant_scale: 1.0,
-        medium: &m,
-        lights: &lights,
-        camera: &cam,
-        width: 9,
-        height: 9,
-        spp: 7,
-        max_depth: 16,
-        seed: 11,
-    };
+    let it = integrator(&m, &lights, &cam, 7, 16, 11);
     let key = |f: &Film| {
         f.pixels
             .iter()

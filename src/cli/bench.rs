@@ -31,18 +31,8 @@ pub struct OctreeArgs {
     /// Octree depths to compare (comma-separated).
     #[arg(long, value_delimiter = ',', default_value = "1,4,8,16")]
     pub depths: Vec<u32>,
-    /// Samples per pixel (overrides the stage's nimbus:samples).
-    #[arg(long)]
-    pub spp: Option<u32>,
-    /// Resolution WxH (overrides the render settings).
-    #[arg(long, value_parser = super::render::parse_resolution)]
-    pub res: Option<(u32, u32)>,
-    /// Random seed (overrides nimbus:seed).
-    #[arg(long)]
-    pub seed: Option<u64>,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
-    pub threads: Option<usize>,
+    #[command(flatten)]
+    pub sampling: super::render::SamplingArgs,
     /// Write one row per (depth, tracker) to this CSV file.
     #[arg(long)]
     pub csv: Option<PathBuf>,
@@ -86,12 +76,12 @@ fn octree(args: OctreeArgs) -> Result<()> {
         },
     )?;
     let s = &scene.settings;
-    let (width, height) = args.res.unwrap_or(s.resolution);
-    let spp = args.spp.unwrap_or(s.samples);
+    let (width, height) = args.sampling.res.unwrap_or(s.resolution);
+    let spp = args.sampling.spp.unwrap_or(s.samples);
     if width == 0 || height == 0 || spp == 0 {
         bail!("resolution and samples per pixel must be positive");
     }
-    let seed = args.seed.unwrap_or(s.seed);
+    let seed = args.sampling.seed.unwrap_or(s.seed);
     let mut medium = medium_for_scene_with(
         &scene,
         MajorantSpec::Octree {
@@ -101,7 +91,7 @@ fn octree(args: OctreeArgs) -> Result<()> {
     let lights = Lights::from_scene(&scene);
     let camera = CameraRays::new(&scene.camera, width, height);
     let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(args.threads.unwrap_or(0))
+        .num_threads(args.sampling.threads.unwrap_or(0))
         .build()
         .context("cannot start worker threads")?;
     let mut rows = Vec::new();

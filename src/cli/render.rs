@@ -30,24 +30,14 @@ pub struct RenderArgs {
     /// Output EXR path.
     #[arg(short = 'o', long = "output")]
     pub output: PathBuf,
-    /// Samples per pixel (overrides the stage's nimbus:samples).
-    #[arg(long)]
-    pub spp: Option<u32>,
-    /// Resolution WxH (overrides the render settings).
-    #[arg(long, value_parser = parse_resolution)]
-    pub res: Option<(u32, u32)>,
+    #[command(flatten)]
+    pub sampling: SamplingArgs,
     /// Camera prim path (overrides the render settings' camera).
     #[arg(long)]
     pub camera: Option<String>,
     /// Time code to evaluate the stage at.
     #[arg(long)]
     pub frame: Option<f64>,
-    /// Random seed (overrides nimbus:seed).
-    #[arg(long)]
-    pub seed: Option<u64>,
-    /// Worker threads (default: all cores). The image does not depend on it.
-    #[arg(long)]
-    pub threads: Option<usize>,
     /// Write render statistics as JSON to this file.
     #[arg(long)]
     pub stats: Option<PathBuf>,
@@ -105,6 +95,23 @@ pub struct RenderArgs {
 }
 
 /// Parses "WxH" with both sides positive.
+/// Flags shared by every command that renders: samples, resolution, seed, threads.
+#[derive(Args, Debug, Clone)]
+pub struct SamplingArgs {
+    /// Samples per pixel (overrides the stage's nimbus:samples).
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Resolution WxH (overrides the render settings).
+    #[arg(long, value_parser = parse_resolution)]
+    pub res: Option<(u32, u32)>,
+    /// Random seed (overrides nimbus:seed).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Worker threads (default: all cores). The image does not depend on it.
+    #[arg(long)]
+    pub threads: Option<usize>,
+}
+
 pub fn parse_resolution(s: &str) -> Result<(u32, u32), String> {
     let (w, h) = s
         .split_once(['x', 'X'])
@@ -140,10 +147,10 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let settings = &scene.settings;
     let tracking = tracker_settings(&args, settings)?;
     add_render_var_aovs(settings, &mut aovs)?;
-    let (width, height) = args.res.unwrap_or(settings.resolution);
-    let spp = args.spp.unwrap_or(settings.samples);
+    let (width, height) = args.sampling.res.unwrap_or(settings.resolution);
+    let spp = args.sampling.spp.unwrap_or(settings.samples);
     let max_depth = args.max_depth.unwrap_or(settings.max_depth);
-    let seed = args.seed.unwrap_or(settings.seed);
+    let seed = args.sampling.seed.unwrap_or(settings.seed);
     if width == 0 || height == 0 {
         bail!(
             "{}: render resolution {width}x{height} has a zero side",
@@ -164,7 +171,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         }
     }
     // With a time budget and no explicit --spp, the budget alone decides.
-    let spp = match (args.time_limit, args.spp) {
+    let spp = match (args.time_limit, args.sampling.spp) {
         (Some(_), None) => u32::MAX,
         _ => spp,
     };
@@ -224,7 +231,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     };
 
     let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(args.threads.unwrap_or(0))
+        .num_threads(args.sampling.threads.unwrap_or(0))
         .build()
         .context("cannot start worker threads")?;
     let interrupted = install_interrupt_handler();

@@ -19,7 +19,7 @@ const SUPPORTED_MAPS: [&str; 3] = [
     "UniformScaleTranslateMap",
     "ScaleTranslateMap",
 ];
-/// vdb-rs hits `todo!()` before 216 and mis-indexes internal-node values before 222.
+/// vdb-rs reaches an unimplemented branch (a todo macro) before 216 and mis-indexes internal-node values before 222.
 const MIN_VERSION: u32 = 222;
 
 /// Why vdb-rs cannot read `desc`, if it cannot. The message ends with the advice to
