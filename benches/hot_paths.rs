@@ -178,6 +178,7 @@ fn full_path(c: &mut Criterion) {
             transmittance: Ratio,
             single_channel: false,
             majorant_scale: 1.0,
+            profile: false,
             medium: &medium,
             lights: &lights,
             camera: &camera,

@@ -392,6 +392,11 @@ fn bench_csv_and_render_stats() {
         assert_eq!((f[0], f[1]), (depth, tracker));
         f[2].parse::<u64>().unwrap();
         assert!(f[3].parse::<u64>().unwrap() > 0);
+        // The time split: thread-seconds, present and non-negative.
+        for x in &f[4..7] {
+            let v: f64 = x.parse().unwrap_or_else(|_| panic!("{line}"));
+            assert!(v.is_finite() && v >= 0.0, "{line}");
+        }
         assert!(f[7].parse::<f64>().unwrap() > 0.0);
     }
     let stats = dir.path().join("stats.json");
@@ -425,4 +430,46 @@ fn bench_csv_and_render_stats() {
     assert!(json["octree_memory_bytes"].as_u64().unwrap() > 0);
     assert!(json["cells_visited"].as_u64().unwrap() > 0);
     assert!(json["density_lookups"].as_u64().unwrap() > 0);
+    assert!(
+        json["lookup_seconds"].is_null(),
+        "timers are off by default"
+    );
+
+    // `--profile` times the trackers without changing a single random decision: the
+    // same seed gives the same counts, and the split is reported.
+    let profiled = dir.path().join("profiled.json");
+    let out = Command::new(env!("CARGO_BIN_EXE_nimbus"))
+        .args(["render", stage, "--spp", "1", "--res", "8x6"])
+        .args(["--octree-depth", "5", "--profile", "-o"])
+        .arg(dir.path().join("y.exr"))
+        .arg("--stats")
+        .arg(&profiled)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let p: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&profiled).unwrap()).unwrap();
+    for key in [
+        "density_lookups",
+        "cells_visited",
+        "real_collisions",
+        "null_collisions",
+    ] {
+        assert_eq!(p[key], json[key], "{key}");
+    }
+    for key in [
+        "lookup_seconds",
+        "traversal_seconds",
+        "other_tracker_seconds",
+        "timer_empty_region_ns",
+    ] {
+        let v = p[key]
+            .as_f64()
+            .unwrap_or_else(|| panic!("{key}: {}", p[key]));
+        assert!(v.is_finite() && v >= 0.0, "{key} = {v}");
+    }
 }

@@ -3,8 +3,13 @@
 //! density lookups and time. `delta` shadow rays use ratio tracking, `decomposition`
 //! shadow rays residual ratio tracking.
 //!
-//! The time split (lookup / traversal / other) is not measured yet: those CSV columns
-//! are left empty and only `total_seconds` (wall time of the render) is filled in.
+//! Each (depth, tracker) is rendered twice with the same seed: untimed, for
+//! `total_seconds` (wall time), and with the tracker timers on (`--profile`), for the
+//! split into lookup, traversal and other tracker time. Both runs make exactly the same
+//! lookups and visit the same cells (timing changes no random decision); the timed
+//! run's extra wall time is the timers' overhead, printed beside the table. The split
+//! is in thread-seconds: with the default single worker thread it is comparable with
+//! the wall time.
 
 use crate::output::{check_writable, write_atomically};
 use crate::render::camera::CameraRays;
@@ -13,6 +18,7 @@ use crate::render::lights::Lights;
 use crate::scene::{load_stage, LoadOptions};
 use crate::track::{TrackerKind, TrackerSettings, TransmittanceKind};
 use crate::volume::majorant::{MajorantSpec, MAX_DEPTH};
+use crate::volume::ticks::{Calibration, TrackerTimes};
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
 use std::path::PathBuf;
@@ -33,6 +39,10 @@ pub struct OctreeArgs {
     pub depths: Vec<u32>,
     #[command(flatten)]
     pub sampling: super::render::SamplingArgs,
+    /// Octree pruning cost (a cell crossing in lookups, as `render --octree-prune`);
+    /// 0 keeps every level (the supplement's plain octree).
+    #[arg(long, default_value_t = 1.0, value_name = "LOOKUPS")]
+    pub prune: f32,
     /// Write one row per (depth, tracker) to this CSV file.
     #[arg(long)]
     pub csv: Option<PathBuf>,
@@ -52,6 +62,8 @@ struct Row {
     cells_visited: u64,
     density_lookups: u64,
     total_seconds: f64,
+    times: TrackerTimes,
+    timed_seconds: f64,
     build_seconds: f64,
     memory_bytes: usize,
 }
@@ -90,17 +102,24 @@ fn octree(args: OctreeArgs) -> Result<()> {
     )?;
     let lights = Lights::from_scene(&scene);
     let camera = CameraRays::new(&scene.camera, width, height);
+    // One thread by default: the timers measure thread-seconds, which then add up to
+    // the wall time.
+    let threads = args.sampling.threads.unwrap_or(1);
     let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(args.sampling.threads.unwrap_or(0))
+        .num_threads(threads)
         .build()
         .context("cannot start worker threads")?;
+    let calibration = Calibration::measure();
     let mut rows = Vec::new();
     for &depth in &args.depths {
         let spec = MajorantSpec::Octree { depth };
-        if medium.majorants.spec() != spec {
-            pool.install(|| medium.set_majorants(spec));
-        }
         for tracker in [TrackerKind::Delta, TrackerKind::Decomposition] {
+            // Pruning depends on the tracker, so each row gets a fresh octree.
+            let residual = tracker == TrackerKind::Decomposition;
+            let pruned = pool.install(|| {
+                medium.set_majorants(spec);
+                medium.prune_majorants(args.prune, residual)
+            });
             let job = RenderJob {
                 medium: &medium,
                 lights: &lights,
@@ -127,38 +146,98 @@ fn octree(args: OctreeArgs) -> Result<()> {
             let film = pool.install(|| job.render(&|| {}));
             let total_seconds = start.elapsed().as_secs_f64();
             let (c, _, _) = film.totals();
+            let timed_job = RenderJob {
+                tracking: TrackerSettings {
+                    profile: true,
+                    ..job.tracking
+                },
+                ..job
+            };
+            let start = Instant::now();
+            let timed = pool.install(|| timed_job.render(&|| {}));
+            let timed_seconds = start.elapsed().as_secs_f64();
+            let (tc, _, _) = timed.totals();
+            if (tc.density_lookups, tc.cells_visited) != (c.density_lookups, c.cells_visited) {
+                bail!("internal error: the timed run made different lookups than the untimed one");
+            }
             let row = Row {
                 depth,
                 tracker: tracker.name(),
                 cells_visited: c.cells_visited,
                 density_lookups: c.density_lookups,
                 total_seconds,
+                times: calibration.split(&tc),
+                timed_seconds,
                 build_seconds: medium.majorants.build_seconds(),
                 memory_bytes: medium.majorants.memory_bytes(),
             };
             eprintln!(
-                "nimbus: depth {depth} {}: {:.2} s",
+                "nimbus: depth {depth} {}: {:.2} s ({pruned} octree nodes pruned)",
                 row.tracker, row.total_seconds
             );
             rows.push(row);
         }
     }
+    print_table(
+        &args,
+        (width, height, spp, seed, threads),
+        &calibration,
+        &rows,
+    );
+    if let Some(path) = &args.csv {
+        let mut text = String::from(CSV_HEADER);
+        text.push('\n');
+        for r in &rows {
+            let t = &r.times;
+            text.push_str(&format!(
+                "{},{},{},{},{},{},{},{}\n",
+                r.depth,
+                r.tracker,
+                r.cells_visited,
+                r.density_lookups,
+                t.lookup_seconds,
+                t.traversal_seconds,
+                t.other_tracker_seconds,
+                r.total_seconds
+            ));
+        }
+        write_atomically(path, |f| {
+            use std::io::Write;
+            f.write_all(text.as_bytes()).map_err(|e| e.to_string())
+        })?;
+    }
+    Ok(())
+}
+
+/// The supplement's layout: per depth and tracker, cells (leaves) visited, density
+/// lookups, and the time split, then the issue's three ratios.
+fn print_table(
+    args: &OctreeArgs,
+    (width, height, spp, seed, threads): (u32, u32, u32, u64, usize),
+    cal: &Calibration,
+    rows: &[Row],
+) {
     println!(
-        "{} {width}x{height} {spp} spp, seed {seed}",
+        "{} {width}x{height} {spp} spp, seed {seed}, {threads} thread(s)",
         args.stage.display()
     );
     println!(
-        "{:>5} {:<14} {:>16} {:>16} {:>10} {:>10} {:>12} {:>10}",
+        "{:>5} {:<14} {:>14} {:>14} {:>8} {:>9} {:>9} {:>9} {:>9} {:>8} {:>9} {:>8} {:>8}",
         "depth",
         "tracker",
         "cells visited",
-        "density lookups",
+        "lookups",
         "lookups×",
+        "lookup s",
+        "travers s",
+        "other s",
         "total s",
+        "travers%",
+        "timed s",
         "build s",
         "memory"
     );
-    for r in &rows {
+    for r in rows {
         // Lookups relative to delta tracking at the same depth.
         let delta = rows
             .iter()
@@ -169,31 +248,50 @@ fn octree(args: OctreeArgs) -> Result<()> {
         } else {
             f64::NAN
         };
+        let t = &r.times;
         println!(
-            "{:>5} {:<14} {:>16} {:>16} {:>10.3} {:>10.3} {:>12.4} {:>8.1} MB",
+            "{:>5} {:<14} {:>14} {:>14} {:>8.3} {:>9.3} {:>9.3} {:>9.3} {:>9.3} {:>7.1}% {:>9.3} {:>8.4} {:>5.1} MB",
             r.depth,
             r.tracker,
             r.cells_visited,
             r.density_lookups,
             ratio,
+            t.lookup_seconds,
+            t.traversal_seconds,
+            t.other_tracker_seconds,
             r.total_seconds,
+            100.0 * t.traversal_seconds / r.timed_seconds,
+            r.timed_seconds,
             r.build_seconds,
             r.memory_bytes as f64 / 1e6
         );
     }
-    if let Some(path) = &args.csv {
-        let mut text = String::from(CSV_HEADER);
-        text.push('\n');
-        for r in &rows {
-            text.push_str(&format!(
-                "{},{},{},{},,,,{}\n",
-                r.depth, r.tracker, r.cells_visited, r.density_lookups, r.total_seconds
-            ));
-        }
-        write_atomically(path, |f| {
-            use std::io::Write;
-            f.write_all(text.as_bytes()).map_err(|e| e.to_string())
-        })?;
+    println!(
+        "timers: {:.2} GHz clock, an empty timed region reads {:.1} ns (subtracted per event); \
+         'timed s' is the wall time of the timed run, 'travers%' its traversal share",
+        cal.ticks_per_second / 1e9,
+        cal.empty_region_ticks / cal.ticks_per_second * 1e9
+    );
+    let best = |tracker: &str| {
+        rows.iter()
+            .filter(|r| r.tracker == tracker)
+            .min_by(|a, b| a.total_seconds.total_cmp(&b.total_seconds))
+    };
+    let shallowest_delta = rows
+        .iter()
+        .filter(|r| r.tracker == "delta")
+        .min_by_key(|r| r.depth);
+    if let (Some(dec), Some(delta0)) = (best("decomposition"), shallowest_delta) {
+        let delta_same = rows
+            .iter()
+            .find(|r| r.tracker == "delta" && r.depth == dec.depth);
+        println!(
+            "fastest decomposition: depth {}; lookups vs delta at that depth {:.3}×; time vs delta at depth {} {:.3}×; traversal share {:.1}%",
+            dec.depth,
+            delta_same.map_or(f64::NAN, |d| dec.density_lookups as f64 / d.density_lookups as f64),
+            delta0.depth,
+            dec.total_seconds / delta0.total_seconds,
+            100.0 * dec.times.traversal_seconds / dec.timed_seconds
+        );
     }
-    Ok(())
 }

@@ -12,6 +12,7 @@ use crate::track::{
     scheme::SchemeOptions, SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind,
 };
 use crate::volume::majorant::{MajorantSpec, MAX_DEPTH};
+use crate::volume::ticks::Calibration;
 use crate::volume::vdb;
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
@@ -52,6 +53,11 @@ pub struct RenderArgs {
     /// axis (capped at voxel resolution). Overrides --majorant-cell and nimbus:octreeDepth.
     #[arg(long)]
     pub octree_depth: Option<u32>,
+    /// Octree pruning: the cost of crossing a cell in density lookups. The walk stops
+    /// higher in the octree wherever finer cells would cost more crossings than they
+    /// save lookups (bounds stay valid, only cost changes); 0 keeps every level.
+    #[arg(long, default_value_t = 1.0, value_name = "LOOKUPS")]
+    pub octree_prune: f32,
     /// Free-path sampler (overrides nimbus:tracker; default delta).
     #[arg(long, value_enum)]
     pub tracker: Option<TrackerKind>,
@@ -79,6 +85,11 @@ pub struct RenderArgs {
     /// weighted trackers: others report `majorant_violations`).
     #[arg(long, default_value_t = 1.0)]
     pub majorant_scale: f32,
+    /// Time density lookups, majorant traversal and the rest of the trackers (stats
+    /// keys lookup_seconds, traversal_seconds, other_tracker_seconds). Costs a clock
+    /// read pair per lookup and per cell, which `nimbus bench octree` measures.
+    #[arg(long)]
+    pub profile: bool,
     /// AOVs to write besides R, G, B, A (comma-separated): lookups, residual_lookups,
     /// real_collisions, null_collisions, control_collisions, max_throughput, variance.
     #[arg(long, value_delimiter = ',')]
@@ -184,7 +195,10 @@ pub fn run(args: RenderArgs) -> Result<()> {
         );
     }
     let spec = majorant_spec(args.octree_depth, settings, args.majorant_cell)?;
-    let medium = medium_for_scene_with(&scene, spec)?;
+    let mut medium = medium_for_scene_with(&scene, spec)?;
+    if matches!(spec, MajorantSpec::Octree { .. }) {
+        medium.prune_majorants(args.octree_prune, tracking.pays_residual());
+    }
     let load_seconds = wall.elapsed().as_secs_f64();
 
     let lights = Lights::from_scene(&scene);
@@ -249,6 +263,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let tracker = tracking.tracker.name().to_string();
     // Writes the EXR and the stats for the samples done so far (every pixel has the
     // same count after each pass).
+    let calibration = tracking.profile.then(Calibration::measure);
     let write_outputs = |film: &Film, p: &Progress| -> Result<()> {
         let (totals, _samples, nonfinite) = film.totals();
         write_exr(
@@ -266,6 +281,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
             return Ok(());
         };
         let samples = width as f64 * height as f64 * p.spp as f64;
+        let times = calibration.map(|c| c.split(&totals));
         let stats = RenderStats {
             stage: args.stage.display().to_string(),
             samples_per_pixel: p.spp,
@@ -303,6 +319,11 @@ pub fn run(args: RenderArgs) -> Result<()> {
             octree_build_seconds: medium.majorants.build_seconds(),
             octree_memory_bytes: medium.majorants.memory_bytes(),
             vdb_reader: vdb::active_reader().name().into(),
+            lookup_seconds: times.map(|t| t.lookup_seconds),
+            traversal_seconds: times.map(|t| t.traversal_seconds),
+            other_tracker_seconds: times.map(|t| t.other_tracker_seconds),
+            timer_empty_region_ns: calibration
+                .map(|c| c.empty_region_ticks / c.ticks_per_second * 1e9),
         };
         let json = serde_json::to_string_pretty(&stats)?;
         write_atomically(path, |f| {
@@ -452,6 +473,7 @@ fn tracker_settings(args: &RenderArgs, stage: &RenderSettings) -> Result<Tracker
             no_absorption_events: args.no_absorption_events,
         },
         majorant_scale: args.majorant_scale,
+        profile: args.profile,
     })
 }
 

@@ -45,4 +45,11 @@ pub struct RenderStats {
     pub octree_build_seconds: f64,
     pub octree_memory_bytes: usize,
     pub vdb_reader: String,
+    /// `--profile` only (else null): thread-seconds inside density lookups, inside the
+    /// majorant walk, and in the rest of the trackers, each with the clock's empty-region
+    /// bias removed per timed event (`timer_empty_region_ns`).
+    pub lookup_seconds: Option<f64>,
+    pub traversal_seconds: Option<f64>,
+    pub other_tracker_seconds: Option<f64>,
+    pub timer_empty_region_ns: Option<f64>,
 }

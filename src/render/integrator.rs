@@ -24,6 +24,8 @@ pub struct Integrator<'a, F: FreePathSampler, E: TransmittanceEstimator> {
     pub single_channel: bool,
     /// Multiplies every majorant (1 = the medium's bounds).
     pub majorant_scale: f32,
+    /// Time lookups, traversal and tracker queries into the counters (`--profile`).
+    pub profile: bool,
     pub medium: &'a Medium,
     pub lights: &'a Lights,
     pub camera: &'a CameraRays,
@@ -77,7 +79,10 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
 
     fn add_samples(&self, px: &mut Pixel, rng: &mut Sampler, x: u32, y: u32, n: u32) {
         for _ in 0..n {
-            let mut counters = Counters::default();
+            let mut counters = Counters {
+                timing: self.profile,
+                ..Counters::default()
+            };
             let jx: f64 = rng.gen();
             let jy: f64 = rng.gen();
             let s = self.sample(x as f64 + jx, y as f64 + jy, rng, &mut counters);
@@ -124,7 +129,9 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                 tmax,
                 majorant_scale: self.majorant_scale,
             };
+            let t0 = counters.tracker_start();
             let event = self.free_path.sample(&q, &mut throughput, rng, counters);
+            counters.tracker_stop(t0);
             match event {
                 FreePath::Escape => {
                     if depth == 0 {
@@ -234,7 +241,10 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             tmax: f32::INFINITY,
             majorant_scale: self.majorant_scale,
         };
-        self.transmittance.transmittance(&q, rng, counters)
+        let t0 = counters.tracker_start();
+        let tr = self.transmittance.transmittance(&q, rng, counters);
+        counters.tracker_stop(t0);
+        tr
     }
 }
 

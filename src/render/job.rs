@@ -62,6 +62,7 @@ impl RenderJob<'_> {
                     transmittance,
                     single_channel: j.tracking.tracker == TrackerKind::NaiveDelta,
                     majorant_scale: j.tracking.majorant_scale,
+                    profile: j.tracking.profile,
                     medium: j.medium,
                     lights: j.lights,
                     camera: j.camera,

@@ -16,7 +16,7 @@
 //!   in both (density-driven media): spectral decomposition.
 
 use super::scheme::{choose, probabilities, Coefficients, Event, Scheme, SchemeOptions};
-use super::{exp_step, mul, FreePath, FreePathSampler, Query, Spectrum};
+use super::{mul, FreePath, FreePathSampler, OpticalDepth, Query, Spectrum};
 use crate::volume::medium::Counters;
 use rand::Rng;
 use std::marker::PhantomData;
@@ -49,9 +49,9 @@ impl<S: Scheme> FreePathSampler for Decomposition<S> {
         c: &mut Counters,
     ) -> FreePath {
         let sg = q.sigma;
-        let inf = f32::INFINITY;
-        for seg in q.medium.majorants.walk(q.ray.o, q.ray.d, q.tmin, q.tmax) {
-            c.cells_visited += 1;
+        let mut walk = q.medium.majorants.walk(q.ray.o, q.ray.d, q.tmin, q.tmax);
+        let (mut tau_c, mut tau_r) = (OpticalDepth::sample(rng), OpticalDepth::sample(rng));
+        while let Some(seg) = c.next_segment(&mut walk) {
             let dc = seg.dmin + self.control * (seg.dmax - seg.dmin);
             let r = (seg.dmax - dc).max(dc - seg.dmin) * q.majorant_scale;
             let mu_c = dc * sg.t_max;
@@ -65,20 +65,15 @@ impl<S: Scheme> FreePathSampler for Decomposition<S> {
                 mu_s: sg.s.map(|s| dc * s),
                 mu_n: sg.t.map(|s| mu_c - dc * s),
             };
-            let mut tc = if mu_c > 0.0 {
-                seg.t0 + exp_step(rng, mu_c)
-            } else {
-                inf
-            };
-            let mut tr = if mu_r > 0.0 {
-                seg.t0 + exp_step(rng, mu_r)
-            } else {
-                inf
-            };
+            // Each process spends its own optical depth across cells.
+            let mut tc = tau_c.time(seg.t0, mu_c);
+            let mut tr = tau_r.time(seg.t0, mu_r);
             loop {
                 let control_first = tc <= tr;
                 let t = if control_first { tc } else { tr };
                 if t >= seg.t1 {
+                    tau_c = tau_c.left(tc, seg.t1, mu_c);
+                    tau_r = tau_r.left(tr, seg.t1, mu_r);
                     break;
                 }
                 let (event, mu_bar, k);
@@ -118,9 +113,9 @@ impl<S: Scheme> FreePathSampler for Decomposition<S> {
                         c.null_collisions += 1;
                         // Memoryless: only the process that fired draws its next time.
                         if control_first {
-                            tc += exp_step(rng, mu_c);
+                            tc = OpticalDepth::sample(rng).time(t, mu_c);
                         } else {
-                            tr += exp_step(rng, mu_r);
+                            tr = OpticalDepth::sample(rng).time(t, mu_r);
                         }
                     }
                 }

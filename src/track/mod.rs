@@ -72,24 +72,75 @@ pub fn walk_collisions<R: Rng, T>(
     c: &mut Counters,
     mut at: impl FnMut(f32, f32, &mut R, &mut Counters) -> ControlFlow<T>,
 ) -> Option<T> {
-    for seg in q.medium.majorants.walk(q.ray.o, q.ray.d, q.tmin, q.tmax) {
-        c.cells_visited += 1;
+    let mut walk = q.medium.majorants.walk(q.ray.o, q.ray.d, q.tmin, q.tmax);
+    let mut tau = OpticalDepth::sample(rng);
+    while let Some(seg) = c.next_segment(&mut walk) {
         let mu_bar = seg.dmax * q.sigma.t_max * q.majorant_scale;
         if !(mu_bar > 0.0) {
             continue; // empty cell: skipped without a lookup
         }
         let mut t = seg.t0;
         loop {
-            t += exp_step(rng, mu_bar);
-            if t >= seg.t1 {
+            let Some(tc) = tau.collide(t, seg.t1, mu_bar) else {
                 break;
-            }
+            };
+            t = tc;
+            tau = OpticalDepth::sample(rng);
             if let ControlFlow::Break(v) = at(t, mu_bar, rng, c) {
                 return Some(v);
             }
         }
     }
     None
+}
+
+/// The optical depth left to the next tentative collision of a null-collision process
+/// with a piecewise-constant majorant. Sampled once per collision (Exp(1)) and spent
+/// across cell boundaries, which is the same process as restarting the exponential at
+/// every boundary (memorylessness) but costs no random number and no logarithm per
+/// cell crossed — at deep octree levels most cells are crossed without a collision.
+#[derive(Clone, Copy, Debug)]
+pub struct OpticalDepth(f32);
+
+impl OpticalDepth {
+    #[inline(always)]
+    pub fn sample<R: Rng>(rng: &mut R) -> OpticalDepth {
+        OpticalDepth(exp_step(rng, 1.0))
+    }
+
+    /// The collision distance from `t` at rate `mu` (infinite when `mu` is 0).
+    #[inline(always)]
+    pub fn time(self, t: f32, mu: f32) -> f32 {
+        if mu > 0.0 {
+            t + self.0 / mu
+        } else {
+            f32::INFINITY
+        }
+    }
+
+    /// The optical depth left at `t1` of a collision pending at `tc ≥ t1` at rate `mu`
+    /// (unchanged when `mu` is 0: nothing was spent).
+    #[inline(always)]
+    pub fn left(self, tc: f32, t1: f32, mu: f32) -> OpticalDepth {
+        if mu > 0.0 {
+            OpticalDepth(((tc - t1) * mu).max(0.0))
+        } else {
+            self
+        }
+    }
+
+    /// With rate `mu > 0` from `t` to `t1`: the collision distance if it falls before
+    /// `t1`, else `None` after spending the stretch's optical depth.
+    #[inline(always)]
+    pub fn collide(&mut self, t: f32, t1: f32, mu: f32) -> Option<f32> {
+        let tc = t + self.0 / mu;
+        if tc < t1 {
+            Some(tc)
+        } else {
+            self.0 = (self.0 - (t1 - t) * mu).max(0.0);
+            None
+        }
+    }
 }
 
 /// An exponential step with rate `mu` (`mu > 0`): −ln(1 − u)/μ. `1 − u` lies in (0, 1],
@@ -207,6 +258,21 @@ pub struct TrackerSettings {
     pub control: f32,
     pub options: scheme::SchemeOptions,
     pub majorant_scale: f32,
+    /// Time density lookups, majorant traversal and tracker queries (`--profile`).
+    pub profile: bool,
+}
+
+impl TrackerSettings {
+    /// Whether the trackers pay lookups for the residual `dmax − dmin` of a cell (the
+    /// decomposition family, residual ratio tracking) rather than for `dmax`.
+    pub fn pays_residual(&self) -> bool {
+        matches!(
+            self.tracker,
+            TrackerKind::Decomposition
+                | TrackerKind::DecompositionWeighted
+                | TrackerKind::SpectralDecomposition
+        ) || self.transmittance == TransmittanceKind::ResidualRatio
+    }
 }
 
 impl Default for TrackerSettings {
@@ -218,6 +284,7 @@ impl Default for TrackerSettings {
             control: 0.05,
             options: scheme::SchemeOptions::default(),
             majorant_scale: 1.0,
+            profile: false,
         }
     }
 }

@@ -11,7 +11,7 @@
 //! channel magnitude drops below [`RR_THRESHOLD`], the estimate survives with
 //! probability [`RR_SURVIVAL`] and is divided by it, which keeps it unbiased.
 
-use super::{exp_step, walk_collisions, Query, Spectrum, TransmittanceEstimator};
+use super::{walk_collisions, OpticalDepth, Query, Spectrum, TransmittanceEstimator};
 use crate::volume::medium::Counters;
 use rand::Rng;
 use std::ops::ControlFlow;
@@ -29,6 +29,9 @@ pub struct ResidualRatio;
 #[inline(always)]
 fn roulette<R: Rng>(tr: &mut Spectrum, rng: &mut R) -> bool {
     let m = tr[0].abs().max(tr[1].abs()).max(tr[2].abs());
+    if m == 0.0 {
+        return false; // nothing left to estimate (e.g. the control's exp underflowed)
+    }
     if m < RR_THRESHOLD {
         if rng.gen::<f32>() >= RR_SURVIVAL {
             *tr = [0.0; 3];
@@ -65,12 +68,19 @@ impl TransmittanceEstimator for ResidualRatio {
     fn transmittance<R: Rng>(&self, q: &Query, rng: &mut R, c: &mut Counters) -> Spectrum {
         let sg = q.sigma;
         let mut tr = [1f32; 3];
-        for seg in q.medium.majorants.walk(q.ray.o, q.ray.d, q.tmin, q.tmax) {
-            c.cells_visited += 1;
+        let mut walk = q.medium.majorants.walk(q.ray.o, q.ray.d, q.tmin, q.tmax);
+        let mut tau = OpticalDepth::sample(rng);
+        while let Some(seg) = c.next_segment(&mut walk) {
             if seg.dmin > 0.0 {
                 let len = seg.t1 - seg.t0;
                 for ch in 0..3 {
                     tr[ch] *= (-seg.dmin * sg.t[ch] * len).exp();
+                }
+                // The control attenuates without collisions, so roulette here too:
+                // otherwise a shadow ray whose estimate the control has driven to ~0
+                // keeps walking (and looking up the residual) to the far side.
+                if !roulette(&mut tr, rng) {
+                    return tr;
                 }
             }
             let mu_r = (seg.dmax - seg.dmin) * sg.t_max * q.majorant_scale;
@@ -79,10 +89,11 @@ impl TransmittanceEstimator for ResidualRatio {
             }
             let mut t = seg.t0;
             loop {
-                t += exp_step(rng, mu_r);
-                if t >= seg.t1 {
+                let Some(tc) = tau.collide(t, seg.t1, mu_r) else {
                     break;
-                }
+                };
+                t = tc;
+                tau = OpticalDepth::sample(rng);
                 let d = q.medium.density(q.ray.at(t), c);
                 c.residual_lookups += 1;
                 c.null_collisions += 1;

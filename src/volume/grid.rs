@@ -314,13 +314,13 @@ impl Grid {
     /// integer coordinates, as in OpenVDB's `BoxSampler`).
     #[inline]
     pub fn sample_trilinear(&self, p: [f32; 3]) -> f32 {
-        let fl = [p[0].floor(), p[1].floor(), p[2].floor()];
-        let f = [p[0] - fl[0], p[1] - fl[1], p[2] - fl[2]];
-        // Far outside the index range a cast would saturate; the background answers.
-        if !(fl[0].abs() < 1.0e9 && fl[1].abs() < 1.0e9 && fl[2].abs() < 1.0e9) {
+        // Far outside the index range a cast would saturate; the background answers
+        // (NaN coordinates too).
+        if !(p[0].abs() < 1.0e9 && p[1].abs() < 1.0e9 && p[2].abs() < 1.0e9) {
             return self.background;
         }
-        let i = [fl[0] as i32, fl[1] as i32, fl[2] as i32];
+        let i = p.map(floor_i32);
+        let f = [0, 1, 2].map(|a| p[a] - i[a] as f32);
         let mut c = [0f32; 8];
         // Fast path: the 2×2×2 stencil lies inside one brick (7 of 8 positions per axis).
         if (i[0] & 7) != 7 && (i[1] & 7) != 7 && (i[2] & 7) != 7 {
@@ -408,4 +408,12 @@ impl Grid {
     pub fn memory_bytes(&self) -> usize {
         self.index.len() * 4 + self.bricks.len() * BRICK_VOXELS * 4
     }
+}
+
+/// `x.floor() as i32` for |x| < 2³¹ without a libm call: `floorf` is not inlined on
+/// baseline x86-64 (no SSE4.1 `roundss`), and it sits on the lookup's hot path.
+#[inline(always)]
+pub fn floor_i32(x: f32) -> i32 {
+    let i = x as i32;
+    i - (x < i as f32) as i32
 }

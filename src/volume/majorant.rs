@@ -37,6 +37,19 @@ pub struct Segment {
     pub dmax: f32,
 }
 
+/// The cost model of [`MajorantTree::prune`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PruneCost {
+    /// κ: σt_max times the voxel length (world units), the optical depth of one voxel
+    /// at unit density.
+    pub optical_per_voxel: f32,
+    /// The cost of crossing one cell, in density lookups (0 disables pruning).
+    pub crossing_lookups: f32,
+    /// The tracker pays for `dmax − dmin` (decomposition, residual ratio tracking)
+    /// rather than `dmax`.
+    pub residual: bool,
+}
+
 /// Which majorant structure to build.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MajorantSpec {
@@ -61,18 +74,81 @@ struct Level {
     edge: Vec3,
     inv_edge: Vec3,
     dims: [i32; 3],
-    /// (min, max) density per cell, x fastest.
+    /// Bricks per axis (see [`Level::index`]).
+    bdims: [i32; 3],
+    /// (min, max) density per cell, in brick order. The sign bit of the minimum (never
+    /// negative otherwise) flags a *terminal* cell — the walk may stop there: every leaf
+    /// below it has exactly its bounds (always set on the leaf level). One load gives
+    /// the walk both the bounds and the flag.
     bounds: Vec<[f32; 2]>,
-    /// The walk may stop at this cell: every leaf below it has exactly its bounds.
-    /// Always true on the leaf level.
-    terminal: Vec<bool>,
+}
+
+/// A cell's bounds with its terminal flag packed in (see [`Level::bounds`]).
+#[inline(always)]
+fn pack(b: [f32; 2], terminal: bool) -> [f32; 2] {
+    [if terminal { -b[0] } else { b[0] }, b[1]]
+}
+
+#[inline(always)]
+fn is_terminal(b: [f32; 2]) -> bool {
+    b[0].is_sign_negative()
+}
+
+#[inline(always)]
+fn unpack(b: [f32; 2]) -> [f32; 2] {
+    [b[0].abs(), b[1]]
+}
+
+/// Cells are stored in bricks of 4×4×4, bricks x-fastest, cells Morton-ordered inside
+/// a brick (each 2×2×2 block is one 64-byte cache line). A ray stepping through a deep
+/// level then touches neighbouring memory on every axis, where a row-major layout would
+/// jump a whole slab (hundreds of KB) per z step and miss the cache on most steps.
+const BRICK_LOG2: i32 = 2;
+const BRICK: i32 = 1 << BRICK_LOG2;
+/// Bits 0, 3 of a cell's Morton code inside a brick, from its two coordinate bits.
+const SPREAD: [usize; 4] = [0, 1, 8, 9];
+
+/// Bricks per axis for `dims` cells.
+fn brick_dims(dims: [i32; 3]) -> [i32; 3] {
+    dims.map(|d| (d + BRICK - 1) >> BRICK_LOG2)
 }
 
 impl Level {
     #[inline(always)]
     fn index(&self, c: [i32; 3]) -> usize {
-        ((c[2] * self.dims[1] + c[1]) * self.dims[0] + c[0]) as usize
+        let b = c.map(|x| x >> BRICK_LOG2);
+        let brick = ((b[2] * self.bdims[1] + b[1]) * self.bdims[0] + b[0]) as usize;
+        let m = c.map(|x| SPREAD[(x & (BRICK - 1)) as usize]);
+        (brick << (3 * BRICK_LOG2)) | m[0] | (m[1] << 1) | (m[2] << 2)
     }
+}
+
+/// Storage slots of a level of `dims` cells (padded to whole bricks).
+fn storage_len(dims: [i32; 3]) -> usize {
+    brick_dims(dims)
+        .iter()
+        .map(|&b| b as usize)
+        .product::<usize>()
+        << (3 * BRICK_LOG2)
+}
+
+/// The cell stored in slot `s` of a level of `dims` cells, or `None` for padding.
+fn cell_of(dims: [i32; 3], s: usize) -> Option<[i32; 3]> {
+    let bd = brick_dims(dims);
+    let brick = (s >> (3 * BRICK_LOG2)) as i32;
+    let m = s & ((1 << (3 * BRICK_LOG2)) - 1);
+    let local = [
+        (m & 1) | ((m >> 2) & 2),
+        ((m >> 1) & 1) | ((m >> 3) & 2),
+        ((m >> 2) & 1) | ((m >> 4) & 2),
+    ];
+    let b = [
+        brick % bd[0],
+        (brick / bd[0]) % bd[1],
+        brick / (bd[0] * bd[1]),
+    ];
+    let c = [0, 1, 2].map(|a| (b[a] << BRICK_LOG2) + local[a] as i32);
+    (0..3).all(|a| c[a] < dims[a]).then_some(c)
 }
 
 pub struct MajorantTree {
@@ -130,16 +206,13 @@ impl MajorantTree {
         // the exact support and covers rounding with the margin `delta` below instead —
         // at one-voxel leaves that is 2³ voxels per bound instead of 4³.
         let pad = if hierarchical { 0 } else { 1 };
-        let n = dims.iter().map(|&d| d as usize).product::<usize>();
-        let bounds: Vec<[f32; 2]> = (0..n)
+        let bounds: Vec<[f32; 2]> = (0..storage_len(dims))
             .into_par_iter()
-            .map(|i| {
-                let i = i as i64;
-                let c = [
-                    i % dims[0] as i64,
-                    (i / dims[0] as i64) % dims[1] as i64,
-                    i / (dims[0] as i64 * dims[1] as i64),
-                ];
+            .map(|s| {
+                let Some(c) = cell_of(dims, s) else {
+                    return [0.0; 2];
+                };
+                let c = c.map(|x| x as i64);
                 let vlo = [0, 1, 2].map(|a| (rlo[a] as i64 + c[a] * leaf_edge[a] - pad) as i32);
                 let vhi = [0, 1, 2].map(|a| {
                     (rlo[a] as i64 + (c[a] + 1) * leaf_edge[a] + pad).min(i32::MAX as i64) as i32
@@ -170,11 +243,12 @@ impl MajorantTree {
             leaf_edge[1] as f32,
             leaf_edge[2] as f32,
         );
+        bounds.par_iter_mut().for_each(|b| *b = pack(*b, true));
         let mut levels = vec![Level {
             edge,
             inv_edge: edge.recip(),
             dims,
-            terminal: vec![true; n],
+            bdims: brick_dims(dims),
             bounds,
         }];
         while hierarchical && levels.last().is_some_and(|l| l.dims != [1, 1, 1]) {
@@ -190,6 +264,71 @@ impl MajorantTree {
         }
     }
 
+    /// Stops the walk higher up wherever finer cells would cost more traversal than
+    /// they save in lookups (a cost model, applied bottom-up after [`build`](Self::build)).
+    /// Along a unit of ray length in index space, a cell of edge e costs about
+    /// `1.5/e` cell crossings (the mean L1 length of a unit direction) and
+    /// `κ·w` lookups, where κ = σt_max × voxel length is the optical depth of one voxel at
+    /// unit density and w the density bound the tracker pays for (`dmax` for delta-type
+    /// trackers, `dmax − dmin` for residual ones). A node whose children are all
+    /// terminal becomes terminal when
+    /// `κ·(w_node − mean w_child) ≤ c·1.5/(2e_child)`, c being the cost of a cell crossing
+    /// in lookups. Merging keeps every bound valid (a node's bounds contain its
+    /// children's), so only cost changes, never the estimate. Returns the number of
+    /// nodes made terminal.
+    pub fn prune(&mut self, cost: PruneCost) -> usize {
+        if !(cost.crossing_lookups > 0.0 && cost.optical_per_voxel > 0.0) {
+            return 0;
+        }
+        let mut merged = 0;
+        for k in 1..self.levels.len() {
+            let (lower, upper) = self.levels.split_at_mut(k);
+            let child = &lower[k - 1];
+            let parent = &mut upper[0];
+            let e = (child.edge.x + child.edge.y + child.edge.z) / 3.0;
+            let threshold = cost.crossing_lookups * 0.75 / e / cost.optical_per_voxel;
+            let dims = parent.dims;
+            merged += parent
+                .bounds
+                .par_iter_mut()
+                .enumerate()
+                .map(|(s, b)| {
+                    if is_terminal(*b) {
+                        return 0;
+                    }
+                    let Some(p) = cell_of(dims, s) else {
+                        return 0;
+                    };
+                    let w = |b: [f32; 2]| if cost.residual { b[1] - b[0] } else { b[1] };
+                    let (mut sum, mut n) = (0.0f32, 0);
+                    for k in 0..8 {
+                        let c = [
+                            2 * p[0] + (k & 1),
+                            2 * p[1] + ((k >> 1) & 1),
+                            2 * p[2] + (k >> 2),
+                        ];
+                        if (0..3).any(|a| c[a] >= child.dims[a]) {
+                            continue;
+                        }
+                        let cb = child.bounds[child.index(c)];
+                        if !is_terminal(cb) {
+                            return 0;
+                        }
+                        sum += w(unpack(cb));
+                        n += 1;
+                    }
+                    if w(unpack(*b)) - sum / n as f32 <= threshold {
+                        *b = pack(unpack(*b), true);
+                        1
+                    } else {
+                        0
+                    }
+                })
+                .sum::<usize>();
+        }
+        merged
+    }
+
     /// The rounding margin δ added to every non-empty octree leaf's bounds (0 for the
     /// flat grid).
     pub fn margin(&self) -> f32 {
@@ -202,7 +341,9 @@ impl MajorantTree {
 
     /// Number of leaf cells.
     pub fn cell_count(&self) -> usize {
-        self.levels.first().map_or(0, |l| l.bounds.len())
+        self.levels
+            .first()
+            .map_or(0, |l| l.dims.iter().map(|&d| d as usize).product())
     }
 
     /// Leaf cells per axis.
@@ -229,7 +370,7 @@ impl MajorantTree {
     pub fn memory_bytes(&self) -> usize {
         self.levels
             .iter()
-            .map(|l| l.bounds.len() * std::mem::size_of::<[f32; 2]>() + l.terminal.len())
+            .map(|l| l.bounds.len() * std::mem::size_of::<[f32; 2]>())
             .sum()
     }
 
@@ -253,7 +394,7 @@ impl MajorantTree {
         if (0..3).any(|a| c[a] < 0 || c[a] >= l.dims[a]) {
             return None;
         }
-        let b = l.bounds[l.index(c)];
+        let b = unpack(l.bounds[l.index(c)]);
         Some((b[0], b[1]))
     }
 
@@ -291,16 +432,12 @@ fn cells(extent: [i64; 3], edge: [i64; 3]) -> u64 {
 /// stopping there).
 fn reduce(child: &Level) -> Level {
     let dims = child.dims.map(|d| (d + 1) / 2);
-    let n = dims.iter().map(|&d| d as usize).product::<usize>();
-    let (bounds, terminal): (Vec<[f32; 2]>, Vec<bool>) = (0..n)
+    let bounds: Vec<[f32; 2]> = (0..storage_len(dims))
         .into_par_iter()
-        .map(|i| {
-            let i = i as i32;
-            let p = [
-                i % dims[0],
-                (i / dims[0]) % dims[1],
-                i / (dims[0] * dims[1]),
-            ];
+        .map(|s| {
+            let Some(p) = cell_of(dims, s) else {
+                return pack([0.0; 2], true);
+            };
             let mut b = [f32::INFINITY, f32::NEG_INFINITY];
             let mut kids = [[0f32; 2]; 8];
             let mut nk = 0;
@@ -314,33 +451,35 @@ fn reduce(child: &Level) -> Level {
                 if (0..3).any(|a| c[a] >= child.dims[a]) {
                     continue;
                 }
-                let j = child.index(c);
-                let cb = child.bounds[j];
+                let packed = child.bounds[child.index(c)];
+                let cb = unpack(packed);
                 b[0] = b[0].min(cb[0]);
                 b[1] = b[1].max(cb[1]);
-                all_terminal &= child.terminal[j];
+                all_terminal &= is_terminal(packed);
                 kids[nk] = cb;
                 nk += 1;
             }
             let uniform = kids[..nk].iter().all(|k| *k == b);
-            (b, all_terminal && uniform)
+            pack(b, all_terminal && uniform)
         })
-        .unzip();
+        .collect();
     let edge = child.edge * 2.0;
     Level {
         edge,
         inv_edge: edge.recip(),
         dims,
+        bdims: brick_dims(dims),
         bounds,
-        terminal,
     }
 }
 
 /// Walks a ray through the hierarchy, yielding one segment per terminal node in order
-/// along the ray. Each step locates the current point by descending from the root to
-/// the first terminal node (empty or constant subtrees are crossed in one step) and
-/// leaves it through the node's exit face. Restartable by construction: the walk's only
-/// state is the current `t`, and callers keep their own `t` and move to the next segment.
+/// along the ray: a hierarchical DDA (as in NanoVDB's HDDA or pbrt-v4's majorant grid,
+/// with levels). Within a level it steps from cell to neighbouring cell, recomputing
+/// only the crossed axis' exit; when it crosses into another parent whose subtree is
+/// uniform (terminal) it climbs to the parent and crosses it in one step, and when it
+/// enters a non-terminal cell it descends, locating the entry point level by level.
+/// Restartable: callers keep their own `t` and move on to the next segment.
 ///
 /// A point computed exactly on a face can round into the node behind it (its exit is
 /// then not ahead of the point); the walk then locates the point 1e-4 voxels further on
@@ -352,12 +491,20 @@ pub struct TreeWalk<'a> {
     o: Vec3,
     d: Vec3,
     inv_d: Vec3,
+    /// +1 or −1 per axis: the direction the walk steps cells in.
+    step: [i32; 3],
     /// Smallest step in `t` when rounding stalls the walk (1e-4 voxels along the ray).
     min_step: f32,
     t: f32,
     t_end: f32,
-    /// Level of the previous step's node: where the next descent starts (see `locate`).
+    /// The current node: its level, cell and index, and where the ray crosses its far
+    /// face on each axis.
     level: usize,
+    cell: [i32; 3],
+    idx: usize,
+    t_face: [f32; 3],
+    /// The node at `t` must be located (descending from `level`) before the next step.
+    relocate: bool,
 }
 
 impl<'a> TreeWalk<'a> {
@@ -367,10 +514,15 @@ impl<'a> TreeWalk<'a> {
             o,
             d,
             inv_d: d.recip(),
+            step: [0, 1, 2].map(|a| if d[a] < 0.0 { -1 } else { 1 }),
             min_step: 1e-4 / d.abs().max_element(),
             t: 0.0,
             t_end: -1.0,
-            level: usize::MAX - 1,
+            level: tree.levels.len().saturating_sub(1),
+            cell: [0; 3],
+            idx: 0,
+            t_face: [f32::INFINITY; 3],
+            relocate: true,
         };
         let Some((lo, hi)) = tree.index_region() else {
             return walk;
@@ -412,75 +564,170 @@ impl Iterator for TreeWalk<'_> {
             return None;
         }
         let t0 = self.t;
-        let (level, c, idx) = self.locate(t0);
-        let mut t1 = self.exit(level, c);
-        let (level, idx) = if t1 > t0 {
-            (level, idx)
-        } else {
-            // Rounding put the point behind the face it just crossed: locate a point a
-            // sliver further on instead (see the type's doc).
-            let (level, c, idx) = self.locate((t0 + self.min_step).max(t0.next_up()));
-            t1 = self.exit(level, c);
-            if !(t1 > t0) {
-                t1 = (t0 + self.min_step).max(t0.next_up()).min(self.t_end);
-            }
-            (level, idx)
-        };
+        if self.relocate {
+            self.locate(t0);
+        }
+        let mut t1 = self.exit();
+        if t1 > t0 {
+            self.t = t1;
+            let b = self.tree.levels[self.level].bounds[self.idx];
+            self.advance();
+            return Some(segment(t0, t1, b));
+        }
+        // Rounding put the point behind the face it just crossed: locate a point a
+        // sliver further on instead (see the type's doc), and locate afresh after it.
+        let t = (t0 + self.min_step).max(t0.next_up());
+        self.locate(t);
+        t1 = self.exit();
+        if !(t1 > t0) {
+            t1 = t.min(self.t_end);
+        }
         self.t = t1;
-        let b = level.bounds[idx];
-        Some(Segment {
+        self.relocate = true;
+        Some(segment(
             t0,
             t1,
-            dmin: b[0],
-            dmax: b[1],
-        })
+            self.tree.levels[self.level].bounds[self.idx],
+        ))
     }
 }
 
-impl<'a> TreeWalk<'a> {
-    /// The first terminal node containing the point at `t`, descending from one level
-    /// above the previous step's node rather than from the root. That is lossless: below
-    /// a terminal node every node is terminal with the same bounds, so starting too low
-    /// only splits a merged node into smaller segments with identical bounds, while
-    /// climbing one level per step still crosses long empty stretches in few steps.
+#[inline(always)]
+fn segment(t0: f32, t1: f32, b: [f32; 2]) -> Segment {
+    let b = unpack(b);
+    Segment {
+        t0,
+        t1,
+        dmin: b[0],
+        dmax: b[1],
+    }
+}
+
+impl TreeWalk<'_> {
+    /// Where the ray leaves the current node (clipped to the walk's end).
     #[inline(always)]
-    fn locate(&mut self, t: f32) -> (&'a Level, [i32; 3], usize) {
+    fn exit(&self) -> f32 {
+        self.t_face[0]
+            .min(self.t_face[1])
+            .min(self.t_face[2])
+            .min(self.t_end)
+    }
+
+    /// Where the ray crosses the far face of cell `c` of `level` on axis `a`.
+    #[inline(always)]
+    fn face(&self, level: &Level, c: i32, a: usize) -> f32 {
+        if self.d[a] == 0.0 {
+            return f32::INFINITY;
+        }
+        let side = (self.step[a] > 0) as i32;
+        let face = self.tree.origin[a] + (c + side) as f32 * level.edge[a];
+        (face - self.o[a]) * self.inv_d[a]
+    }
+
+    /// Makes the first terminal node containing the point at `t`, at or below the
+    /// current level, the current node.
+    #[inline(always)]
+    fn locate(&mut self, t: f32) {
         let tree = self.tree;
         let rel = self.o + self.d * t - tree.origin;
-        let mut k = (self.level + 1).min(tree.levels.len() - 1);
+        let mut k = self.level.min(tree.levels.len() - 1);
         loop {
             let l = &tree.levels[k];
             let mut c = [0i32; 3];
             for a in 0..3 {
                 let x = rel[a] * l.inv_edge[a];
-                // On a face, take the cell the ray is entering.
-                let f = if self.d[a] < 0.0 {
-                    x.ceil() - 1.0
-                } else {
-                    x.floor()
-                };
-                c[a] = (f as i32).clamp(0, l.dims[a] - 1);
+                // On a face, take the cell the ray is entering (x ≥ 0 inside the
+                // region; a negative x from rounding clamps to cell 0).
+                let mut i = x as i32;
+                if self.step[a] < 0 && i as f32 == x {
+                    i -= 1;
+                }
+                c[a] = i.clamp(0, l.dims[a] - 1);
             }
             let idx = l.index(c);
-            if k == 0 || l.terminal[idx] {
+            if k == 0 || is_terminal(l.bounds[idx]) {
                 self.level = k;
-                return (l, c, idx);
+                self.cell = c;
+                self.idx = idx;
+                self.t_face = [0, 1, 2].map(|a| self.face(l, c[a], a));
+                self.relocate = false;
+                return;
             }
             k -= 1;
         }
     }
 
-    /// Where the ray leaves cell `c` of `level` (clipped to the walk's end).
+    /// Moves to the node after the current one, through the face the ray leaves by.
     #[inline(always)]
-    fn exit(&self, level: &Level, c: [i32; 3]) -> f32 {
-        let mut t1 = self.t_end;
-        for a in 0..3 {
-            if self.d[a] != 0.0 {
-                let side = (self.d[a] > 0.0) as i32;
-                let face = self.tree.origin[a] + (c[a] + side) as f32 * level.edge[a];
-                t1 = t1.min((face - self.o[a]) * self.inv_d[a]);
+    fn advance(&mut self) {
+        let tree = self.tree;
+        let k = self.level;
+        let l = &tree.levels[k];
+        let a = if self.t_face[0] <= self.t_face[1] && self.t_face[0] <= self.t_face[2] {
+            0
+        } else if self.t_face[1] <= self.t_face[2] {
+            1
+        } else {
+            2
+        };
+        let old = self.cell[a];
+        let new = old + self.step[a];
+        if new < 0 || new >= l.dims[a] {
+            // Out of the region: the walk is over (up to rounding of the slab test).
+            self.t = self.t_end;
+            return;
+        }
+        self.cell[a] = new;
+        if k + 1 < tree.levels.len() && (new >> 1) != (old >> 1) {
+            // Into another parent: climb if its subtree is uniform.
+            let p = &tree.levels[k + 1];
+            let pc = self.cell.map(|c| c >> 1);
+            let pidx = p.index(pc);
+            if is_terminal(p.bounds[pidx]) {
+                self.level = k + 1;
+                self.cell = pc;
+                self.idx = pidx;
+                self.t_face = [0, 1, 2].map(|a| self.face(p, pc[a], a));
+                return;
             }
         }
-        t1
+        self.idx = l.index(self.cell);
+        self.t_face[a] = self.face(l, new, a);
+        if !is_terminal(l.bounds[self.idx]) {
+            self.relocate = true;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The brick layout is a bijection between the cells and the non-padding slots.
+    #[test]
+    fn brick_layout_is_a_bijection() {
+        for dims in [[1, 1, 1], [5, 3, 9], [8, 8, 8], [13, 1, 6]] {
+            let l = Level {
+                edge: Vec3::ONE,
+                inv_edge: Vec3::ONE,
+                dims,
+                bdims: brick_dims(dims),
+                bounds: Vec::new(),
+            };
+            let mut seen = vec![false; storage_len(dims)];
+            for z in 0..dims[2] {
+                for y in 0..dims[1] {
+                    for x in 0..dims[0] {
+                        let s = l.index([x, y, z]);
+                        assert!(!seen[s], "slot {s} used twice");
+                        seen[s] = true;
+                        assert_eq!(cell_of(dims, s), Some([x, y, z]));
+                    }
+                }
+            }
+            let cells = (dims[0] * dims[1] * dims[2]) as usize;
+            let mapped = (0..storage_len(dims)).filter(|&s| cell_of(dims, s).is_some());
+            assert_eq!(mapped.count(), cells);
+        }
     }
 }

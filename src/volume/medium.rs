@@ -7,7 +7,8 @@
 //! per world unit length, whatever the grid's voxel size or the volume's transform).
 
 use crate::volume::grid::Grid;
-use crate::volume::majorant::{MajorantSpec, MajorantTree};
+use crate::volume::majorant::{MajorantSpec, MajorantTree, PruneCost, Segment, TreeWalk};
+use crate::volume::ticks;
 use glam::{DMat4, DVec3, Vec3};
 
 /// RGB coefficients, one per channel.
@@ -32,6 +33,17 @@ pub struct Counters {
     /// Largest channel throughput seen along the path (per sample a maximum; summed
     /// over samples in a pixel, so the pixel's AOV is its mean).
     pub max_throughput: f64,
+    /// Time the regions below (`--profile`); off, they stay 0 and cost one
+    /// well-predicted branch per lookup and per cell.
+    pub timing: bool,
+    /// Ticks inside density lookups (one timed region per lookup).
+    pub lookup_ticks: u64,
+    /// Ticks inside the majorant walk's steps (one timed region per step).
+    pub traversal_ticks: u64,
+    pub walk_steps: u64,
+    /// Ticks inside free-path and transmittance queries, lookups and steps included.
+    pub tracker_ticks: u64,
+    pub tracker_calls: u64,
 }
 
 impl Counters {
@@ -44,6 +56,48 @@ impl Counters {
         self.residual_lookups += o.residual_lookups;
         self.control_collisions += o.control_collisions;
         self.max_throughput += o.max_throughput;
+        self.timing |= o.timing;
+        self.lookup_ticks += o.lookup_ticks;
+        self.traversal_ticks += o.traversal_ticks;
+        self.walk_steps += o.walk_steps;
+        self.tracker_ticks += o.tracker_ticks;
+        self.tracker_calls += o.tracker_calls;
+    }
+
+    /// The next segment of a majorant walk, counted as a visited cell (and timed as
+    /// traversal when timing).
+    #[inline(always)]
+    pub fn next_segment(&mut self, walk: &mut TreeWalk) -> Option<Segment> {
+        let seg = if self.timing {
+            let t0 = ticks::now();
+            let seg = walk.next();
+            self.traversal_ticks += ticks::now() - t0;
+            self.walk_steps += 1;
+            seg
+        } else {
+            walk.next()
+        };
+        self.cells_visited += seg.is_some() as u64;
+        seg
+    }
+
+    /// Starts timing a tracker query (0 when not timing).
+    #[inline(always)]
+    pub fn tracker_start(&self) -> u64 {
+        if self.timing {
+            ticks::now()
+        } else {
+            0
+        }
+    }
+
+    /// Ends the tracker query started at `t0`.
+    #[inline(always)]
+    pub fn tracker_stop(&mut self, t0: u64) {
+        if self.timing {
+            self.tracker_ticks += ticks::now() - t0;
+            self.tracker_calls += 1;
+        }
     }
 
     /// Records a path throughput for the `max_throughput` statistic.
@@ -207,6 +261,26 @@ impl Medium {
         })
     }
 
+    /// The optical depth of one voxel at unit density, κ = σt_max × voxel length (the
+    /// cube root of a voxel's world volume, for the cost model of
+    /// [`MajorantTree::prune`]).
+    pub fn optical_per_voxel(&self) -> f32 {
+        let voxel_volume = self.world_to_index.inverse().determinant().abs();
+        self.sigma.t_max * voxel_volume.cbrt() as f32
+    }
+
+    /// Prunes the octree for a tracker: `crossing_lookups` is the cost of a cell
+    /// crossing in lookups (0 = keep every level), `residual` whether the tracker pays
+    /// for `dmax − dmin` rather than `dmax`. Returns the nodes made terminal.
+    pub fn prune_majorants(&mut self, crossing_lookups: f32, residual: bool) -> usize {
+        let cost = PruneCost {
+            optical_per_voxel: self.optical_per_voxel(),
+            crossing_lookups,
+            residual,
+        };
+        self.majorants.prune(cost)
+    }
+
     /// Rebuilds the majorant structure (e.g. to compare octree depths on one grid).
     pub fn set_majorants(&mut self, spec: MajorantSpec) {
         self.majorants = MajorantTree::build(&self.density, spec);
@@ -227,6 +301,13 @@ impl Medium {
     #[inline(always)]
     pub fn density(&self, p: Vec3, counters: &mut Counters) -> f32 {
         counters.density_lookups += 1;
-        self.density.sample_trilinear(p.to_array())
+        if counters.timing {
+            let t0 = ticks::now();
+            let d = self.density.sample_trilinear(p.to_array());
+            counters.lookup_ticks += ticks::now() - t0;
+            d
+        } else {
+            self.density.sample_trilinear(p.to_array())
+        }
     }
 }

@@ -5,4 +5,5 @@ pub mod grid;
 pub mod majorant;
 pub mod medium;
 pub mod procedural;
+pub mod ticks;
 pub mod vdb;
