@@ -142,7 +142,7 @@ fn ratio_and_residual_ratio_transmittance_are_unbiased() {
                     let m = medium_from(&f, [0.1, 0.3, 0.6], [0.5, 0.4, 0.2], cell);
                     let ray = m.index_ray(DVec3::new(X0, 16.0, 16.0), DVec3::X);
                     let q = query(&m, &ray, scale);
-                    let mut rng = Pcg32::seed_from_u64(4);
+                    let mut rng = Pcg32::seed_from_u64(1);
                     let mut c = Counters::default();
                     let mut s: [Vec<f64>; 3] = Default::default();
                     for _ in 0..100_000 {
