@@ -15,7 +15,7 @@ use crate::volume::majorant::{MajorantSpec, MAX_DEPTH};
 use crate::volume::vdb;
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
@@ -36,8 +36,13 @@ pub struct RenderArgs {
     #[arg(long)]
     pub camera: Option<String>,
     /// Time code to evaluate the stage at.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "frames")]
     pub frame: Option<f64>,
+    /// Render the whole frames A to B (inclusive, e.g. 10-100), one EXR per frame: a
+    /// run of `#` in the output file name becomes the zero-padded frame number, else
+    /// `.NNNN` goes before the extension (`out.exr` → `out.0010.exr`); same for --stats.
+    #[arg(long, value_name = "A-B", value_parser = parse_frame_range)]
+    pub frames: Option<FrameRange>,
     /// Write render statistics as JSON to this file.
     #[arg(long)]
     pub stats: Option<PathBuf>,
@@ -132,20 +137,131 @@ pub fn parse_resolution(s: &str) -> Result<(u32, u32), String> {
 /// rendering so an absurd resolution is refused with a message instead of an abort.
 const MAX_FILM_BYTES: u64 = 8 << 30;
 
+/// An inclusive range of whole frames (`--frames A-B`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FrameRange {
+    pub first: i64,
+    pub last: i64,
+}
+
+pub fn parse_frame_range(s: &str) -> Result<FrameRange, String> {
+    let bad = || {
+        format!("frame range '{s}' is not of the form A-B with whole frames A <= B, e.g. 10-100")
+    };
+    let (a, b) = match s.trim().split_once('-') {
+        Some((a, b)) => (a, b),
+        None => (s, s),
+    };
+    let parse = |v: &str| v.trim().parse::<i64>().map_err(|_| bad());
+    let range = FrameRange {
+        first: parse(a)?,
+        last: parse(b)?,
+    };
+    if range.first > range.last {
+        return Err(bad());
+    }
+    Ok(range)
+}
+
+/// The output path of `frame` in a sequence: the first run of `#` in the file name
+/// becomes the frame number zero-padded to the run's length; without one, `.NNNN`
+/// (four digits at least) goes before the extension.
+pub fn frame_path(path: &Path, frame: i64) -> PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let number = |width: usize| {
+        if frame < 0 {
+            format!(
+                "-{:0width$}",
+                frame.unsigned_abs(),
+                width = width.saturating_sub(1)
+            )
+        } else {
+            format!("{frame:0width$}")
+        }
+    };
+    let new_name = match name.find('#') {
+        Some(start) => {
+            let len = name[start..].chars().take_while(|&c| c == '#').count();
+            format!("{}{}{}", &name[..start], number(len), &name[start + len..])
+        }
+        None => match name.rfind('.').filter(|&i| i > 0) {
+            Some(dot) => format!("{}.{}{}", &name[..dot], number(4), &name[dot..]),
+            None => format!("{name}.{}", number(4)),
+        },
+    };
+    path.with_file_name(new_name)
+}
+
 pub fn run(args: RenderArgs) -> Result<()> {
-    let wall = Instant::now();
-    let mut aovs = requested_aovs(&args.aovs)?;
-    check_writable(&args.output)?;
+    let interrupted = install_interrupt_handler();
+    let Some(range) = args.frames else {
+        return render_frame(&args, args.frame, None, &interrupted);
+    };
+    // Frames are independent renders: a failing frame is reported and the others are
+    // still rendered; each file is written atomically, so earlier good frames (and
+    // files from a previous run) are never clobbered by a failure.
+    // A folder that takes no files fails every frame the same way: stop at once.
+    check_writable(&frame_path(&args.output, range.first))?;
     if let Some(s) = &args.stats {
+        check_writable(&frame_path(s, range.first))?;
+    }
+    let count = range.last - range.first + 1;
+    let mut failed = Vec::new();
+    for (i, frame) in (range.first..=range.last).enumerate() {
+        eprintln!(
+            "nimbus: frame {frame} ({}/{count}) -> {}",
+            i + 1,
+            frame_path(&args.output, frame).display()
+        );
+        if let Err(e) = render_frame(&args, Some(frame as f64), Some(frame), &interrupted) {
+            eprintln!("nimbus: error: frame {frame}: {e:#}");
+            failed.push(frame);
+        }
+        if interrupted.load(Ordering::SeqCst) {
+            bail!("interrupted at frame {frame}; frames after it were not rendered");
+        }
+    }
+    if !failed.is_empty() {
+        let list: Vec<String> = failed.iter().map(|f| f.to_string()).collect();
+        bail!(
+            "{} of {count} frames failed: {}",
+            failed.len(),
+            list.join(", ")
+        );
+    }
+    Ok(())
+}
+
+/// Renders the stage at `time` to the output (and stats); `sequence_frame` is the frame
+/// number to put in the file names when rendering a `--frames` sequence.
+fn render_frame(
+    args: &RenderArgs,
+    time: Option<f64>,
+    sequence_frame: Option<i64>,
+    interrupted: &Arc<AtomicBool>,
+) -> Result<()> {
+    let wall = Instant::now();
+    let name = |p: &PathBuf| match sequence_frame {
+        Some(f) => frame_path(p, f),
+        None => p.clone(),
+    };
+    let output = name(&args.output);
+    let stats_path = args.stats.as_ref().map(name);
+    let mut aovs = requested_aovs(&args.aovs)?;
+    check_writable(&output)?;
+    if let Some(s) = &stats_path {
         check_writable(s)?;
     }
     let opts = LoadOptions {
-        frame: args.frame,
+        frame: time,
         camera: args.camera.clone(),
     };
     let scene = load_stage(&args.stage, &opts)?;
     let settings = &scene.settings;
-    let tracking = tracker_settings(&args, settings)?;
+    let tracking = tracker_settings(args, settings)?;
     add_render_var_aovs(settings, &mut aovs)?;
     let (width, height) = args.sampling.res.unwrap_or(settings.resolution);
     let spp = args.sampling.spp.unwrap_or(settings.samples);
@@ -234,7 +350,6 @@ pub fn run(args: RenderArgs) -> Result<()> {
         .num_threads(args.sampling.threads.unwrap_or(0))
         .build()
         .context("cannot start worker threads")?;
-    let interrupted = install_interrupt_handler();
     let bar = if spp == u32::MAX {
         indicatif::ProgressBar::new_spinner()
     } else {
@@ -252,7 +367,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let write_outputs = |film: &Film, p: &Progress| -> Result<()> {
         let (totals, _samples, nonfinite) = film.totals();
         write_exr(
-            &args.output,
+            &output,
             film,
             &aovs,
             &ExrMetadata {
@@ -262,7 +377,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
                 render_seconds: p.seconds,
             },
         )?;
-        let Some(path) = &args.stats else {
+        let Some(path) = &stats_path else {
             return Ok(());
         };
         let samples = width as f64 * height as f64 * p.spp as f64;
@@ -321,7 +436,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         &job,
         &pool,
         &budget,
-        &interrupted,
+        interrupted,
         &|n| bar.inc(n as u64),
         |film, p| {
             bar.set_message(format!("{} spp in {} passes", p.spp, p.passes));
@@ -336,7 +451,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         // Nothing rendered: keep whatever file is there rather than write a black image.
         bail!(
             "interrupted before the first pass finished; {} was not written",
-            args.output.display()
+            output.display()
         );
     }
     write_outputs(&film, &p)?;
@@ -347,14 +462,14 @@ pub fn run(args: RenderArgs) -> Result<()> {
     if p.interrupted {
         bail!(
             "interrupted: wrote {} with the {} samples per pixel finished in {} passes",
-            args.output.display(),
+            output.display(),
             p.spp,
             p.passes
         );
     }
     eprintln!(
         "nimbus: wrote {} ({width}x{height}, {} spp in {} passes, {:.2} s, {:.1} lookups/sample)",
-        args.output.display(),
+        output.display(),
         p.spp,
         p.passes,
         p.seconds,

@@ -448,7 +448,7 @@ impl Loader<'_> {
         let t = self.time;
         let asset = read_asset(prim, "filePath", t)?
             .filter(|a| !a.authored_path.is_empty())
-            .ok_or_else(|| prim_error(prim.path(), "filePath is not authored"))?;
+            .ok_or_else(|| unauthored_file_path(prim, t))?;
         let index_attr = prim.attribute("fieldIndex");
         let field_index = match authored(&index_attr, prim)? {
             true => read_i64(prim, "fieldIndex", t)?
@@ -593,6 +593,27 @@ fn prim_error_str(prim: &str, message: impl Display) -> SceneError {
     SceneError::Prim {
         prim: prim.to_string(),
         message: message.to_string(),
+    }
+}
+
+/// A field without a file at `time`. A frame sequence is authored as time samples
+/// only (as Houdini and EmberGen exports do), which USD does not consult at the default
+/// time: say so, since "not authored" would be misleading.
+fn unauthored_file_path(prim: &Prim, time: Option<TimeCode>) -> SceneError {
+    let times = prim
+        .attribute("filePath")
+        .time_sample_times()
+        .unwrap_or_default();
+    match (time, times.first(), times.last()) {
+        (None, Some(first), Some(last)) => prim_error(
+            prim.path(),
+            format!(
+                "filePath has only time samples ({} of them, frames {first} to {last}) and no \
+                 default value; render with --frame or --frames",
+                times.len()
+            ),
+        ),
+        _ => prim_error(prim.path(), "filePath is not authored"),
     }
 }
 
