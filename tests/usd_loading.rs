@@ -148,6 +148,23 @@ fn assert_same_file(what: &str, actual: &Path, expected: &Path) {
     assert_eq!(canon(actual), canon(expected), "{what}: file");
 }
 
+/// RenderProducts in the settings' `products` order, each with its `orderedVars`.
+fn assert_products(actual: &[nimbus::scene::RenderProduct], expected: &Value) {
+    let products = expected.as_array().unwrap();
+    assert_eq!(actual.len(), products.len(), "products");
+    for (p, e) in actual.iter().zip(products) {
+        assert_eq!(p.prim_path, e["prim_path"].as_str().unwrap());
+        assert_eq!(p.product_name.as_deref(), e["product_name"].as_str());
+        let vars = e["vars"].as_array().unwrap();
+        assert_eq!(p.vars.len(), vars.len());
+        for (v, ev) in p.vars.iter().zip(vars) {
+            assert_eq!(v.prim_path, ev["prim_path"].as_str().unwrap());
+            assert_eq!(v.source_name, ev["source_name"].as_str().unwrap());
+            assert_eq!(v.data_type, ev["data_type"].as_str().unwrap());
+        }
+    }
+}
+
 /// Volumes (visible, active only, in namespace order): transforms, fields (resolved
 /// files or package members with their bytes) and the volume parameters.
 fn assert_volumes(scene: &Scene, expected: &Value) {
@@ -273,19 +290,7 @@ fn assert_scene(scene: &Scene, expected: &Value) {
         "maxDepth"
     );
     assert_eq!(scene.settings.seed, s["seed"].as_u64().unwrap(), "seed");
-    let products = s["products"].as_array().unwrap();
-    assert_eq!(scene.settings.products.len(), products.len());
-    for (p, e) in scene.settings.products.iter().zip(products) {
-        assert_eq!(p.prim_path, e["prim_path"].as_str().unwrap());
-        assert_eq!(p.product_name.as_deref(), e["product_name"].as_str());
-        let vars = e["vars"].as_array().unwrap();
-        assert_eq!(p.vars.len(), vars.len());
-        for (v, ev) in p.vars.iter().zip(vars) {
-            assert_eq!(v.prim_path, ev["prim_path"].as_str().unwrap());
-            assert_eq!(v.source_name, ev["source_name"].as_str().unwrap());
-            assert_eq!(v.data_type, ev["data_type"].as_str().unwrap());
-        }
-    }
+    assert_products(&scene.settings.products, &s["products"]);
 }
 
 // ----- pxr comparison tests -------------------------------------------------------------------
@@ -347,6 +352,20 @@ fn time_sampled_file_paths_match_pxr() {
         e.contains("/Fire/density") && e.contains("only time samples") && e.contains("--frame"),
         "{e}"
     );
+}
+
+/// Two RenderProducts sharing a RenderVar, vars out of namespace order: the products,
+/// their names and their ordered vars match pxr.
+#[test]
+fn render_products_match_pxr() {
+    let Some((_dir, expected)) = generate_fixtures() else {
+        return;
+    };
+    let case = &expected["products_case"];
+    let stage = PathBuf::from(case["stage"].as_str().unwrap());
+    let scene = load_stage(&stage, &LoadOptions::default()).expect("products.usda loads");
+    assert_eq!(scene.settings.products.len(), 2);
+    assert_products(&scene.settings.products, &case["settings"]["products"]);
 }
 
 #[test]

@@ -27,9 +27,10 @@ use crate::render::progressive::{render_progressive, Budget, Progress};
 pub struct RenderArgs {
     /// The USD stage (.usda, .usdc, .usdz).
     pub stage: PathBuf,
-    /// Output EXR path.
+    /// Output EXR path. Replaces the path (`productName`) of the stage's first
+    /// RenderProduct; needed when the stage has none.
     #[arg(short = 'o', long = "output")]
-    pub output: PathBuf,
+    pub output: Option<PathBuf>,
     #[command(flatten)]
     pub sampling: SamplingArgs,
     /// Camera prim path (overrides the render settings' camera).
@@ -204,18 +205,16 @@ pub fn run(args: RenderArgs) -> Result<()> {
     // still rendered; each file is written atomically, so earlier good frames (and
     // files from a previous run) are never clobbered by a failure.
     // A folder that takes no files fails every frame the same way: stop at once.
-    check_writable(&frame_path(&args.output, range.first))?;
+    if let Some(output) = &args.output {
+        check_writable(&frame_path(output, range.first))?;
+    }
     if let Some(s) = &args.stats {
         check_writable(&frame_path(s, range.first))?;
     }
     let count = range.last - range.first + 1;
     let mut failed = Vec::new();
     for (i, frame) in (range.first..=range.last).enumerate() {
-        eprintln!(
-            "nimbus: frame {frame} ({}/{count}) -> {}",
-            i + 1,
-            frame_path(&args.output, frame).display()
-        );
+        eprintln!("nimbus: frame {frame} ({}/{count})", i + 1);
         if let Err(e) = render_frame(&args, Some(frame as f64), Some(frame), &interrupted) {
             eprintln!("nimbus: error: frame {frame}: {e:#}");
             failed.push(frame);
@@ -244,14 +243,16 @@ fn render_frame(
     interrupted: &Arc<AtomicBool>,
 ) -> Result<()> {
     let wall = Instant::now();
-    let name = |p: &PathBuf| match sequence_frame {
-        Some(f) => frame_path(p, f),
-        None => p.clone(),
+    // In a sequence every name gets the frame; for a single whole `--frame`, only
+    // names with a `#` run (a productName written for sequences) do.
+    let single_frame = time.filter(|t| t.fract() == 0.0 && t.abs() < 1e15);
+    let name = |p: &PathBuf| match (sequence_frame, single_frame) {
+        (Some(f), _) => frame_path(p, f),
+        (None, Some(t)) if p.to_string_lossy().contains('#') => frame_path(p, t as i64),
+        _ => p.clone(),
     };
-    let output = name(&args.output);
     let stats_path = args.stats.as_ref().map(name);
-    let mut aovs = requested_aovs(&args.aovs)?;
-    check_writable(&output)?;
+    let extra_aovs = requested_aovs(&args.aovs)?;
     if let Some(s) = &stats_path {
         check_writable(s)?;
     }
@@ -262,7 +263,19 @@ fn render_frame(
     let scene = load_stage(&args.stage, &opts)?;
     let settings = &scene.settings;
     let tracking = tracker_settings(args, settings)?;
-    add_render_var_aovs(settings, &mut aovs)?;
+    let outputs: Vec<ProductOutput> =
+        product_outputs(args.output.as_deref(), settings, &extra_aovs)
+            .with_context(|| format!("{}", args.stage.display()))?
+            .into_iter()
+            .map(|o| ProductOutput {
+                path: name(&o.path),
+                ..o
+            })
+            .collect();
+    check_distinct(&outputs)?;
+    for o in &outputs {
+        check_writable(&o.path)?;
+    }
     let (width, height) = args.sampling.res.unwrap_or(settings.resolution);
     let spp = args.sampling.spp.unwrap_or(settings.samples);
     let max_depth = args.max_depth.unwrap_or(settings.max_depth);
@@ -366,17 +379,23 @@ fn render_frame(
     // same count after each pass).
     let write_outputs = |film: &Film, p: &Progress| -> Result<()> {
         let (totals, _samples, nonfinite) = film.totals();
-        write_exr(
-            &output,
-            film,
-            &aovs,
-            &ExrMetadata {
-                stage: args.stage.display().to_string(),
-                tracker: tracker.clone(),
-                spp: p.spp,
-                render_seconds: p.seconds,
-            },
-        )?;
+        for o in &outputs {
+            write_exr(
+                &o.path,
+                film,
+                &o.aovs,
+                &ExrMetadata {
+                    stage: args.stage.display().to_string(),
+                    tracker: tracker.clone(),
+                    scheme: tracking.scheme.name().into(),
+                    transmittance: tracking.transmittance.name().into(),
+                    spp: p.spp,
+                    render_seconds: p.seconds,
+                    time: time.unwrap_or(f64::NAN),
+                    product: o.prim_path.clone(),
+                },
+            )?;
+        }
         let Some(path) = &stats_path else {
             return Ok(());
         };
@@ -451,7 +470,7 @@ fn render_frame(
         // Nothing rendered: keep whatever file is there rather than write a black image.
         bail!(
             "interrupted before the first pass finished; {} was not written",
-            output.display()
+            list_paths(&outputs)
         );
     }
     write_outputs(&film, &p)?;
@@ -462,14 +481,14 @@ fn render_frame(
     if p.interrupted {
         bail!(
             "interrupted: wrote {} with the {} samples per pixel finished in {} passes",
-            output.display(),
+            list_paths(&outputs),
             p.spp,
             p.passes
         );
     }
     eprintln!(
         "nimbus: wrote {} ({width}x{height}, {} spp in {} passes, {:.2} s, {:.1} lookups/sample)",
-        output.display(),
+        list_paths(&outputs),
         p.spp,
         p.passes,
         p.seconds,
@@ -570,9 +589,9 @@ fn tracker_settings(args: &RenderArgs, stage: &RenderSettings) -> Result<Tracker
     })
 }
 
-/// R, G, B, A and `lookups` always, plus what `--aovs` names.
+/// The AOVs `--aovs` names.
 fn requested_aovs(names: &[String]) -> Result<Vec<Aov>> {
-    let mut aovs = Aov::DEFAULT.to_vec();
+    let mut aovs = Vec::new();
     for n in names.iter().map(|n| n.trim()).filter(|n| !n.is_empty()) {
         let Some(a) = Aov::from_name(n) else {
             let known: Vec<_> = Aov::ALL.iter().map(|a| a.channel_name()).collect();
@@ -585,35 +604,119 @@ fn requested_aovs(names: &[String]) -> Result<Vec<Aov>> {
     Ok(aovs)
 }
 
-/// Adds the AOVs the stage's render vars name. `color` (also `C`, `Ci`, `rgb`) is R, G, B;
-/// `alpha`/`a` is A; the other AOVs go by their channel names.
-fn add_render_var_aovs(settings: &RenderSettings, aovs: &mut Vec<Aov>) -> Result<()> {
-    for product in &settings.products {
-        for var in &product.vars {
-            let name = var.source_name.trim();
-            let wanted: Vec<Aov> = match name {
-                "color" | "C" | "Ci" | "rgb" | "RGB" => vec![Aov::R, Aov::G, Aov::B],
-                "alpha" | "a" | "A" => vec![Aov::A],
-                other => match Aov::from_name(other) {
-                    Some(a) => vec![a],
-                    None => {
-                        let known: Vec<_> = Aov::ALL.iter().map(|a| a.channel_name()).collect();
-                        bail!(
-                            "{}: sourceName \"{other}\" is not an AOV Nimbus knows; known: color, alpha, {}",
-                            var.prim_path,
-                            known.join(", ")
-                        );
-                    }
-                },
-            };
-            for a in wanted {
-                if !aovs.contains(&a) {
-                    aovs.push(a);
+/// One EXR to write: a RenderProduct (or the `-o` image of a stage without one) and
+/// its channels.
+#[derive(Clone, Debug)]
+struct ProductOutput {
+    path: PathBuf,
+    /// The RenderProduct prim, `None` for the `-o` image of a stage without products.
+    prim_path: Option<String>,
+    aovs: Vec<Aov>,
+}
+
+/// The EXRs to write. Without RenderProducts: `-o` with R, G, B, A, lookups and the
+/// `--aovs`. With them: one EXR per product at its `productName` (relative names are
+/// relative to the working directory, as for `-o`), `-o` replacing the first product's;
+/// each holds R, G, B, A and the channels of its own RenderVars, and the first also the
+/// `--aovs`.
+fn product_outputs(
+    output: Option<&Path>,
+    settings: &RenderSettings,
+    extra_aovs: &[Aov],
+) -> Result<Vec<ProductOutput>> {
+    if settings.products.is_empty() {
+        let Some(path) = output else {
+            bail!("no output: the stage has no RenderProduct, so give one with -o OUT.exr");
+        };
+        let mut aovs = Aov::DEFAULT.to_vec();
+        add_aovs(&mut aovs, extra_aovs);
+        return Ok(vec![ProductOutput {
+            path: path.to_path_buf(),
+            prim_path: None,
+            aovs,
+        }]);
+    }
+    let mut outputs = Vec::new();
+    for (i, product) in settings.products.iter().enumerate() {
+        let path = match (i, output, &product.product_name) {
+            (0, Some(o), _) => o.to_path_buf(),
+            (_, _, Some(name)) => PathBuf::from(name),
+            (_, _, None) => bail!(
+                "{}: RenderProduct has no productName{}",
+                product.prim_path,
+                if i == 0 {
+                    "; give the output with -o"
+                } else {
+                    ""
                 }
+            ),
+        };
+        let mut aovs = vec![Aov::R, Aov::G, Aov::B, Aov::A];
+        for var in &product.vars {
+            add_aovs(&mut aovs, &render_var_aovs(var)?);
+        }
+        if i == 0 {
+            add_aovs(&mut aovs, extra_aovs);
+        }
+        outputs.push(ProductOutput {
+            path,
+            prim_path: Some(product.prim_path.clone()),
+            aovs,
+        });
+    }
+    Ok(outputs)
+}
+
+fn add_aovs(aovs: &mut Vec<Aov>, more: &[Aov]) {
+    for &a in more {
+        if !aovs.contains(&a) {
+            aovs.push(a);
+        }
+    }
+}
+
+/// The channels a RenderVar names: `color` (also `C`, `Ci`, `rgb`) is R, G, B;
+/// `alpha`/`a` is A; the other AOVs go by their channel names.
+fn render_var_aovs(var: &crate::scene::RenderVar) -> Result<Vec<Aov>> {
+    let name = var.source_name.trim();
+    Ok(match name {
+        "color" | "C" | "Ci" | "rgb" | "RGB" => vec![Aov::R, Aov::G, Aov::B],
+        "alpha" | "a" | "A" => vec![Aov::A],
+        other => match Aov::from_name(other) {
+            Some(a) => vec![a],
+            None => {
+                let known: Vec<_> = Aov::ALL.iter().map(|a| a.channel_name()).collect();
+                bail!(
+                    "{}: sourceName \"{other}\" is not an AOV Nimbus knows; known: color, alpha, {}",
+                    var.prim_path,
+                    known.join(", ")
+                );
             }
+        },
+    })
+}
+
+/// Two products writing one file would overwrite each other.
+fn check_distinct(outputs: &[ProductOutput]) -> Result<()> {
+    for (i, a) in outputs.iter().enumerate() {
+        if let Some(b) = outputs[..i].iter().find(|b| b.path == a.path) {
+            bail!(
+                "{} and {} both write {}",
+                b.prim_path.as_deref().unwrap_or("-o"),
+                a.prim_path.as_deref().unwrap_or("-o"),
+                a.path.display()
+            );
         }
     }
     Ok(())
+}
+
+fn list_paths(outputs: &[ProductOutput]) -> String {
+    outputs
+        .iter()
+        .map(|o| o.path.display().to_string())
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// Installs a Ctrl-C / SIGTERM handler: the first signal asks the render to stop after
