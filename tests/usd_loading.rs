@@ -368,6 +368,99 @@ fn render_products_match_pxr() {
     assert_products(&scene.settings.products, &case["settings"]["products"]);
 }
 
+/// Volumes shaded by bound materials and no Nimbus schema (RenderMan PxrVolume bound
+/// directly and through an ancestor, a MaterialX volume → anisotropic_vdf network with
+/// an interface-driven input) read the parameters the README's mapping gives for what
+/// pxr resolves; NimbusVolumeAPI wins over a bound material.
+#[test]
+fn volume_materials_match_pxr() {
+    let Some((_dir, expected)) = generate_fixtures() else {
+        return;
+    };
+    let case = &expected["shading_case"];
+    let stage = PathBuf::from(case["stage"].as_str().unwrap());
+    let scene = load_stage(&stage, &LoadOptions::default()).expect("shading.usda loads");
+    assert_volumes(&scene, case);
+    for (v, e) in scene
+        .volumes
+        .iter()
+        .zip(case["volumes"].as_array().unwrap())
+    {
+        assert_eq!(
+            v.material_shader.as_deref(),
+            e["material_shader"].as_str(),
+            "{} shader",
+            v.prim_path
+        );
+    }
+    assert_eq!(
+        scene
+            .volumes
+            .iter()
+            .filter(|v| v.material_shader.is_some())
+            .count(),
+        3
+    );
+}
+
+/// A material whose volume input is driven by another shader, or whose volume shader
+/// Nimbus does not read, is an error naming the shader and the input.
+#[test]
+fn unreadable_volume_materials() {
+    let dir = tempfile::tempdir().unwrap();
+    // Never opened: loading a stage only resolves the path.
+    write(dir.path(), "x.vdb", "placeholder");
+    let stage = |name: &str, shader: &str| {
+        write(
+            dir.path(),
+            name,
+            &format!(
+                r#"#usda 1.0
+{CAMERA}
+def Volume "Vol" (prepend apiSchemas = ["MaterialBindingAPI"])
+{{
+    rel field:density = </Vol/density>
+    rel material:binding = </Mat>
+    def OpenVDBAsset "density" {{ asset filePath = @./x.vdb@ }}
+}}
+def Material "Mat"
+{{
+    token outputs:ri:volume.connect = </Mat/Shader.outputs:bxdf_out>
+    def Shader "Shader"
+    {{
+        {shader}
+    }}
+    def Shader "Noise"
+    {{
+        uniform token info:id = "PxrWorley"
+        color3f outputs:resultRGB
+    }}
+}}
+"#
+            ),
+        )
+    };
+    let e = load_err(&stage(
+        "driven.usda",
+        r#"uniform token info:id = "PxrVolume"
+        color3f inputs:diffuseColor.connect = </Mat/Noise.outputs:resultRGB>"#,
+    ))
+    .to_string();
+    assert!(
+        e.contains("/Mat/Shader") && e.contains("inputs:diffuseColor") && e.contains("constant"),
+        "{e}"
+    );
+    let e = load_err(&stage(
+        "unknown.usda",
+        r#"uniform token info:id = "arnold:standard_volume""#,
+    ))
+    .to_string();
+    assert!(
+        e.contains("arnold:standard_volume") && e.contains("NimbusVolumeAPI"),
+        "{e}"
+    );
+}
+
 #[test]
 fn camera_override() {
     let Some((dir, expected)) = generate_fixtures() else {
