@@ -201,9 +201,6 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let Some(range) = args.frames else {
         return render_frame(&args, args.frame, None, &interrupted);
     };
-    // Frames are independent renders: a failing frame is reported and the others are
-    // still rendered; each file is written atomically, so earlier good frames (and
-    // files from a previous run) are never clobbered by a failure.
     // A folder that takes no files fails every frame the same way: stop at once.
     if let Some(output) = &args.output {
         check_writable(&frame_path(output, range.first))?;
@@ -211,6 +208,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
     if let Some(s) = &args.stats {
         check_writable(&frame_path(s, range.first))?;
     }
+    // Frames are independent renders: a failing frame is reported and the others are
+    // still rendered; each file is written atomically, so earlier good frames (and
+    // files from a previous run) are never clobbered by a failure.
     let count = range.last - range.first + 1;
     let mut failed = Vec::new();
     for (i, frame) in (range.first..=range.last).enumerate() {
