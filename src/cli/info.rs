@@ -80,6 +80,9 @@ pub fn run(args: InfoArgs) -> Result<()> {
             "volume: {} densityField {} densityScale {} absorption {:?} scattering {:?} anisotropy {}",
             v.prim_path, v.density.prim_path, v.density_scale, v.absorption, v.scattering, v.anisotropy
         );
+        if let Some(shader) = &v.material_shader {
+            println!("  parameters from the bound material's volume shader {shader}");
+        }
         for (name, f) in &v.fields {
             println!(
                 "  field:{name} -> {} file {} fieldName '{}' fieldIndex {:?}",

@@ -16,7 +16,7 @@ use crate::volume::ticks::Calibration;
 use crate::volume::vdb;
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
@@ -28,17 +28,23 @@ use crate::render::progressive::{render_progressive, Budget, Progress};
 pub struct RenderArgs {
     /// The USD stage (.usda, .usdc, .usdz).
     pub stage: PathBuf,
-    /// Output EXR path.
+    /// Output EXR path. Replaces the path (`productName`) of the stage's first
+    /// RenderProduct; needed when the stage has none.
     #[arg(short = 'o', long = "output")]
-    pub output: PathBuf,
+    pub output: Option<PathBuf>,
     #[command(flatten)]
     pub sampling: SamplingArgs,
     /// Camera prim path (overrides the render settings' camera).
     #[arg(long)]
     pub camera: Option<String>,
     /// Time code to evaluate the stage at.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "frames")]
     pub frame: Option<f64>,
+    /// Render the whole frames A to B (inclusive, e.g. 10-100), one EXR per frame: a
+    /// run of `#` in the output file name becomes the zero-padded frame number, else
+    /// `.NNNN` goes before the extension (`out.exr` → `out.0010.exr`); same for --stats.
+    #[arg(long, value_name = "A-B", value_parser = parse_frame_range)]
+    pub frames: Option<FrameRange>,
     /// Write render statistics as JSON to this file.
     #[arg(long)]
     pub stats: Option<PathBuf>,
@@ -143,21 +149,144 @@ pub fn parse_resolution(s: &str) -> Result<(u32, u32), String> {
 /// rendering so an absurd resolution is refused with a message instead of an abort.
 const MAX_FILM_BYTES: u64 = 8 << 30;
 
+/// An inclusive range of whole frames (`--frames A-B`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FrameRange {
+    pub first: i64,
+    pub last: i64,
+}
+
+pub fn parse_frame_range(s: &str) -> Result<FrameRange, String> {
+    let bad = || {
+        format!("frame range '{s}' is not of the form A-B with whole frames A <= B, e.g. 10-100")
+    };
+    let (a, b) = match s.trim().split_once('-') {
+        Some((a, b)) => (a, b),
+        None => (s, s),
+    };
+    let parse = |v: &str| v.trim().parse::<i64>().map_err(|_| bad());
+    let range = FrameRange {
+        first: parse(a)?,
+        last: parse(b)?,
+    };
+    if range.first > range.last {
+        return Err(bad());
+    }
+    Ok(range)
+}
+
+/// The output path of `frame` in a sequence: the first run of `#` in the file name
+/// becomes the frame number zero-padded to the run's length; without one, `.NNNN`
+/// (four digits at least) goes before the extension.
+pub fn frame_path(path: &Path, frame: i64) -> PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let number = |width: usize| {
+        if frame < 0 {
+            format!(
+                "-{:0width$}",
+                frame.unsigned_abs(),
+                width = width.saturating_sub(1)
+            )
+        } else {
+            format!("{frame:0width$}")
+        }
+    };
+    let new_name = match name.find('#') {
+        Some(start) => {
+            let len = name[start..].chars().take_while(|&c| c == '#').count();
+            format!("{}{}{}", &name[..start], number(len), &name[start + len..])
+        }
+        None => match name.rfind('.').filter(|&i| i > 0) {
+            Some(dot) => format!("{}.{}{}", &name[..dot], number(4), &name[dot..]),
+            None => format!("{name}.{}", number(4)),
+        },
+    };
+    path.with_file_name(new_name)
+}
+
 pub fn run(args: RenderArgs) -> Result<()> {
-    let wall = Instant::now();
-    let mut aovs = requested_aovs(&args.aovs)?;
-    check_writable(&args.output)?;
+    let interrupted = install_interrupt_handler();
+    let Some(range) = args.frames else {
+        return render_frame(&args, args.frame, None, &interrupted);
+    };
+    // A folder that takes no files fails every frame the same way: stop at once.
+    if let Some(output) = &args.output {
+        check_writable(&frame_path(output, range.first))?;
+    }
     if let Some(s) = &args.stats {
+        check_writable(&frame_path(s, range.first))?;
+    }
+    // Frames are independent renders: a failing frame is reported and the others are
+    // still rendered; each file is written atomically, so earlier good frames (and
+    // files from a previous run) are never clobbered by a failure.
+    let count = range.last - range.first + 1;
+    let mut failed = Vec::new();
+    for (i, frame) in (range.first..=range.last).enumerate() {
+        eprintln!("nimbus: frame {frame} ({}/{count})", i + 1);
+        if let Err(e) = render_frame(&args, Some(frame as f64), Some(frame), &interrupted) {
+            eprintln!("nimbus: error: frame {frame}: {e:#}");
+            failed.push(frame);
+        }
+        if interrupted.load(Ordering::SeqCst) {
+            bail!("interrupted at frame {frame}; frames after it were not rendered");
+        }
+    }
+    if !failed.is_empty() {
+        let list: Vec<String> = failed.iter().map(|f| f.to_string()).collect();
+        bail!(
+            "{} of {count} frames failed: {}",
+            failed.len(),
+            list.join(", ")
+        );
+    }
+    Ok(())
+}
+
+/// Renders the stage at `time` to the output (and stats); `sequence_frame` is the frame
+/// number to put in the file names when rendering a `--frames` sequence.
+fn render_frame(
+    args: &RenderArgs,
+    time: Option<f64>,
+    sequence_frame: Option<i64>,
+    interrupted: &Arc<AtomicBool>,
+) -> Result<()> {
+    let wall = Instant::now();
+    // In a sequence every name gets the frame; for a single whole `--frame`, only
+    // names with a `#` run (a productName written for sequences) do.
+    let single_frame = time.filter(|t| t.fract() == 0.0 && t.abs() < 1e15);
+    let name = |p: &PathBuf| match (sequence_frame, single_frame) {
+        (Some(f), _) => frame_path(p, f),
+        (None, Some(t)) if p.to_string_lossy().contains('#') => frame_path(p, t as i64),
+        _ => p.clone(),
+    };
+    let stats_path = args.stats.as_ref().map(name);
+    let extra_aovs = requested_aovs(&args.aovs)?;
+    if let Some(s) = &stats_path {
         check_writable(s)?;
     }
     let opts = LoadOptions {
-        frame: args.frame,
+        frame: time,
         camera: args.camera.clone(),
     };
     let scene = load_stage(&args.stage, &opts)?;
     let settings = &scene.settings;
-    let tracking = tracker_settings(&args, settings)?;
-    add_render_var_aovs(settings, &mut aovs)?;
+    let tracking = tracker_settings(args, settings)?;
+    let outputs: Vec<ProductOutput> =
+        product_outputs(args.output.as_deref(), settings, &extra_aovs)
+            .with_context(|| format!("{}", args.stage.display()))?
+            .into_iter()
+            .map(|o| ProductOutput {
+                path: name(&o.path),
+                ..o
+            })
+            .collect();
+    check_distinct(&outputs)?;
+    for o in &outputs {
+        check_writable(&o.path)?;
+    }
     let (width, height) = args.sampling.res.unwrap_or(settings.resolution);
     let spp = args.sampling.spp.unwrap_or(settings.samples);
     let max_depth = args.max_depth.unwrap_or(settings.max_depth);
@@ -248,7 +377,6 @@ pub fn run(args: RenderArgs) -> Result<()> {
         .num_threads(args.sampling.threads.unwrap_or(0))
         .build()
         .context("cannot start worker threads")?;
-    let interrupted = install_interrupt_handler();
     let bar = if spp == u32::MAX {
         indicatif::ProgressBar::new_spinner()
     } else {
@@ -266,18 +394,24 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let calibration = tracking.profile.then(Calibration::measure);
     let write_outputs = |film: &Film, p: &Progress| -> Result<()> {
         let (totals, _samples, nonfinite) = film.totals();
-        write_exr(
-            &args.output,
-            film,
-            &aovs,
-            &ExrMetadata {
-                stage: args.stage.display().to_string(),
-                tracker: tracker.clone(),
-                spp: p.spp,
-                render_seconds: p.seconds,
-            },
-        )?;
-        let Some(path) = &args.stats else {
+        for o in &outputs {
+            write_exr(
+                &o.path,
+                film,
+                &o.aovs,
+                &ExrMetadata {
+                    stage: args.stage.display().to_string(),
+                    tracker: tracker.clone(),
+                    scheme: tracking.scheme.name().into(),
+                    transmittance: tracking.transmittance.name().into(),
+                    spp: p.spp,
+                    render_seconds: p.seconds,
+                    time: time.unwrap_or(f64::NAN),
+                    product: o.prim_path.clone(),
+                },
+            )?;
+        }
+        let Some(path) = &stats_path else {
             return Ok(());
         };
         let samples = width as f64 * height as f64 * p.spp as f64;
@@ -342,7 +476,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         &job,
         &pool,
         &budget,
-        &interrupted,
+        interrupted,
         &|n| bar.inc(n as u64),
         |film, p| {
             bar.set_message(format!("{} spp in {} passes", p.spp, p.passes));
@@ -357,7 +491,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         // Nothing rendered: keep whatever file is there rather than write a black image.
         bail!(
             "interrupted before the first pass finished; {} was not written",
-            args.output.display()
+            list_paths(&outputs)
         );
     }
     write_outputs(&film, &p)?;
@@ -368,14 +502,14 @@ pub fn run(args: RenderArgs) -> Result<()> {
     if p.interrupted {
         bail!(
             "interrupted: wrote {} with the {} samples per pixel finished in {} passes",
-            args.output.display(),
+            list_paths(&outputs),
             p.spp,
             p.passes
         );
     }
     eprintln!(
         "nimbus: wrote {} ({width}x{height}, {} spp in {} passes, {:.2} s, {:.1} lookups/sample)",
-        args.output.display(),
+        list_paths(&outputs),
         p.spp,
         p.passes,
         p.seconds,
@@ -477,9 +611,9 @@ fn tracker_settings(args: &RenderArgs, stage: &RenderSettings) -> Result<Tracker
     })
 }
 
-/// R, G, B, A and `lookups` always, plus what `--aovs` names.
+/// The AOVs `--aovs` names.
 fn requested_aovs(names: &[String]) -> Result<Vec<Aov>> {
-    let mut aovs = Aov::DEFAULT.to_vec();
+    let mut aovs = Vec::new();
     for n in names.iter().map(|n| n.trim()).filter(|n| !n.is_empty()) {
         let Some(a) = Aov::from_name(n) else {
             let known: Vec<_> = Aov::ALL.iter().map(|a| a.channel_name()).collect();
@@ -492,35 +626,119 @@ fn requested_aovs(names: &[String]) -> Result<Vec<Aov>> {
     Ok(aovs)
 }
 
-/// Adds the AOVs the stage's render vars name. `color` (also `C`, `Ci`, `rgb`) is R, G, B;
-/// `alpha`/`a` is A; the other AOVs go by their channel names.
-fn add_render_var_aovs(settings: &RenderSettings, aovs: &mut Vec<Aov>) -> Result<()> {
-    for product in &settings.products {
-        for var in &product.vars {
-            let name = var.source_name.trim();
-            let wanted: Vec<Aov> = match name {
-                "color" | "C" | "Ci" | "rgb" | "RGB" => vec![Aov::R, Aov::G, Aov::B],
-                "alpha" | "a" | "A" => vec![Aov::A],
-                other => match Aov::from_name(other) {
-                    Some(a) => vec![a],
-                    None => {
-                        let known: Vec<_> = Aov::ALL.iter().map(|a| a.channel_name()).collect();
-                        bail!(
-                            "{}: sourceName \"{other}\" is not an AOV Nimbus knows; known: color, alpha, {}",
-                            var.prim_path,
-                            known.join(", ")
-                        );
-                    }
-                },
-            };
-            for a in wanted {
-                if !aovs.contains(&a) {
-                    aovs.push(a);
+/// One EXR to write: a RenderProduct (or the `-o` image of a stage without one) and
+/// its channels.
+#[derive(Clone, Debug)]
+struct ProductOutput {
+    path: PathBuf,
+    /// The RenderProduct prim, `None` for the `-o` image of a stage without products.
+    prim_path: Option<String>,
+    aovs: Vec<Aov>,
+}
+
+/// The EXRs to write. Without RenderProducts: `-o` with R, G, B, A, lookups and the
+/// `--aovs`. With them: one EXR per product at its `productName` (relative names are
+/// relative to the working directory, as for `-o`), `-o` replacing the first product's;
+/// each holds R, G, B, A and the channels of its own RenderVars, and the first also the
+/// `--aovs`.
+fn product_outputs(
+    output: Option<&Path>,
+    settings: &RenderSettings,
+    extra_aovs: &[Aov],
+) -> Result<Vec<ProductOutput>> {
+    if settings.products.is_empty() {
+        let Some(path) = output else {
+            bail!("no output: the stage has no RenderProduct, so give one with -o OUT.exr");
+        };
+        let mut aovs = Aov::DEFAULT.to_vec();
+        add_aovs(&mut aovs, extra_aovs);
+        return Ok(vec![ProductOutput {
+            path: path.to_path_buf(),
+            prim_path: None,
+            aovs,
+        }]);
+    }
+    let mut outputs = Vec::new();
+    for (i, product) in settings.products.iter().enumerate() {
+        let path = match (i, output, &product.product_name) {
+            (0, Some(o), _) => o.to_path_buf(),
+            (_, _, Some(name)) => PathBuf::from(name),
+            (_, _, None) => bail!(
+                "{}: RenderProduct has no productName{}",
+                product.prim_path,
+                if i == 0 {
+                    "; give the output with -o"
+                } else {
+                    ""
                 }
+            ),
+        };
+        let mut aovs = vec![Aov::R, Aov::G, Aov::B, Aov::A];
+        for var in &product.vars {
+            add_aovs(&mut aovs, &render_var_aovs(var)?);
+        }
+        if i == 0 {
+            add_aovs(&mut aovs, extra_aovs);
+        }
+        outputs.push(ProductOutput {
+            path,
+            prim_path: Some(product.prim_path.clone()),
+            aovs,
+        });
+    }
+    Ok(outputs)
+}
+
+fn add_aovs(aovs: &mut Vec<Aov>, more: &[Aov]) {
+    for &a in more {
+        if !aovs.contains(&a) {
+            aovs.push(a);
+        }
+    }
+}
+
+/// The channels a RenderVar names: `color` (also `C`, `Ci`, `rgb`) is R, G, B;
+/// `alpha`/`a` is A; the other AOVs go by their channel names.
+fn render_var_aovs(var: &crate::scene::RenderVar) -> Result<Vec<Aov>> {
+    let name = var.source_name.trim();
+    Ok(match name {
+        "color" | "C" | "Ci" | "rgb" | "RGB" => vec![Aov::R, Aov::G, Aov::B],
+        "alpha" | "a" | "A" => vec![Aov::A],
+        other => match Aov::from_name(other) {
+            Some(a) => vec![a],
+            None => {
+                let known: Vec<_> = Aov::ALL.iter().map(|a| a.channel_name()).collect();
+                bail!(
+                    "{}: sourceName \"{other}\" is not an AOV Nimbus knows; known: color, alpha, {}",
+                    var.prim_path,
+                    known.join(", ")
+                );
             }
+        },
+    })
+}
+
+/// Two products writing one file would overwrite each other.
+fn check_distinct(outputs: &[ProductOutput]) -> Result<()> {
+    for (i, a) in outputs.iter().enumerate() {
+        if let Some(b) = outputs[..i].iter().find(|b| b.path == a.path) {
+            bail!(
+                "{} and {} both write {}",
+                b.prim_path.as_deref().unwrap_or("-o"),
+                a.prim_path.as_deref().unwrap_or("-o"),
+                a.path.display()
+            );
         }
     }
     Ok(())
+}
+
+fn list_paths(outputs: &[ProductOutput]) -> String {
+    outputs
+        .iter()
+        .map(|o| o.path.display().to_string())
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// Installs a Ctrl-C / SIGTERM handler: the first signal asks the render to stop after

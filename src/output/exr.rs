@@ -9,8 +9,14 @@ use std::path::Path;
 pub struct ExrMetadata {
     pub stage: String,
     pub tracker: String,
+    pub scheme: String,
+    pub transmittance: String,
     pub spp: u32,
     pub render_seconds: f64,
+    /// The time code rendered (NaN: USD's default time).
+    pub time: f64,
+    /// The RenderProduct prim this image is, if any.
+    pub product: Option<String>,
 }
 
 pub fn write_exr(
@@ -35,10 +41,17 @@ pub fn write_exr(
         "nimbus:stage",
         AttributeValue::Text(Text::from(meta.stage.as_str())),
     );
-    put(
-        "nimbus:tracker",
-        AttributeValue::Text(Text::from(meta.tracker.as_str())),
-    );
+    let text = |v: &str| AttributeValue::Text(Text::from(v));
+    put("nimbus:version", text(env!("CARGO_PKG_VERSION")));
+    put("nimbus:tracker", text(&meta.tracker));
+    put("nimbus:scheme", text(&meta.scheme));
+    put("nimbus:transmittance", text(&meta.transmittance));
+    if meta.time.is_finite() {
+        put("nimbus:time", AttributeValue::F64(meta.time));
+    }
+    if let Some(product) = &meta.product {
+        put("nimbus:renderProduct", text(product));
+    }
     put(
         "nimbus:spp",
         AttributeValue::I32(meta.spp.min(i32::MAX as u32) as i32),

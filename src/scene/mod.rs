@@ -5,6 +5,7 @@
 //! by [`schema`].
 
 pub mod schema;
+pub mod shading;
 pub mod stage;
 
 use glam::DMat4;
@@ -87,6 +88,9 @@ pub struct Volume {
     pub anisotropy: f64,
     /// All `field:*` relationships of the volume, for `nimbus info`.
     pub fields: Vec<(String, Field)>,
+    /// When the parameters come from a bound material (no `NimbusVolumeAPI`): the
+    /// volume shader read, as "prim path (info:id)".
+    pub material_shader: Option<String>,
 }
 
 /// A UsdVolOpenVDBAsset prim, resolved.

@@ -8,6 +8,7 @@
 //! (or the bytes of a .usdz member).
 
 use super::schema::{self, tokens};
+use super::shading;
 use super::*;
 use openusd::gf;
 use openusd::sdf::{self, Value};
@@ -107,7 +108,7 @@ fn stage_error(path: &Path, message: impl Display) -> SceneError {
     }
 }
 
-fn prim_error(prim: &sdf::Path, message: impl Display) -> SceneError {
+pub(super) fn prim_error(prim: &sdf::Path, message: impl Display) -> SceneError {
     SceneError::Prim {
         prim: prim.to_string(),
         message: message.to_string(),
@@ -353,6 +354,29 @@ impl Loader<'_> {
                 "volume has no field:* relationships with targets",
             ));
         }
+        // Nimbus' schema when applied; else a bound material's volume shader, if
+        // one Nimbus reads; else the schema fallbacks.
+        let nimbus_api = prim
+            .has_api_schema(schema::VOLUME_API)
+            .map_err(|e| prim_error(prim.path(), e))?;
+        let material = match nimbus_api {
+            true => None,
+            false => shading::bound_volume_material(self.stage, prim, t)?,
+        };
+        if let Some(m) = material {
+            let density = self.density_field(prim, &m.density_field, &fields)?;
+            return Ok(Volume {
+                prim_path: prim.path().to_string(),
+                volume_to_world: self.world_transform(prim)?,
+                density,
+                density_scale: m.density_scale,
+                absorption: m.absorption,
+                scattering: m.scattering,
+                anisotropy: m.anisotropy,
+                fields,
+                material_shader: Some(format!("{} ({})", m.shader, m.shader_id)),
+            });
+        }
         let density_name = read_string(prim, tokens::DENSITY_FIELD, t)?
             .unwrap_or_else(|| DEFAULT_DENSITY_FIELD.to_string());
         let density = self.density_field(prim, &density_name, &fields)?;
@@ -365,6 +389,7 @@ impl Loader<'_> {
             scattering: read_vec3(prim, tokens::SCATTERING, t)?.unwrap_or([0.9; 3]),
             anisotropy: read_f64(prim, tokens::ANISOTROPY, t)?.unwrap_or(0.0),
             fields,
+            material_shader: None,
         })
     }
 
@@ -448,7 +473,7 @@ impl Loader<'_> {
         let t = self.time;
         let asset = read_asset(prim, "filePath", t)?
             .filter(|a| !a.authored_path.is_empty())
-            .ok_or_else(|| prim_error(prim.path(), "filePath is not authored"))?;
+            .ok_or_else(|| unauthored_file_path(prim, t))?;
         let index_attr = prim.attribute("fieldIndex");
         let field_index = match authored(&index_attr, prim)? {
             true => read_i64(prim, "fieldIndex", t)?
@@ -596,6 +621,27 @@ fn prim_error_str(prim: &str, message: impl Display) -> SceneError {
     }
 }
 
+/// A field without a file at `time`. A frame sequence is authored as time samples
+/// only (as Houdini and EmberGen exports do), which USD does not consult at the default
+/// time: say so, since "not authored" would be misleading.
+fn unauthored_file_path(prim: &Prim, time: Option<TimeCode>) -> SceneError {
+    let times = prim
+        .attribute("filePath")
+        .time_sample_times()
+        .unwrap_or_default();
+    match (time, times.first(), times.last()) {
+        (None, Some(first), Some(last)) => prim_error(
+            prim.path(),
+            format!(
+                "filePath has only time samples ({} of them, frames {first} to {last}) and no \
+                 default value; render with --frame or --frames",
+                times.len()
+            ),
+        ),
+        _ => prim_error(prim.path(), "filePath is not authored"),
+    }
+}
+
 fn is_valid(prim: &Prim) -> Result<bool, SceneError> {
     prim.is_valid().map_err(|e| prim_error(prim.path(), e))
 }
@@ -640,7 +686,7 @@ fn authored(attr: &usd::Attribute, prim: &Prim) -> Result<bool, SceneError> {
         .map_err(|e| prim_error(prim.path(), format!("{}: {e}", attr.name())))
 }
 
-fn read_value(
+pub(super) fn read_value(
     prim: &Prim,
     name: &str,
     time: Option<TimeCode>,
@@ -736,7 +782,7 @@ fn read_int2(
     }
 }
 
-fn read_string(
+pub(super) fn read_string(
     prim: &Prim,
     name: &str,
     time: Option<TimeCode>,
