@@ -88,7 +88,7 @@ fn octree(args: OctreeArgs) -> Result<()> {
             depth: args.depths[0],
         },
     )?;
-    let lights = Lights::from_scene(&scene);
+    let lights = Lights::from_scene(&scene)?;
     let camera = CameraRays::new(&scene.camera, width, height);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(args.sampling.threads.unwrap_or(0))
