@@ -188,9 +188,6 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let load_seconds = wall.elapsed().as_secs_f64();
 
     let lights = Lights::from_scene(&scene)?;
-    for w in &lights.warnings {
-        eprintln!("nimbus: warning: {w}");
-    }
     let c = &scene.camera;
     let positive = |v: f64| v.is_finite() && v > 0.0;
     if !(positive(c.focal_length)

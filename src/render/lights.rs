@@ -12,6 +12,9 @@
 //!   delta light whose illuminance is the scale, normalized or not;
 //! - DomeLight: not affected.
 //!
+//! With `inputs:enableColorTemperature`, the scale is also multiplied by UsdLux's colour
+//! of `inputs:colorTemperature` ([`usd_blackbody_rgb`]).
+//!
 //! Sphere and rect lights are reached by next-event estimation only: they do not
 //! occlude the medium and camera or scattered rays do not see them.
 
@@ -60,8 +63,6 @@ pub struct Lights {
     pub env_maps: Vec<EnvMap>,
     pub spheres: Vec<SphereEmitter>,
     pub rects: Vec<RectEmitter>,
-    /// Things that were read but are not rendered as authored (for the CLI to print).
-    pub warnings: Vec<String>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -74,6 +75,74 @@ pub struct LightError {
 /// `intensity · 2^exposure · color`.
 pub fn emission_scale(intensity: f64, exposure: f64, color: [f64; 3]) -> [f64; 3] {
     color.map(|c| c * intensity * exposure.exp2())
+}
+
+/// [`emission_scale`] times, when `inputs:enableColorTemperature` is on, the colour
+/// of `colorTemperature` ([`usd_blackbody_rgb`]).
+pub fn light_scale(
+    intensity: f64,
+    exposure: f64,
+    color: [f64; 3],
+    kelvin: Option<f64>,
+) -> [f64; 3] {
+    let s = emission_scale(intensity, exposure, color);
+    match kelvin {
+        Some(k) => {
+            let t = usd_blackbody_rgb(k);
+            [0, 1, 2].map(|c| s[c] * t[c])
+        }
+        None => s,
+    }
+}
+
+/// Pixar's blackbody table (UsdLux, `blackbody.cpp`): linear Rec. 709 colours of
+/// 1000 K … 10000 K in 500 K steps, each scaled to a maximum channel of 1, with the
+/// end knots repeated for the Catmull-Rom spline.
+const BLACKBODY_KNOTS: [[f64; 3]; 22] = [
+    [1.000000, 0.027490, 0.000000],
+    [1.000000, 0.027490, 0.000000], // 1000 K
+    [1.000000, 0.149664, 0.000000],
+    [1.000000, 0.256644, 0.008095], // 2000 K
+    [1.000000, 0.372033, 0.067450],
+    [1.000000, 0.476725, 0.153601], // 3000 K
+    [1.000000, 0.570376, 0.259196],
+    [1.000000, 0.653480, 0.377155], // 4000 K
+    [1.000000, 0.726878, 0.501606],
+    [1.000000, 0.791543, 0.628050], // 5000 K
+    [1.000000, 0.848462, 0.753228],
+    [1.000000, 0.898581, 0.874905], // 6000 K
+    [1.000000, 0.942771, 0.991642],
+    [0.906947, 0.890456, 1.000000], // 7000 K
+    [0.828247, 0.841838, 1.000000],
+    [0.765791, 0.801896, 1.000000], // 8000 K
+    [0.715255, 0.768579, 1.000000],
+    [0.673683, 0.740423, 1.000000], // 9000 K
+    [0.638992, 0.716359, 1.000000],
+    [0.609681, 0.695588, 1.000000], // 10000 K
+    [0.609681, 0.695588, 1.000000],
+    [0.609681, 0.695588, 1.000000],
+];
+
+/// The RGB colour UsdLux gives a colour temperature (as pxr's
+/// `UsdLuxBlackbodyTemperatureAsRgb`): a Catmull-Rom spline through
+/// [`BLACKBODY_KNOTS`] over [1000, 10000] K (clamped), scaled to Rec. 709 luminance 1,
+/// negative lobes clamped to 0.
+pub fn usd_blackbody_rgb(kelvin: f64) -> [f64; 3] {
+    let u = ((kelvin - 1000.0) / 9000.0).clamp(0.0, 1.0);
+    let segments = BLACKBODY_KNOTS.len() - 4;
+    let x = u * segments as f64;
+    let seg = (x.floor() as usize).min(segments);
+    let t = x - seg as f64;
+    let k = &BLACKBODY_KNOTS[seg..seg + 4];
+    let rgb = [0, 1, 2].map(|c| {
+        let (k0, k1, k2, k3) = (k[0][c], k[1][c], k[2][c], k[3][c]);
+        let a = 0.5 * (-k0 + 3.0 * k1 - 3.0 * k2 + k3);
+        let b = 0.5 * (2.0 * k0 - 5.0 * k1 + 4.0 * k2 - k3);
+        let cc = 0.5 * (-k0 + k2);
+        ((a * t + b) * t + cc) * t + k1
+    });
+    let y = luminance(rgb);
+    rgb.map(|v| (v / y).max(0.0))
 }
 
 /// UsdLux's normalization factor for a distant light of half-angle `theta_max`.
@@ -96,21 +165,12 @@ fn nonzero(c: &[f64; 3]) -> bool {
     c.iter().any(|&v| v != 0.0)
 }
 
-fn temperature_warning(prim: &str, t: Option<f64>, warnings: &mut Vec<String>) {
-    if let Some(t) = t {
-        warnings.push(format!(
-            "{prim}: inputs:colorTemperature ({t} K) is not applied yet; using inputs:color alone"
-        ));
-    }
-}
-
 impl Lights {
     /// The scene's lights; reads dome textures (errors name the light and the file).
     pub fn from_scene(scene: &Scene) -> Result<Lights, LightError> {
         let mut lights = Lights::default();
         for l in &scene.distant_lights {
-            temperature_warning(&l.prim_path, l.color_temperature, &mut lights.warnings);
-            let s = emission_scale(l.intensity, l.exposure, l.color);
+            let s = light_scale(l.intensity, l.exposure, l.color, l.color_temperature);
             let theta = l.angle_degrees.clamp(0.0, 360.0).to_radians() * 0.5;
             let cos_half_angle = theta.cos();
             let irradiance = if theta <= 0.0 {
@@ -132,8 +192,7 @@ impl Lights {
             }
         }
         for d in &scene.dome_lights {
-            temperature_warning(&d.prim_path, d.color_temperature, &mut lights.warnings);
-            let s = emission_scale(d.intensity, d.exposure, d.color);
+            let s = light_scale(d.intensity, d.exposure, d.color, d.color_temperature);
             match &d.texture_file {
                 None => {
                     for c in 0..3 {
@@ -149,11 +208,10 @@ impl Lights {
             }
         }
         for l in &scene.sphere_lights {
-            temperature_warning(&l.prim_path, l.color_temperature, &mut lights.warnings);
             let m = l.light_to_world;
             let scale = DMat3::from_mat4(m).determinant().abs().cbrt();
             let r = l.radius * scale;
-            let s = emission_scale(l.intensity, l.exposure, l.color);
+            let s = light_scale(l.intensity, l.exposure, l.color, l.color_temperature);
             let point = l.treat_as_point || r == 0.0;
             let radiance = match (point, l.normalize) {
                 // Surface radiance, divided by the area 4πr² when normalized.
@@ -174,13 +232,12 @@ impl Lights {
             }
         }
         for l in &scene.rect_lights {
-            temperature_warning(&l.prim_path, l.color_temperature, &mut lights.warnings);
             let m = l.light_to_world;
             let edge_u = m.transform_vector3(DVec3::X * l.width);
             let edge_v = m.transform_vector3(DVec3::Y * l.height);
             let cross = edge_u.cross(edge_v);
             let area = cross.length();
-            let s = emission_scale(l.intensity, l.exposure, l.color);
+            let s = light_scale(l.intensity, l.exposure, l.color, l.color_temperature);
             let radiance = match l.normalize {
                 true if area > 0.0 => s.map(|v| v / area),
                 _ => s,
