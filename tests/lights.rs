@@ -488,7 +488,7 @@ impl SlabSetup {
 }
 
 /// A point light (a sphere light with treatAsPoint): S = f(cos) · I · e^{−σt d}/d².
-/// HG g = 0.4 checks the phase argument's orientation. N = 1,000,000, seed 11; |z| < 4.
+/// HG g = 0.4 checks the phase argument's orientation. N = 4,000,000, seed 11; |z| < 4.
 #[test]
 fn point_light_single_scattering_matches_quadrature() {
     let setup = slab(0.4);
@@ -508,7 +508,7 @@ fn point_light_single_scattering_matches_quadrature() {
         let f = hg(0.4, DVec3::NEG_Z.dot(v / d));
         intensity.map(|i| f * i * (-SIGMA_T * d).exp() / (d * d))
     });
-    let s = samples(&setup.medium, &lights, &setup.cam, 1, 1_000_000, 11);
+    let s = samples(&setup.medium, &lights, &setup.cam, 1, 4_000_000, 11);
     let z = z_scores(&s, expected);
     assert!(
         z.iter().all(|z| z.abs() < 4.0),
@@ -517,7 +517,7 @@ fn point_light_single_scattering_matches_quadrature() {
 }
 
 /// A sphere light of radius 0.6: S = (1/4π) · 2π L ∫₀^θmax e^{−σt s(θ)} sin θ dθ with
-/// s(θ) the distance to the sphere's near surface. N = 1,000,000, seed 12; |z| < 4.
+/// s(θ) the distance to the sphere's near surface. N = 4,000,000, seed 12; |z| < 4.
 #[test]
 fn sphere_light_single_scattering_matches_quadrature() {
     let setup = slab(0.0);
@@ -541,7 +541,7 @@ fn sphere_light_single_scattering_matches_quadrature() {
         });
         radiance.map(|l| l * 2.0 * PI * integral / (4.0 * PI))
     });
-    let s = samples(&setup.medium, &lights, &setup.cam, 1, 1_000_000, 12);
+    let s = samples(&setup.medium, &lights, &setup.cam, 1, 4_000_000, 12);
     let z = z_scores(&s, expected);
     assert!(
         z.iter().all(|z| z.abs() < 4.0),
@@ -564,7 +564,7 @@ fn rect_facing(normal: DVec3) -> RectEmitter {
 }
 
 /// A rect light facing the ray (emitting along −Y): S = (1/4π) ∫_A L cos θ_l e^{−σt d}/d²
-/// dA (Simpson 2D over the rectangle). N = 1,000,000, seed 13; |z| < 4. Turned away
+/// dA (Simpson 2D over the rectangle). N = 4,000,000, seed 13; |z| < 4. Turned away
 /// (emitting along +Y) it contributes exactly nothing: one-sided.
 #[test]
 fn rect_light_single_scattering_matches_quadrature_and_is_one_sided() {
@@ -586,7 +586,7 @@ fn rect_light_single_scattering_matches_quadrature_and_is_one_sided() {
         rects: vec![rect],
         ..Default::default()
     };
-    let s = samples(&setup.medium, &lights, &setup.cam, 1, 1_000_000, 13);
+    let s = samples(&setup.medium, &lights, &setup.cam, 1, 4_000_000, 13);
     let z = z_scores(&s, expected);
     assert!(
         z.iter().all(|z| z.abs() < 4.0),
@@ -608,7 +608,7 @@ fn rect_light_single_scattering_matches_quadrature_and_is_one_sided() {
 /// s / (π sin²θmax) over the disk, and S = (1/4π) · 2π L ∫₀^θmax e^{−σt·10/cos θ} sin θ dθ
 /// (every shadow ray leaves through the y = 10 face, whose density ramp is symmetric
 /// about the face, so the optical depth is σt × the distance to the plane).
-/// N = 1,000,000, seed 15; |z| < 4.
+/// N = 4,000,000, seed 15; |z| < 4.
 #[test]
 fn sun_disk_single_scattering_matches_quadrature() {
     use nimbus::render::lights::distant_size_factor;
@@ -629,7 +629,7 @@ fn sun_disk_single_scattering_matches_quadrature() {
         (-SIGMA_T * 10.0 / t.cos()).exp() * t.sin()
     });
     let expected = setup.expected(|_| radiance.map(|l| l * 2.0 * PI * integral / (4.0 * PI)));
-    let samples = samples(&setup.medium, &lights, &setup.cam, 1, 1_000_000, 15);
+    let samples = samples(&setup.medium, &lights, &setup.cam, 1, 4_000_000, 15);
     let z = z_scores(&samples, expected);
     assert!(
         z.iter().all(|z| z.abs() < 4.0),
