@@ -169,6 +169,7 @@ fn full_path(c: &mut Criterion) {
             cos_half_angle: 0.9999,
         }],
         environment: [0.3, 0.4, 0.6],
+        ..Default::default()
     };
     let mut g = c.benchmark_group("full_path");
     for (name, scale) in [("thick", 20.0), ("thin", 1.0)] {

@@ -43,7 +43,7 @@ fn setup(scene: &str) -> Setup {
     let scene = load_stage(&path, &LoadOptions::default()).unwrap();
     Setup {
         medium: medium_for_scene(&scene, 8).unwrap(),
-        lights: Lights::from_scene(&scene),
+        lights: Lights::from_scene(&scene).expect("scene lights"),
         camera: CameraRays::new(&scene.camera, W, H),
     }
 }

@@ -109,6 +109,7 @@ fn absorbing_cube_transmits_dome_exactly() {
     let lights = Lights {
         suns: vec![],
         environment: [1.0, 2.0, 0.5],
+        ..Default::default()
     };
     let s = samples(&m, &lights, 64, 100_000);
     let expected = [0, 1, 2].map(|c| lights.environment[c] * (-sigma_a[c]).exp());
@@ -128,6 +129,7 @@ fn conservative_cube_in_constant_environment_is_invisible() {
         let lights = Lights {
             suns: vec![],
             environment: [0.8, 1.0, 1.3],
+            ..Default::default()
         };
         let s = samples(&m, &lights, 10_000, 50_000);
         let z = z_scores(&s, lights.environment);
@@ -142,6 +144,7 @@ fn render_is_deterministic_across_thread_counts() {
     let lights = Lights {
         suns: vec![],
         environment: [1.0; 3],
+        ..Default::default()
     };
     let cam = camera();
     let it = integrator(&m, &lights, &cam, 4, 16, 9);
@@ -168,6 +171,7 @@ fn passes_accumulate_like_a_single_pass() {
     let lights = Lights {
         suns: vec![],
         environment: [1.0; 3],
+        ..Default::default()
     };
     let cam = camera();
     let it = integrator(&m, &lights, &cam, 7, 16, 11);

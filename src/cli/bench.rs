@@ -100,7 +100,7 @@ fn octree(args: OctreeArgs) -> Result<()> {
             depth: args.depths[0],
         },
     )?;
-    let lights = Lights::from_scene(&scene);
+    let lights = Lights::from_scene(&scene)?;
     let camera = CameraRays::new(&scene.camera, width, height);
     // One thread by default: the timers measure thread-seconds, which then add up to
     // the wall time.

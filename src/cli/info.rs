@@ -41,8 +41,8 @@ pub fn run(args: InfoArgs) -> Result<()> {
     );
     for l in &scene.distant_lights {
         println!(
-            "distant light: {} direction {:?} intensity {} exposure {} color {:?} angle {}",
-            l.prim_path, l.direction, l.intensity, l.exposure, l.color, l.angle_degrees
+            "distant light: {} direction {:?} intensity {} exposure {} color {:?} normalize {} angle {}",
+            l.prim_path, l.direction, l.intensity, l.exposure, l.color, l.normalize, l.angle_degrees
         );
     }
     for l in &scene.dome_lights {
@@ -54,8 +54,34 @@ pub fn run(args: InfoArgs) -> Result<()> {
             l.color,
             l.texture_file
                 .as_ref()
-                .map(|t| format!(" texture {t} (not supported yet)"))
+                .map(|t| format!(" texture {t} ({})", l.texture_format))
                 .unwrap_or_default()
+        );
+    }
+    for l in &scene.sphere_lights {
+        println!(
+            "sphere light: {} position {:?} radius {} intensity {} exposure {} color {:?} normalize {} treatAsPoint {}",
+            l.prim_path,
+            l.light_to_world.w_axis.truncate().to_array(),
+            l.radius,
+            l.intensity,
+            l.exposure,
+            l.color,
+            l.normalize,
+            l.treat_as_point
+        );
+    }
+    for l in &scene.rect_lights {
+        println!(
+            "rect light: {} position {:?} size {}x{} intensity {} exposure {} color {:?} normalize {}",
+            l.prim_path,
+            l.light_to_world.w_axis.truncate().to_array(),
+            l.width,
+            l.height,
+            l.intensity,
+            l.exposure,
+            l.color,
+            l.normalize
         );
     }
     let s = &scene.settings;

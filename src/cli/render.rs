@@ -330,15 +330,7 @@ fn render_frame(
     }
     let load_seconds = wall.elapsed().as_secs_f64();
 
-    let lights = Lights::from_scene(&scene);
-    for d in &scene.dome_lights {
-        if let Some(tex) = &d.texture_file {
-            eprintln!(
-                "nimbus: warning: {}: dome texture '{tex}' is not supported yet; using its constant colour",
-                d.prim_path
-            );
-        }
-    }
+    let lights = Lights::from_scene(&scene)?;
     let c = &scene.camera;
     let positive = |v: f64| v.is_finite() && v > 0.0;
     if !(positive(c.focal_length)

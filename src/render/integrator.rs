@@ -1,12 +1,13 @@
 //! The volumetric path tracer: delta tracking for free paths, Henyey–Greenstein
-//! scattering up to a maximum depth, next-event estimation to suns and to the
-//! environment (dome) with ratio-tracking transmittance, MIS between environment NEE and
-//! phase sampling.
+//! scattering up to a maximum depth, next-event estimation to suns, sphere and rect
+//! lights and the environment (domes, constant or textured) with ratio-tracking
+//! transmittance, MIS between environment NEE and phase sampling.
 
 use crate::render::camera::CameraRays;
 use crate::render::film::{Film, Pixel};
+use crate::render::lights::LightSample;
 use crate::render::lights::Lights;
-use crate::render::phase::{hg, sample_hg, sample_sphere, INV_4PI};
+use crate::render::phase::{hg, sample_hg};
 use crate::render::sampler::{pixel_sampler, Sampler};
 use crate::track::{self, FreePath, FreePathSampler, Query, TransmittanceEstimator};
 use crate::volume::medium::{Counters, Medium, Sigma};
@@ -136,13 +137,17 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                 FreePath::Escape => {
                     if depth == 0 {
                         alpha = 1.0 - track::avg(throughput) as f64;
-                        self.add(&mut radiance, throughput, self.lights.environment, 1.0);
+                        if self.lights.has_environment() {
+                            let le = self.lights.environment_radiance(dir);
+                            self.add(&mut radiance, throughput, le, 1.0);
+                        }
                     } else if self.lights.has_environment() {
-                        // MIS with environment NEE (uniform sphere, pdf 1/4π); the phase
-                        // sample's weight phase/pdf is 1.
+                        // MIS with environment NEE; the phase sample's weight
+                        // phase/pdf is 1.
                         let pdf_phase = hg(g, last_cos);
-                        let w = power_heuristic(pdf_phase, INV_4PI);
-                        self.add(&mut radiance, throughput, self.lights.environment, w);
+                        let w = power_heuristic(pdf_phase, self.lights.environment_pdf(dir));
+                        let le = self.lights.environment_radiance(dir);
+                        self.add(&mut radiance, throughput, le, w);
                     }
                     break;
                 }
@@ -206,21 +211,54 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         let g = medium.g as f64;
         for sun in &self.lights.suns {
             let wi = sun.sample_direction(rng.gen(), rng.gen());
-            let tr = self.shadow(p, wi, sigma, rng, counters);
+            let tr = self.shadow(p, wi, f32::INFINITY, sigma, rng, counters);
             let f = hg(g, dir.dot(wi));
             for c in 0..3 {
                 radiance[c] += (throughput[c] * tr[c]) as f64 * sun.irradiance[c] * f;
             }
         }
+        for sphere in &self.lights.spheres {
+            let s = sphere.sample(p, rng.gen(), rng.gen());
+            self.add_light_sample(s, p, dir, sigma, throughput, radiance, rng, counters);
+        }
+        for rect in &self.lights.rects {
+            let s = rect.sample(p, rng.gen(), rng.gen());
+            self.add_light_sample(s, p, dir, sigma, throughput, radiance, rng, counters);
+        }
         if self.lights.has_environment() {
-            let wi = sample_sphere(rng.gen(), rng.gen());
-            let f = hg(g, dir.dot(wi));
-            let w = power_heuristic(INV_4PI, f);
-            let tr = self.shadow(p, wi, sigma, rng, counters);
-            for c in 0..3 {
-                radiance[c] +=
-                    (throughput[c] * tr[c]) as f64 * self.lights.environment[c] * f / INV_4PI * w;
+            let (wi, le, pdf) = self.lights.sample_environment(rng.gen(), rng.gen());
+            if pdf > 0.0 {
+                let f = hg(g, dir.dot(wi));
+                let w = power_heuristic(pdf, f);
+                let tr = self.shadow(p, wi, f32::INFINITY, sigma, rng, counters);
+                for c in 0..3 {
+                    radiance[c] += (throughput[c] * tr[c]) as f64 * le[c] * f / pdf * w;
+                }
             }
+        }
+    }
+
+    /// Adds a sphere or rect light sample (no MIS: scattered rays never hit these
+    /// lights), its shadow ray stopping at the light.
+    #[allow(clippy::too_many_arguments)]
+    fn add_light_sample(
+        &self,
+        sample: Option<LightSample>,
+        p: DVec3,
+        dir: DVec3,
+        sigma: &Sigma,
+        throughput: [f32; 3],
+        radiance: &mut [f64; 3],
+        rng: &mut Sampler,
+        counters: &mut Counters,
+    ) {
+        let Some(s) = sample else {
+            return;
+        };
+        let f = hg(self.medium.g as f64, dir.dot(s.wi));
+        let tr = self.shadow(p, s.wi, s.distance as f32, sigma, rng, counters);
+        for c in 0..3 {
+            radiance[c] += (throughput[c] * tr[c]) as f64 * s.weight[c] * f;
         }
     }
 
@@ -228,6 +266,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         &self,
         p: DVec3,
         wi: DVec3,
+        tmax: f32,
         sigma: &Sigma,
         rng: &mut Sampler,
         counters: &mut Counters,
@@ -238,7 +277,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             sigma,
             ray: &iray,
             tmin: 0.0,
-            tmax: f32::INFINITY,
+            tmax,
             majorant_scale: self.majorant_scale,
         };
         let t0 = counters.tracker_start();

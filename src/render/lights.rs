@@ -1,64 +1,726 @@
-//! Lights as the integrator sees them: radiance already multiplied out
-//! (intensity · 2^exposure · colour).
+//! Lights as the integrator sees them, with UsdLux's units already applied.
+//!
+//! Every UsdLux light's emission scale is `intensity · 2^exposure · color` (nits when
+//! not normalized). `inputs:normalize` divides it by the light's size so its power does
+//! not depend on that size:
+//!
+//! - SphereLight: by its world-space surface area 4πr²; RectLight: by its world-space
+//!   area (the parallelogram its transformed edges span);
+//! - DistantLight: by UsdLux's `sizeFactor(θmax) = π sin²θmax` (θmax ≤ π/2, else
+//!   `π (2 − sin²θmax)`), θmax = angle/2: the projected solid angle of the sun disk, so
+//!   `intensity` becomes the illuminance on a surface facing the light. A zero angle is a
+//!   delta light whose illuminance is the scale, normalized or not;
+//! - DomeLight: not affected.
+//!
+//! With `inputs:enableColorTemperature`, the scale is also multiplied by UsdLux's colour
+//! of `inputs:colorTemperature` ([`usd_blackbody_rgb`]).
+//!
+//! Sphere and rect lights are reached by next-event estimation only: they do not
+//! occlude the medium and camera or scattered rays do not see them.
 
-use crate::scene::Scene;
-use glam::DVec3;
+use crate::render::phase::{orthonormal_basis, sample_sphere, INV_4PI};
+use crate::scene::{DomeLight, Scene};
+use glam::{DMat3, DMat4, DVec3};
+use std::f64::consts::PI;
+use std::path::Path;
 
-/// A distant light (sun). `irradiance` is what a surface facing the light receives:
-/// Nimbus reads UsdLux `intensity · 2^exposure · color` of a DistantLight as that
-/// irradiance, whatever the angle; the angle only spreads its directions over a cone.
+/// A distant light (sun): a disk of directions of half-angle θmax around `direction`.
 pub struct Sun {
     pub direction: DVec3,
+    /// ∫ L dω over the disk: what next-event estimation multiplies by phase × transmittance
+    /// (for a small disk, the irradiance on a surface facing the light).
     pub irradiance: [f64; 3],
-    /// cos of the half-angle of the cone (1 = a delta direction).
+    /// cos θmax (1 = a delta direction).
     pub cos_half_angle: f64,
 }
 
-/// Everything lighting the medium: suns and a constant environment (the sum of the
-/// dome lights' radiance).
+/// A spherical emitter (or, with `radius` 0, a point with `intensity` L·πr²).
+pub struct SphereEmitter {
+    pub center: DVec3,
+    /// World-space radius (0 for a point).
+    pub radius: f64,
+    /// Radiance of the surface; for a point, the radiant intensity (per steradian).
+    pub radiance: [f64; 3],
+}
+
+/// A one-sided rectangular emitter: corner `center − (edge_u + edge_v)/2`.
+pub struct RectEmitter {
+    pub center: DVec3,
+    pub edge_u: DVec3,
+    pub edge_v: DVec3,
+    /// Unit normal of the emitting side (the light's world −Z).
+    pub normal: DVec3,
+    pub area: f64,
+    pub radiance: [f64; 3],
+}
+
+/// Everything lighting the medium. The environment is `environment` (the sum of
+/// untextured dome lights) plus every textured dome in `env_maps`.
+#[derive(Default)]
 pub struct Lights {
     pub suns: Vec<Sun>,
     pub environment: [f64; 3],
+    pub env_maps: Vec<EnvMap>,
+    pub spheres: Vec<SphereEmitter>,
+    pub rects: Vec<RectEmitter>,
+}
+
+#[derive(Debug, thiserror::Error)]
+#[error("{prim}: {message}")]
+pub struct LightError {
+    pub prim: String,
+    pub message: String,
+}
+
+/// `intensity · 2^exposure · color`.
+pub fn emission_scale(intensity: f64, exposure: f64, color: [f64; 3]) -> [f64; 3] {
+    color.map(|c| c * intensity * exposure.exp2())
+}
+
+/// [`emission_scale`] times, when `inputs:enableColorTemperature` is on, the colour
+/// of `colorTemperature` ([`usd_blackbody_rgb`]).
+pub fn light_scale(
+    intensity: f64,
+    exposure: f64,
+    color: [f64; 3],
+    kelvin: Option<f64>,
+) -> [f64; 3] {
+    let s = emission_scale(intensity, exposure, color);
+    match kelvin {
+        Some(k) => {
+            let t = usd_blackbody_rgb(k);
+            [0, 1, 2].map(|c| s[c] * t[c])
+        }
+        None => s,
+    }
+}
+
+/// Pixar's blackbody table (UsdLux, `blackbody.cpp`): linear Rec. 709 colours of
+/// 1000 K … 10000 K in 500 K steps, each scaled to a maximum channel of 1, with the
+/// end knots repeated for the Catmull-Rom spline.
+const BLACKBODY_KNOTS: [[f64; 3]; 22] = [
+    [1.000000, 0.027490, 0.000000],
+    [1.000000, 0.027490, 0.000000], // 1000 K
+    [1.000000, 0.149664, 0.000000],
+    [1.000000, 0.256644, 0.008095], // 2000 K
+    [1.000000, 0.372033, 0.067450],
+    [1.000000, 0.476725, 0.153601], // 3000 K
+    [1.000000, 0.570376, 0.259196],
+    [1.000000, 0.653480, 0.377155], // 4000 K
+    [1.000000, 0.726878, 0.501606],
+    [1.000000, 0.791543, 0.628050], // 5000 K
+    [1.000000, 0.848462, 0.753228],
+    [1.000000, 0.898581, 0.874905], // 6000 K
+    [1.000000, 0.942771, 0.991642],
+    [0.906947, 0.890456, 1.000000], // 7000 K
+    [0.828247, 0.841838, 1.000000],
+    [0.765791, 0.801896, 1.000000], // 8000 K
+    [0.715255, 0.768579, 1.000000],
+    [0.673683, 0.740423, 1.000000], // 9000 K
+    [0.638992, 0.716359, 1.000000],
+    [0.609681, 0.695588, 1.000000], // 10000 K
+    [0.609681, 0.695588, 1.000000],
+    [0.609681, 0.695588, 1.000000],
+];
+
+/// The RGB colour UsdLux gives a colour temperature (as pxr's
+/// `UsdLuxBlackbodyTemperatureAsRgb`): a Catmull-Rom spline through
+/// [`BLACKBODY_KNOTS`] over [1000, 10000] K (clamped), scaled to Rec. 709 luminance 1,
+/// negative lobes clamped to 0.
+pub fn usd_blackbody_rgb(kelvin: f64) -> [f64; 3] {
+    let u = ((kelvin - 1000.0) / 9000.0).clamp(0.0, 1.0);
+    let segments = BLACKBODY_KNOTS.len() - 4;
+    let x = u * segments as f64;
+    let seg = (x.floor() as usize).min(segments);
+    let t = x - seg as f64;
+    let k = &BLACKBODY_KNOTS[seg..seg + 4];
+    let rgb = [0, 1, 2].map(|c| {
+        let (k0, k1, k2, k3) = (k[0][c], k[1][c], k[2][c], k[3][c]);
+        let a = 0.5 * (-k0 + 3.0 * k1 - 3.0 * k2 + k3);
+        let b = 0.5 * (2.0 * k0 - 5.0 * k1 + 4.0 * k2 - k3);
+        let cc = 0.5 * (-k0 + k2);
+        ((a * t + b) * t + cc) * t + k1
+    });
+    let y = luminance(rgb);
+    rgb.map(|v| (v / y).max(0.0))
+}
+
+/// UsdLux's normalization factor for a distant light of half-angle `theta_max`.
+pub fn distant_size_factor(theta_max: f64) -> f64 {
+    let s2 = theta_max.sin().powi(2);
+    if theta_max <= 0.0 {
+        1.0
+    } else if theta_max <= PI / 2.0 {
+        PI * s2
+    } else {
+        PI * (2.0 - s2)
+    }
+}
+
+fn luminance(c: [f64; 3]) -> f64 {
+    0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
+}
+
+fn nonzero(c: &[f64; 3]) -> bool {
+    c.iter().any(|&v| v != 0.0)
 }
 
 impl Lights {
-    pub fn from_scene(scene: &Scene) -> Lights {
-        let scale = |i: f64, e: f64, c: [f64; 3]| c.map(|v| v * i * e.exp2());
-        let suns = scene
-            .distant_lights
-            .iter()
-            .map(|l| Sun {
-                direction: DVec3::from_array(l.direction).normalize_or(DVec3::Z),
-                irradiance: scale(l.intensity, l.exposure, l.color),
-                cos_half_angle: (l.angle_degrees.clamp(0.0, 180.0).to_radians() * 0.5).cos(),
-            })
-            .filter(|s| s.irradiance.iter().any(|&v| v != 0.0))
-            .collect();
-        let mut environment = [0.0; 3];
-        for d in &scene.dome_lights {
-            let r = scale(d.intensity, d.exposure, d.color);
-            for c in 0..3 {
-                environment[c] += r[c];
+    /// The scene's lights; reads dome textures (errors name the light and the file).
+    pub fn from_scene(scene: &Scene) -> Result<Lights, LightError> {
+        let mut lights = Lights::default();
+        for l in &scene.distant_lights {
+            let s = light_scale(l.intensity, l.exposure, l.color, l.color_temperature);
+            let theta = l.angle_degrees.clamp(0.0, 360.0).to_radians() * 0.5;
+            let cos_half_angle = theta.cos();
+            let irradiance = if theta <= 0.0 {
+                s
+            } else {
+                let radiance = match l.normalize {
+                    true => s.map(|v| v / distant_size_factor(theta)),
+                    false => s,
+                };
+                let solid_angle = 2.0 * PI * (1.0 - cos_half_angle);
+                radiance.map(|v| v * solid_angle)
+            };
+            if nonzero(&irradiance) {
+                lights.suns.push(Sun {
+                    direction: DVec3::from_array(l.direction).normalize_or(DVec3::Z),
+                    irradiance,
+                    cos_half_angle,
+                });
             }
         }
-        Lights { suns, environment }
+        for d in &scene.dome_lights {
+            let s = light_scale(d.intensity, d.exposure, d.color, d.color_temperature);
+            match &d.texture_file {
+                None => {
+                    for c in 0..3 {
+                        lights.environment[c] += s[c];
+                    }
+                }
+                Some(file) => {
+                    let map = EnvMap::load(d, file, s)?;
+                    if map.power > 0.0 {
+                        lights.env_maps.push(map);
+                    }
+                }
+            }
+        }
+        for l in &scene.sphere_lights {
+            let m = l.light_to_world;
+            let scale = DMat3::from_mat4(m).determinant().abs().cbrt();
+            let r = l.radius * scale;
+            let s = light_scale(l.intensity, l.exposure, l.color, l.color_temperature);
+            let point = l.treat_as_point || r == 0.0;
+            let radiance = match (point, l.normalize) {
+                // Surface radiance, divided by the area 4πr² when normalized.
+                (false, true) => s.map(|v| v / (4.0 * PI * r * r)),
+                (false, false) => s,
+                // A point keeps the sphere's far field, intensity L·πr²: s/4 when
+                // normalized (whatever r), s·πr² otherwise.
+                (true, true) => s.map(|v| v / 4.0),
+                (true, false) => s.map(|v| v * PI * r * r),
+            };
+            let emitter = SphereEmitter {
+                center: m.transform_point3(DVec3::ZERO),
+                radius: if point { 0.0 } else { r },
+                radiance,
+            };
+            if nonzero(&emitter.radiance) {
+                lights.spheres.push(emitter);
+            }
+        }
+        for l in &scene.rect_lights {
+            let m = l.light_to_world;
+            let edge_u = m.transform_vector3(DVec3::X * l.width);
+            let edge_v = m.transform_vector3(DVec3::Y * l.height);
+            let cross = edge_u.cross(edge_v);
+            let area = cross.length();
+            let s = light_scale(l.intensity, l.exposure, l.color, l.color_temperature);
+            let radiance = match l.normalize {
+                true if area > 0.0 => s.map(|v| v / area),
+                _ => s,
+            };
+            if area > 0.0 && nonzero(&radiance) {
+                lights.rects.push(RectEmitter {
+                    center: m.transform_point3(DVec3::ZERO),
+                    edge_u,
+                    edge_v,
+                    // Emits along its local −Z.
+                    normal: -cross / area,
+                    area,
+                    radiance,
+                });
+            }
+        }
+        Ok(lights)
     }
 
     pub fn has_environment(&self) -> bool {
-        self.environment.iter().any(|&v| v != 0.0)
+        nonzero(&self.environment) || !self.env_maps.is_empty()
+    }
+
+    /// Radiance arriving from world direction `w` (unit) from the environment.
+    #[inline]
+    pub fn environment_radiance(&self, w: DVec3) -> [f64; 3] {
+        let mut l = self.environment;
+        for m in &self.env_maps {
+            let t = m.radiance(w);
+            for c in 0..3 {
+                l[c] += t[c];
+            }
+        }
+        l
+    }
+
+    /// Selection weights of the environment's sampling strategies: the constant part
+    /// first, then each map, proportional to their power (∫ luminance dω).
+    fn constant_power(&self) -> f64 {
+        if nonzero(&self.environment) {
+            (luminance(self.environment).abs() * 4.0 * PI).max(1e-300)
+        } else {
+            0.0
+        }
+    }
+
+    fn total_power(&self) -> f64 {
+        self.constant_power() + self.env_maps.iter().map(|m| m.power).sum::<f64>()
+    }
+
+    /// Density (per steradian) with which [`Lights::sample_environment`] picks `w`.
+    pub fn environment_pdf(&self, w: DVec3) -> f64 {
+        if self.env_maps.is_empty() {
+            return INV_4PI;
+        }
+        let total = self.total_power();
+        let mut pdf = self.constant_power() / total * INV_4PI;
+        for m in &self.env_maps {
+            pdf += m.power / total * m.pdf(w);
+        }
+        pdf
+    }
+
+    /// A direction towards the environment, its radiance and its density: one strategy
+    /// is chosen by power with `u1` (rescaled and reused), then sampled.
+    pub fn sample_environment(&self, u1: f64, u2: f64) -> (DVec3, [f64; 3], f64) {
+        if self.env_maps.is_empty() {
+            let w = sample_sphere(u1, u2);
+            return (w, self.environment, INV_4PI);
+        }
+        let total = self.total_power();
+        let mut acc = self.constant_power() / total;
+        let w = if u1 < acc {
+            sample_sphere(u1 / acc, u2)
+        } else {
+            let mut chosen = self.env_maps.len() - 1;
+            let mut lo = acc;
+            for (i, m) in self.env_maps.iter().enumerate() {
+                let p = m.power / total;
+                if u1 < acc + p || i + 1 == self.env_maps.len() {
+                    chosen = i;
+                    lo = acc;
+                    acc += p;
+                    break;
+                }
+                acc += p;
+            }
+            let u = ((u1 - lo) / (acc - lo).max(1e-300)).clamp(0.0, 1.0 - f64::EPSILON);
+            self.env_maps[chosen].sample(u, u2)
+        };
+        (w, self.environment_radiance(w), self.environment_pdf(w))
     }
 }
 
 impl Sun {
-    /// A direction towards the sun, uniform over its cone.
+    /// A direction towards the sun, uniform over its disk.
     pub fn sample_direction(&self, u1: f64, u2: f64) -> DVec3 {
         if self.cos_half_angle >= 1.0 {
             return self.direction;
         }
-        let cos_t = 1.0 - u1 * (1.0 - self.cos_half_angle);
-        let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-        let phi = 2.0 * std::f64::consts::PI * u2;
-        let (t, b) = super::phase::orthonormal_basis(self.direction);
-        (t * (sin_t * phi.cos()) + b * (sin_t * phi.sin()) + self.direction * cos_t).normalize()
+        cone_direction(self.direction, self.cos_half_angle, u1, u2)
+    }
+}
+
+/// A direction uniform over the cone of `cos_max` around unit `axis`.
+fn cone_direction(axis: DVec3, cos_max: f64, u1: f64, u2: f64) -> DVec3 {
+    let cos_t = 1.0 - u1 * (1.0 - cos_max);
+    let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+    let phi = 2.0 * PI * u2;
+    let (t, b) = orthonormal_basis(axis);
+    (t * (sin_t * phi.cos()) + b * (sin_t * phi.sin()) + axis * cos_t).normalize()
+}
+
+/// One light sample seen from a point: direction, distance to the emitter, and the
+/// radiance already divided by the direction's density (0 when the sample misses).
+pub struct LightSample {
+    pub wi: DVec3,
+    pub distance: f64,
+    pub weight: [f64; 3],
+}
+
+impl SphereEmitter {
+    /// Samples the sphere from `p`: uniform over the cone it subtends (exact for the
+    /// radiance a uniform sphere sends), or the point itself. Points inside the
+    /// sphere see no emission (it emits outwards).
+    pub fn sample(&self, p: DVec3, u1: f64, u2: f64) -> Option<LightSample> {
+        let to_c = self.center - p;
+        let d2 = to_c.length_squared();
+        let d = d2.sqrt();
+        if d <= self.radius || d == 0.0 {
+            return None;
+        }
+        let axis = to_c / d;
+        if self.radius == 0.0 {
+            return Some(LightSample {
+                wi: axis,
+                distance: d,
+                weight: self.radiance.map(|v| v / d2),
+            });
+        }
+        let sin2_max = (self.radius * self.radius / d2).min(1.0);
+        let cos_max = (1.0 - sin2_max).sqrt();
+        let wi = cone_direction(axis, cos_max, u1, u2);
+        let cos_t = wi.dot(axis);
+        // Nearest intersection with the sphere along wi.
+        let disc = (self.radius * self.radius - d2 * (1.0 - cos_t * cos_t)).max(0.0);
+        let distance = (d * cos_t - disc.sqrt()).max(0.0);
+        let solid_angle = 2.0 * PI * (1.0 - cos_max);
+        Some(LightSample {
+            wi,
+            distance,
+            weight: self.radiance.map(|v| v * solid_angle),
+        })
+    }
+}
+
+impl RectEmitter {
+    /// Samples a point uniformly on the rectangle; density converted to solid angle.
+    pub fn sample(&self, p: DVec3, u1: f64, u2: f64) -> Option<LightSample> {
+        let q = self.center + self.edge_u * (u1 - 0.5) + self.edge_v * (u2 - 0.5);
+        let v = q - p;
+        let d2 = v.length_squared();
+        if d2 == 0.0 {
+            return None;
+        }
+        let d = d2.sqrt();
+        let wi = v / d;
+        let cos_l = -wi.dot(self.normal);
+        if cos_l <= 0.0 {
+            // The back of the rectangle does not emit.
+            return None;
+        }
+        let g = cos_l * self.area / d2;
+        Some(LightSample {
+            wi,
+            distance: d,
+            weight: self.radiance.map(|r| r * g),
+        })
+    }
+}
+
+// ----- dome textures ---------------------------------------------------------------
+
+/// A textured dome light: a lat-long image (OpenEXR's convention, which UsdLux adopts:
+/// +Y is the top pole, longitude 0 looks down +Z, longitude +π/2 down +X; the image's
+/// left column is longitude +π and its top row latitude +π/2) in the light's frame.
+pub struct EnvMap {
+    pub width: usize,
+    pub height: usize,
+    /// Radiance per texel (texture × the light's emission scale), row-major from the top.
+    pub texels: Vec<[f64; 3]>,
+    pub to_world: DMat3,
+    pub to_local: DMat3,
+    /// Sample by the texture's luminance (true) or uniformly over the sphere (false,
+    /// a reference for tests).
+    pub importance: bool,
+    /// ∫ luminance dω, for choosing between environment strategies.
+    pub power: f64,
+    distribution: Distribution2D,
+}
+
+impl EnvMap {
+    fn load(light: &DomeLight, file: &str, scale: [f64; 3]) -> Result<EnvMap, LightError> {
+        let err = |message: String| LightError {
+            prim: light.prim_path.clone(),
+            message,
+        };
+        match light.texture_format.as_str() {
+            "automatic" | "latlong" => {}
+            other => {
+                return Err(err(format!(
+                    "inputs:texture:format `{other}` is not supported for {file} (Nimbus reads lat-long textures: `latlong` or `automatic`)"
+                )))
+            }
+        }
+        if openusd::ar::is_package_relative_path(file) {
+            return Err(err(format!(
+                "dome texture {file}: textures inside .usdz packages are not supported"
+            )));
+        }
+        let (width, height, texels) =
+            read_rgb_exr(Path::new(file)).map_err(|e| err(format!("dome texture {file}: {e}")))?;
+        if light.texture_format == "automatic" && width != 2 * height {
+            return Err(err(format!(
+                "dome texture {file} is {width}×{height}: inputs:texture:format `automatic` reads lat-long images (2N×N) only; set it to `latlong` to use this image"
+            )));
+        }
+        let texels = texels
+            .into_iter()
+            .map(|t| [0, 1, 2].map(|c| scale[c] * t[c]))
+            .collect();
+        Ok(EnvMap::new(width, height, texels, light.light_to_world))
+    }
+
+    /// A map of radiance `texels` (row-major from the top row) oriented by `light_to_world`.
+    pub fn new(width: usize, height: usize, texels: Vec<[f64; 3]>, light_to_world: DMat4) -> Self {
+        assert_eq!(texels.len(), width * height, "texel count");
+        // The dome's orientation: its transform's rotation (columns normalized, so a
+        // scale does not distort directions).
+        let m = DMat3::from_mat4(light_to_world);
+        let to_world = DMat3::from_cols(
+            m.x_axis.normalize_or(DVec3::X),
+            m.y_axis.normalize_or(DVec3::Y),
+            m.z_axis.normalize_or(DVec3::Z),
+        );
+        let to_local = to_world.inverse();
+        let mut func = vec![0.0; width * height];
+        for y in 0..height {
+            let sin_t = (PI * (y as f64 + 0.5) / height as f64).sin();
+            for x in 0..width {
+                func[y * width + x] = luminance(texels[y * width + x]).max(0.0) * sin_t;
+            }
+        }
+        let distribution = Distribution2D::new(&func, width, height);
+        // ∫ lum dω = ∫∫ lum sinθ · 2π² du dv.
+        let power = distribution.integral * 2.0 * PI * PI;
+        EnvMap {
+            width,
+            height,
+            texels,
+            to_world,
+            to_local,
+            importance: true,
+            power,
+            distribution,
+        }
+    }
+
+    /// (u, v) ∈ [0,1)² of local direction `l`.
+    fn uv(l: DVec3) -> (f64, f64) {
+        let theta = l.y.clamp(-1.0, 1.0).acos();
+        let phi = l.x.atan2(l.z);
+        let u = 0.5 - phi / (2.0 * PI);
+        (u.rem_euclid(1.0), theta / PI)
+    }
+
+    fn direction(u: f64, v: f64) -> DVec3 {
+        let theta = PI * v;
+        let phi = PI * (1.0 - 2.0 * u);
+        let s = theta.sin();
+        DVec3::new(s * phi.sin(), theta.cos(), s * phi.cos())
+    }
+
+    fn texel_index(&self, u: f64, v: f64) -> usize {
+        let x = ((u * self.width as f64) as usize).min(self.width - 1);
+        let y = ((v * self.height as f64) as usize).min(self.height - 1);
+        y * self.width + x
+    }
+
+    /// Radiance arriving from world direction `w` (nearest texel).
+    #[inline]
+    pub fn radiance(&self, w: DVec3) -> [f64; 3] {
+        let (u, v) = Self::uv(self.to_local * w);
+        self.texels[self.texel_index(u, v)]
+    }
+
+    /// Density per steradian of [`EnvMap::sample`].
+    pub fn pdf(&self, w: DVec3) -> f64 {
+        if !self.importance {
+            return INV_4PI;
+        }
+        let (u, v) = Self::uv(self.to_local * w);
+        let sin_t = (PI * v).sin();
+        if sin_t <= 0.0 {
+            return 0.0;
+        }
+        self.distribution.pdf(u, v) / (2.0 * PI * PI * sin_t)
+    }
+
+    /// A world direction, by the texture's luminance × sin θ (or uniform).
+    pub fn sample(&self, u1: f64, u2: f64) -> DVec3 {
+        if !self.importance {
+            return sample_sphere(u1, u2);
+        }
+        let (u, v) = self.distribution.sample(u1, u2);
+        (self.to_world * Self::direction(u, v)).normalize()
+    }
+}
+
+/// Reads an EXR's R, G, B (first valid layer, largest level) as row-major rows from the
+/// top of the data window.
+fn read_rgb_exr(path: &Path) -> Result<(usize, usize, Vec<[f64; 3]>), String> {
+    use exr::prelude::*;
+    if !path.is_file() {
+        return Err("file not found".into());
+    }
+    let image = read_first_rgba_layer_from_file(
+        path,
+        |res: Vec2<usize>, _: &RgbaChannels| (res.0, vec![[0f64; 3]; res.0 * res.1]),
+        |px: &mut (usize, Vec<[f64; 3]>), pos: Vec2<usize>, (r, g, b, _a): (f32, f32, f32, f32)| {
+            let w = px.0;
+            px.1[pos.1 * w + pos.0] = [r as f64, g as f64, b as f64];
+        },
+    )
+    .map_err(|e| format!("cannot read as an RGB(A) OpenEXR image: {e}"))?;
+    let size = image.layer_data.size;
+    let (w, h) = (size.0, size.1);
+    if w == 0 || h == 0 {
+        return Err("empty image".into());
+    }
+    let texels = image.layer_data.channel_data.pixels.1;
+    if texels.iter().flatten().any(|v| !v.is_finite()) {
+        return Err("contains NaN or infinite values".into());
+    }
+    Ok((w, h, texels))
+}
+
+/// A piecewise-constant density on [0,1] with `n` equal pieces.
+struct Distribution1D {
+    func: Vec<f64>,
+    /// cdf[i] = ∫₀^{i/n}, normalized; n + 1 entries.
+    cdf: Vec<f64>,
+    /// ∫₀¹ func.
+    integral: f64,
+}
+
+impl Distribution1D {
+    fn new(func: &[f64]) -> Self {
+        let n = func.len();
+        let mut cdf = vec![0.0; n + 1];
+        for i in 0..n {
+            cdf[i + 1] = cdf[i] + func[i] / n as f64;
+        }
+        let integral = cdf[n];
+        for (i, c) in cdf.iter_mut().enumerate() {
+            *c = if integral > 0.0 {
+                *c / integral
+            } else {
+                i as f64 / n as f64
+            };
+        }
+        Distribution1D {
+            func: func.to_vec(),
+            cdf,
+            integral,
+        }
+    }
+
+    /// Density of `x` (∈ [0,1)) relative to the unit interval.
+    fn pdf(&self, x: f64) -> f64 {
+        let n = self.func.len();
+        let i = ((x * n as f64) as usize).min(n - 1);
+        if self.integral > 0.0 {
+            self.func[i] / self.integral
+        } else {
+            1.0
+        }
+    }
+
+    /// Inverts the cdf at `u`: a position in [0,1).
+    fn sample(&self, u: f64) -> f64 {
+        let n = self.func.len();
+        // Last i with cdf[i] <= u.
+        let i = self
+            .cdf
+            .partition_point(|&c| c <= u)
+            .saturating_sub(1)
+            .min(n - 1);
+        let span = self.cdf[i + 1] - self.cdf[i];
+        let t = if span > 0.0 {
+            (u - self.cdf[i]) / span
+        } else {
+            0.5
+        };
+        ((i as f64 + t.clamp(0.0, 1.0)) / n as f64).min(1.0 - f64::EPSILON)
+    }
+}
+
+/// A piecewise-constant density on [0,1]²: rows by their marginal, then a column in
+/// the row.
+struct Distribution2D {
+    rows: Vec<Distribution1D>,
+    marginal: Distribution1D,
+    integral: f64,
+}
+
+impl Distribution2D {
+    fn new(func: &[f64], width: usize, height: usize) -> Self {
+        let rows: Vec<_> = (0..height)
+            .map(|y| Distribution1D::new(&func[y * width..(y + 1) * width]))
+            .collect();
+        let marginal = Distribution1D::new(&rows.iter().map(|r| r.integral).collect::<Vec<_>>());
+        let integral = marginal.integral;
+        Distribution2D {
+            rows,
+            marginal,
+            integral,
+        }
+    }
+
+    fn sample(&self, u1: f64, u2: f64) -> (f64, f64) {
+        let v = self.marginal.sample(u1);
+        let row = ((v * self.rows.len() as f64) as usize).min(self.rows.len() - 1);
+        (self.rows[row].sample(u2), v)
+    }
+
+    fn pdf(&self, u: f64, v: f64) -> f64 {
+        let row = ((v * self.rows.len() as f64) as usize).min(self.rows.len() - 1);
+        self.marginal.pdf(v) * self.rows[row].pdf(u)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The lat-long convention UsdLux adopts from OpenEXR, at its named points.
+    #[test]
+    fn latlong_axes() {
+        let close = |a: DVec3, b: DVec3| (a - b).length() < 1e-12;
+        assert!(close(EnvMap::direction(0.5, 0.5), DVec3::Z)); // lat 0, lon 0
+        assert!(close(EnvMap::direction(0.25, 0.5), DVec3::X)); // lon +π/2
+        assert!(close(EnvMap::direction(0.75, 0.5), -DVec3::X));
+        assert!(close(EnvMap::direction(0.0, 0.5), -DVec3::Z)); // lon +π (left edge)
+        assert!(close(EnvMap::direction(0.3, 0.0), DVec3::Y)); // top row: +Y pole
+        for (u, v) in [(0.1, 0.2), (0.6, 0.7), (0.9, 0.45)] {
+            let (u2, v2) = EnvMap::uv(EnvMap::direction(u, v));
+            assert!((u - u2).abs() < 1e-12 && (v - v2).abs() < 1e-12);
+        }
+    }
+
+    /// ∫ pdf dω = 1 for the importance density (midpoint quadrature over θ, φ).
+    #[test]
+    fn envmap_pdf_integrates_to_one() {
+        let (w, h) = (16, 8);
+        let texels = (0..w * h)
+            .map(|i| [(i % 7) as f64, 0.5 * (i % 3) as f64, 0.1])
+            .collect();
+        let map = EnvMap::new(w, h, texels, DMat4::from_rotation_y(0.7));
+        let n = 400;
+        let mut s = 0.0;
+        for i in 0..n {
+            for j in 0..2 * n {
+                let theta = PI * (i as f64 + 0.5) / n as f64;
+                let phi = 2.0 * PI * (j as f64 + 0.5) / (2 * n) as f64;
+                let d = DVec3::new(
+                    theta.sin() * phi.cos(),
+                    theta.cos(),
+                    theta.sin() * phi.sin(),
+                );
+                s += map.pdf(d) * theta.sin() * (PI / n as f64) * (PI / n as f64);
+            }
+        }
+        assert!((s - 1.0).abs() < 1e-3, "∫pdf = {s}");
     }
 }

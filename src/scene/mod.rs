@@ -1,9 +1,10 @@
 //! USD stage → [`Scene`]: everything the renderer needs, in plain Rust types, with
 //! world-space transforms already evaluated and asset paths already resolved.
 //!
-//! Loading lives in [`stage`]; Nimbus' codeless schema (see `schemas/`) is registered
-//! by [`schema`].
+//! Loading lives in [`stage`] (UsdLux lights in [`lights`]); Nimbus' codeless schema
+//! (see `schemas/`) is registered by [`schema`].
 
+mod lights;
 pub mod schema;
 pub mod shading;
 pub mod stage;
@@ -23,6 +24,8 @@ pub struct Scene {
     pub camera: Camera,
     pub distant_lights: Vec<DistantLight>,
     pub dome_lights: Vec<DomeLight>,
+    pub sphere_lights: Vec<SphereLight>,
+    pub rect_lights: Vec<RectLight>,
     pub volumes: Vec<Volume>,
     pub settings: RenderSettings,
 }
@@ -44,8 +47,10 @@ pub struct Camera {
     pub clipping_range: (f64, f64),
 }
 
-/// UsdLuxDistantLight. Radiance arriving from the light is
-/// `intensity · 2^exposure · color` (spread over the cone of half-angle `angle/2`).
+/// UsdLuxDistantLight. Its emission scale is `intensity · 2^exposure · color`: radiance
+/// (nits) over a disk of angular diameter `angle`, or, with `normalize` (or a zero
+/// angle), the illuminance delivered to a surface facing the light (see
+/// `render::lights`).
 #[derive(Clone, Debug)]
 pub struct DistantLight {
     pub prim_path: String,
@@ -55,19 +60,61 @@ pub struct DistantLight {
     pub intensity: f64,
     pub exposure: f64,
     pub color: [f64; 3],
+    /// `inputs:normalize`.
+    pub normalize: bool,
+    /// `inputs:colorTemperature` when `inputs:enableColorTemperature` is on.
+    pub color_temperature: Option<f64>,
     /// Angular diameter in degrees (`inputs:angle`).
     pub angle_degrees: f64,
 }
 
-/// UsdLuxDomeLight with a constant colour (textures come later).
+/// UsdLuxDomeLight: a constant colour, or a lat-long texture times that colour.
 #[derive(Clone, Debug)]
 pub struct DomeLight {
     pub prim_path: String,
+    /// Light → world; the texture's +Y pole and +Z (longitude 0) are the light's local
+    /// axes.
+    pub light_to_world: DMat4,
     pub intensity: f64,
     pub exposure: f64,
     pub color: [f64; 3],
-    /// `inputs:texture:file`, if authored (not yet supported by the renderer: a warning).
+    pub color_temperature: Option<f64>,
+    /// `inputs:texture:file`, resolved against its layer, if authored.
     pub texture_file: Option<String>,
+    /// `inputs:texture:format` (`automatic`, `latlong`, …).
+    pub texture_format: String,
+}
+
+/// UsdLuxSphereLight: a sphere of `radius` at the light's origin, emitting outwards.
+#[derive(Clone, Debug)]
+pub struct SphereLight {
+    pub prim_path: String,
+    pub light_to_world: DMat4,
+    pub intensity: f64,
+    pub exposure: f64,
+    pub color: [f64; 3],
+    pub normalize: bool,
+    pub color_temperature: Option<f64>,
+    /// `inputs:radius` (local units).
+    pub radius: f64,
+    /// `treatAsPoint`.
+    pub treat_as_point: bool,
+}
+
+/// UsdLuxRectLight: a `width` × `height` rectangle in the light's local XY plane,
+/// emitting from one side along its local −Z.
+#[derive(Clone, Debug)]
+pub struct RectLight {
+    pub prim_path: String,
+    pub light_to_world: DMat4,
+    pub intensity: f64,
+    pub exposure: f64,
+    pub color: [f64; 3],
+    pub normalize: bool,
+    pub color_temperature: Option<f64>,
+    /// `inputs:width` (local X) and `inputs:height` (local Y).
+    pub width: f64,
+    pub height: f64,
 }
 
 /// A UsdVolVolume with Nimbus' volume parameters resolved (schema fallbacks applied).

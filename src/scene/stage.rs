@@ -7,6 +7,7 @@
 //! transforms become column-vector [`DMat4`]s, asset paths become resolved files
 //! (or the bytes of a .usdz member).
 
+use super::lights;
 use super::schema::{self, tokens};
 use super::shading;
 use super::*;
@@ -44,8 +45,6 @@ mod types {
     pub const VOLUME: &str = "Volume";
     pub const OPENVDB_ASSET: &str = "OpenVDBAsset";
     pub const CAMERA: &str = "Camera";
-    pub const DISTANT_LIGHT: &str = "DistantLight";
-    pub const DOME_LIGHT: &str = "DomeLight";
     pub const RENDER_SETTINGS: &str = "RenderSettings";
     pub const RENDER_PRODUCT: &str = "RenderProduct";
     pub const RENDER_VAR: &str = "RenderVar";
@@ -148,8 +147,7 @@ fn check_composition(stage: &Stage, path: &Path) -> Result<(), SceneError> {
 struct Inventory {
     volumes: Vec<Prim>,
     cameras: Vec<Prim>,
-    distant_lights: Vec<Prim>,
-    dome_lights: Vec<Prim>,
+    lights: Vec<Prim>,
     render_settings: Vec<Prim>,
 }
 
@@ -170,21 +168,16 @@ impl Loader<'_> {
         let camera_prim = self.choose_camera(opts, settings_prim.as_ref(), &inventory, path)?;
         let camera = self.camera(&camera_prim)?;
         let volumes = self.visible(&inventory.volumes)?;
-        let distant = self.visible(&inventory.distant_lights)?;
-        let dome = self.visible(&inventory.dome_lights)?;
+        let lights = self.lights(&inventory)?;
         Ok(Scene {
             stage_path: path.to_path_buf(),
             // USD's default time code is NaN (`UsdTimeCode::Default()`).
             time: opts.frame.unwrap_or(f64::NAN),
             camera,
-            distant_lights: distant
-                .iter()
-                .map(|p| self.distant_light(p))
-                .collect::<Result<_, _>>()?,
-            dome_lights: dome
-                .iter()
-                .map(|p| self.dome_light(p))
-                .collect::<Result<_, _>>()?,
+            distant_lights: lights.distant,
+            dome_lights: lights.dome,
+            sphere_lights: lights.sphere,
+            rect_lights: lights.rect,
             volumes: volumes
                 .iter()
                 .map(|p| self.volume(p))
@@ -207,10 +200,8 @@ impl Loader<'_> {
                 &mut inventory.volumes
             } else if prim.is_a(types::CAMERA)? {
                 &mut inventory.cameras
-            } else if prim.is_a(types::DISTANT_LIGHT)? {
-                &mut inventory.distant_lights
-            } else if prim.is_a(types::DOME_LIGHT)? {
-                &mut inventory.dome_lights
+            } else if lights::is_light(&prim)? {
+                &mut inventory.lights
             } else if prim.is_a(types::RENDER_SETTINGS)? {
                 &mut inventory.render_settings
             } else {
@@ -219,6 +210,16 @@ impl Loader<'_> {
             bucket.push(prim);
         }
         Ok(inventory)
+    }
+
+    /// The visible lights, read by [`lights`] with their world transforms.
+    fn lights(&mut self, inventory: &Inventory) -> Result<lights::StageLights, SceneError> {
+        let mut prims = Vec::new();
+        for prim in self.visible(&inventory.lights)? {
+            let to_world = self.world_transform(&prim)?;
+            prims.push((prim, to_world));
+        }
+        lights::read_lights(&prims, self.time)
     }
 
     /// Drops prims whose computed visibility (inherited down namespace) is
@@ -298,48 +299,6 @@ impl Loader<'_> {
                 .unwrap_or(0.0),
             vertical_aperture_offset: read_f64(prim, "verticalApertureOffset", t)?.unwrap_or(0.0),
             clipping_range: (clip[0], clip[1]),
-        })
-    }
-
-    // ----- lights -------------------------------------------------------------
-
-    fn distant_light(&mut self, prim: &Prim) -> Result<DistantLight, SceneError> {
-        let t = self.time;
-        let to_world = self.world_transform(prim)?;
-        // The light emits along its local −Z, so the direction towards it is +Z.
-        let z = to_world.transform_vector3(glam::DVec3::Z);
-        let direction = z
-            .try_normalize()
-            .ok_or_else(|| prim_error(prim.path(), "degenerate transform (zero Z axis)"))?;
-        Ok(DistantLight {
-            prim_path: prim.path().to_string(),
-            direction: direction.to_array(),
-            intensity: read_f64(prim, "inputs:intensity", t)?.unwrap_or(1.0),
-            exposure: read_f64(prim, "inputs:exposure", t)?.unwrap_or(0.0),
-            color: read_vec3(prim, "inputs:color", t)?.unwrap_or([1.0; 3]),
-            angle_degrees: read_f64(prim, "inputs:angle", t)?.unwrap_or(0.53),
-        })
-    }
-
-    fn dome_light(&mut self, prim: &Prim) -> Result<DomeLight, SceneError> {
-        let t = self.time;
-        let texture = prim.attribute("inputs:texture:file");
-        let texture_file = match authored(&texture, prim)? {
-            true => read_asset(prim, "inputs:texture:file", t)?
-                .filter(|a| !a.authored_path.is_empty())
-                .map(|a| {
-                    a.resolved_path()
-                        .unwrap_or(a.authored_path.as_str())
-                        .to_string()
-                }),
-            false => None,
-        };
-        Ok(DomeLight {
-            prim_path: prim.path().to_string(),
-            intensity: read_f64(prim, "inputs:intensity", t)?.unwrap_or(1.0),
-            exposure: read_f64(prim, "inputs:exposure", t)?.unwrap_or(0.0),
-            color: read_vec3(prim, "inputs:color", t)?.unwrap_or([1.0; 3]),
-            texture_file,
         })
     }
 
@@ -681,7 +640,7 @@ fn first_target(prim: &Prim, rel: &str) -> Result<Option<sdf::Path>, SceneError>
 // might have used (float, double, half), since stages in the wild are not
 // consistent about it. `None` means neither an opinion nor a schema fallback.
 
-fn authored(attr: &usd::Attribute, prim: &Prim) -> Result<bool, SceneError> {
+pub(super) fn authored(attr: &usd::Attribute, prim: &Prim) -> Result<bool, SceneError> {
     attr.has_authored_value()
         .map_err(|e| prim_error(prim.path(), format!("{}: {e}", attr.name())))
 }
@@ -696,14 +655,18 @@ pub(super) fn read_value(
         .map_err(|e| prim_error(prim.path(), format!("cannot read `{name}`: {e}")))
 }
 
-fn wrong_type(prim: &Prim, name: &str, expected: &str, value: &Value) -> SceneError {
+pub(super) fn wrong_type(prim: &Prim, name: &str, expected: &str, value: &Value) -> SceneError {
     prim_error(
         prim.path(),
         format!("`{name}` should be {expected}, found {value:?}"),
     )
 }
 
-fn read_f64(prim: &Prim, name: &str, time: Option<TimeCode>) -> Result<Option<f64>, SceneError> {
+pub(super) fn read_f64(
+    prim: &Prim,
+    name: &str,
+    time: Option<TimeCode>,
+) -> Result<Option<f64>, SceneError> {
     let Some(value) = read_value(prim, name, time)? else {
         return Ok(None);
     };
@@ -736,7 +699,7 @@ fn read_i64(prim: &Prim, name: &str, time: Option<TimeCode>) -> Result<Option<i6
     }
 }
 
-fn read_vec3(
+pub(super) fn read_vec3(
     prim: &Prim,
     name: &str,
     time: Option<TimeCode>,
@@ -797,7 +760,7 @@ pub(super) fn read_string(
     }
 }
 
-fn read_asset(
+pub(super) fn read_asset(
     prim: &Prim,
     name: &str,
     time: Option<TimeCode>,
