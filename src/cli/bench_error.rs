@@ -23,9 +23,10 @@ use std::sync::atomic::AtomicBool;
 pub struct ErrorArgs {
     /// The USD stage.
     pub stage: PathBuf,
-    /// Trackers to compare (comma-separated), each TRACKER[:SCHEME][:TRANSMITTANCE],
-    /// e.g. `spectral-decomposition:hist-avg` or `decomposition:residual-ratio`. Scheme
-    /// default hist-avg, shadow rays default ratio tracking.
+    /// Trackers to compare (comma-separated), each TRACKER[:SCHEME][:TRANSMITTANCE]
+    /// [:no-absorption-events][:reduced-termination], e.g.
+    /// `spectral-decomposition:hist-avg` or `decomposition:residual-ratio`. Scheme default
+    /// hist-avg, shadow rays default ratio tracking; the options as the `render` flags.
     #[arg(
         long,
         value_delimiter = ',',
@@ -89,8 +90,14 @@ fn names<T: ValueEnum>() -> String {
         .join(", ")
 }
 
-/// Parses TRACKER[:SCHEME][:TRANSMITTANCE]. The label names the scheme for trackers that
-/// use one, and the shadow-ray estimator when it is not ratio tracking.
+/// The scheme options as they are spelled in a tracker item (as the `render` flags).
+const NO_ABSORPTION_EVENTS: &str = "no-absorption-events";
+const REDUCED_TERMINATION: &str = "reduced-termination";
+
+/// Parses TRACKER[:SCHEME][:TRANSMITTANCE][:no-absorption-events][:reduced-termination]
+/// (parts after the tracker in any order). The label is canonical: the scheme for
+/// trackers that use one, then the shadow-ray estimator when it is not ratio tracking,
+/// then the options.
 pub fn parse_tracker(item: &str) -> Result<TrackerSpec> {
     let mut parts = item.trim().split(':');
     let name = parts.next().unwrap_or_default().trim();
@@ -123,9 +130,22 @@ pub fn parse_tracker(item: &str) -> Result<TrackerSpec> {
             if transmittance.replace(k).is_some() {
                 bail!("'{item}' names two shadow-ray estimators");
             }
+        } else if p == NO_ABSORPTION_EVENTS || p == REDUCED_TERMINATION {
+            if !tracker.uses_scheme() {
+                bail!("tracker '{name}' takes no scheme options, got '{item}'");
+            }
+            let o = &mut s.options;
+            let flag = if p == NO_ABSORPTION_EVENTS {
+                &mut o.no_absorption_events
+            } else {
+                &mut o.reduced_termination
+            };
+            if std::mem::replace(flag, true) {
+                bail!("'{item}' names '{p}' twice");
+            }
         } else {
             bail!(
-                "'{p}' in '{item}' is neither a scheme ({}) nor a shadow-ray estimator ({})",
+                "'{p}' in '{item}' is neither a scheme ({}), a shadow-ray estimator ({}) nor an option ({NO_ABSORPTION_EVENTS}, {REDUCED_TERMINATION})",
                 names::<SchemeKind>(),
                 names::<TransmittanceKind>()
             );
@@ -139,6 +159,12 @@ pub fn parse_tracker(item: &str) -> Result<TrackerSpec> {
     }
     if s.transmittance != TransmittanceKind::Ratio {
         label = format!("{label}:{}", s.transmittance.name());
+    }
+    if s.options.no_absorption_events {
+        label = format!("{label}:{NO_ABSORPTION_EVENTS}");
+    }
+    if s.options.reduced_termination {
+        label = format!("{label}:{REDUCED_TERMINATION}");
     }
     Ok(TrackerSpec { label, settings: s })
 }
@@ -503,6 +529,10 @@ mod tests {
         assert_eq!(t.label, "decomposition:residual-ratio");
         assert_eq!(t.settings.transmittance, TransmittanceKind::ResidualRatio);
         assert_eq!(parse_tracker(" delta ").unwrap().label, "delta");
+        let t = parse_tracker("spectral:no-absorption-events:max").unwrap();
+        assert_eq!(t.label, "spectral:max:no-absorption-events");
+        assert!(t.settings.options.no_absorption_events && !t.settings.options.reduced_termination);
+        assert!(parse_tracker("delta:reduced-termination").is_err());
         for bad in [
             "",
             "deltaa",

@@ -68,6 +68,9 @@ pub fn write_plots(prefix: &Path, title: &str, series: &[Series]) -> Result<[Pat
         let mut enc = png::Encoder::new(std::io::BufWriter::new(f), SIZE.0, SIZE.1);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
+        // A chart is mostly flat colour: the best compression keeps the file small.
+        enc.set_compression(png::Compression::Best);
+        enc.set_adaptive_filter(png::AdaptiveFilterType::Adaptive);
         let mut w = enc.write_header().map_err(|e| e.to_string())?;
         w.write_image_data(&rgb).map_err(|e| e.to_string())
     })?;
