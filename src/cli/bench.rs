@@ -28,6 +28,8 @@ use std::time::Instant;
 pub enum BenchCommand {
     /// Delta vs decomposition tracking at several majorant octree depths.
     Octree(OctreeArgs),
+    /// Error against time: relMSE of each tracker at each time budget vs a reference.
+    Error(super::bench_error::ErrorArgs),
 }
 
 #[derive(Args, Debug)]
@@ -53,6 +55,7 @@ pub const CSV_HEADER: &str = "depth,tracker,cells_visited,density_lookups,lookup
 pub fn run(cmd: BenchCommand) -> Result<()> {
     match cmd {
         BenchCommand::Octree(a) => octree(a),
+        BenchCommand::Error(a) => super::bench_error::run(a),
     }
 }
 

@@ -92,7 +92,11 @@ pub fn channel_error(name: &str, a: &[f32], b: &[f32]) -> ChannelError {
 
 /// Finds channel `name` among an image's channels: the exact name, else a unique
 /// `<layer>.name` (EXR layers, e.g. `rgba.R` or `beauty.R`).
-fn find<'a>(path: &Path, chans: &'a [(String, Vec<f32>)], name: &str) -> Result<&'a [f32]> {
+pub(crate) fn find<'a>(
+    path: &Path,
+    chans: &'a [(String, Vec<f32>)],
+    name: &str,
+) -> Result<&'a [f32]> {
     if let Some(c) = chans.iter().find(|c| c.0 == name) {
         return Ok(&c.1);
     }

@@ -1,7 +1,12 @@
 //! Command-line subcommands: `render`, `info` and `bench`.
 
 mod bench;
+// `bench error` lives apart from bench.rs (error vs time, its reference and plot) to
+// keep merges with parallel branches conflict-free.
+mod bench_error;
+mod error_plot;
 mod info;
+mod reference;
 mod render;
 // `compare` is declared apart from the other modules to keep merges with parallel
 // branches conflict-free.
@@ -29,7 +34,8 @@ pub enum Command {
     Compare(compare::CompareArgs),
     /// Describe a stage: volumes, fields, grids, camera, lights, render settings.
     Info(info::InfoArgs),
-    /// Benchmarks (`bench octree`: trackers at several majorant octree depths).
+    /// Benchmarks (`bench octree`: trackers at several majorant octree depths; `bench
+    /// error`: error against time per tracker).
     #[command(subcommand)]
     Bench(bench::BenchCommand),
 }
