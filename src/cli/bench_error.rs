@@ -274,7 +274,7 @@ pub fn run(args: ErrorArgs) -> Result<()> {
     };
     let spec = majorant_spec(args.octree_depth, settings, args.majorant_cell)?;
     let medium = medium_for_scene_with(&scene, spec)?;
-    let lights = Lights::from_scene(&scene);
+    let lights = Lights::from_scene(&scene)?;
     let camera = CameraRays::new(&scene.camera, width, height);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(args.sampling.threads.unwrap_or(0))

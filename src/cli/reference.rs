@@ -178,8 +178,12 @@ pub fn cached_or_render(
         &ExrMetadata {
             stage: scene.stage_path.display().to_string(),
             tracker: reference_job.tracking.tracker.name().into(),
+            scheme: reference_job.tracking.scheme.name().into(),
+            transmittance: reference_job.tracking.transmittance.name().into(),
             spp: p.spp,
             render_seconds: p.seconds,
+            time: scene.time,
+            product: None,
         },
     )?;
     Ok((Rgb::from_film(&film), path))
