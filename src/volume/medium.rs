@@ -32,6 +32,9 @@ pub struct Counters {
     /// Largest channel throughput seen along the path (per sample a maximum; summed
     /// over samples in a pixel, so the pixel's AOV is its mean).
     pub max_throughput: f64,
+    /// Largest channel throughput of any path (a maximum over samples and pixels too):
+    /// one path whose throughput explodes shows here even when the mean hides it.
+    pub peak_throughput: f64,
 }
 
 impl Counters {
@@ -44,6 +47,7 @@ impl Counters {
         self.residual_lookups += o.residual_lookups;
         self.control_collisions += o.control_collisions;
         self.max_throughput += o.max_throughput;
+        self.peak_throughput = self.peak_throughput.max(o.peak_throughput);
     }
 
     /// Records a path throughput for the `max_throughput` statistic.
@@ -52,6 +56,7 @@ impl Counters {
         let m = w[0].abs().max(w[1].abs()).max(w[2].abs()) as f64;
         if m > self.max_throughput {
             self.max_throughput = m;
+            self.peak_throughput = self.peak_throughput.max(m);
         }
     }
 }
@@ -197,11 +202,22 @@ impl Medium {
             )));
         }
         let majorants = MajorantTree::build(&density, spec);
+        // An infinite majorant would make every free-path step 0: tracking would never
+        // advance along the ray. Finite voxels can still overflow once scaled.
+        let sigma = Sigma::new(sigma_a, sigma_s);
+        let mu_max = majorants.max_density() as f64 * sigma.t_max as f64;
+        if !(mu_max < f32::MAX as f64) {
+            return Err(invalid(format!(
+                "the largest density ({}) times the extinction cross-section ({}) overflows 32-bit floats; rescale the grid or nimbus:densityScale",
+                majorants.max_density(),
+                sigma.t_max
+            )));
+        }
         Ok(Medium {
             prim_path: prim_path.to_string(),
             density,
             world_to_index: index_to_world.inverse(),
-            sigma: Sigma::new(sigma_a, sigma_s),
+            sigma,
             g: anisotropy as f32,
             majorants,
         })
