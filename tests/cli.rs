@@ -945,3 +945,69 @@ fn unreadable_stage_and_vdb_are_clear_errors() {
     );
     assert!(!out.exists());
 }
+
+/// NaN, ±Inf and negative voxels in a VDB: `nimbus info` and `--stats` count them, and
+/// the render is finite with no sample dropped.
+#[test]
+fn bad_voxels_are_counted_by_info_and_stats() {
+    use nimbus::volume::procedural::grid_from_fn;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut raw = grid_from_fn(
+        "density",
+        [8, 8, 8],
+        glam::DVec3::splat(-0.5),
+        0.125,
+        |_| 1.0,
+    );
+    for (i, v) in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -2.0]
+        .into_iter()
+        .enumerate()
+    {
+        raw.leaves[0].values[i * 100] = v;
+    }
+    nimbus::volume::vdb::write_float_grid(&d.join("bad.vdb"), &raw).unwrap();
+    let stage = stage_with_field(d, "bad.vdb", "density");
+    let o = nimbus(&["info", stage.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("sanitized voxels 4"), "{out}");
+    let exr = d.join("out.exr");
+    let stats = d.join("stats.json");
+    let mut args = render_args(stage.to_str().unwrap(), exr.to_str().unwrap());
+    args.extend([
+        "--stats",
+        stats.to_str().unwrap(),
+        "--aovs",
+        "max_throughput,variance,null_collisions",
+    ]);
+    let o = nimbus(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j = stats_json(&stats);
+    assert_eq!(j["sanitized_voxels"], 4);
+    assert_eq!(j["nonfinite_samples"], 0);
+    for (name, values) in channels(&exr) {
+        assert!(values.iter().all(|v| v.is_finite()), "channel {name}");
+    }
+}
+
+/// A volume whose transform has scale 0 is refused naming the prim.
+#[test]
+fn zero_scale_volume_is_a_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::copy(root().join("scenes/cloud/cloud.vdb"), d.join("cloud.vdb")).unwrap();
+    let text = std::fs::read_to_string(root().join("scenes/cloud/cloud.usda"))
+        .unwrap()
+        .replacen(
+            "uniform token[] xformOpOrder = [\"xformOp:translate\", \"xformOp:rotateXYZ\"]",
+            "float3 xformOp:scale = (0, 0, 0)\n        uniform token[] xformOpOrder = [\"xformOp:translate\", \"xformOp:rotateXYZ\", \"xformOp:scale\"]",
+            1,
+        );
+    let stage = d.join("flat.usda");
+    std::fs::write(&stage, text).unwrap();
+    let out = d.join("out.exr");
+    let o = nimbus(&render_args(stage.to_str().unwrap(), out.to_str().unwrap()));
+    assert_clean_error(&o, "singular");
+    assert!(!out.exists());
+}
