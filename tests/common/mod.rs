@@ -80,8 +80,8 @@ pub fn label(s: &TrackerSettings) -> String {
     )
 }
 
-/// A pinhole camera at `eye` looking down −Z (rotated by `look`), with a square aperture
-/// of `aperture`/`focal` opening.
+/// A pinhole camera placed by `camera_to_world` (looking down its −Z), with a square
+/// aperture `aperture` over focal length `focal`.
 pub fn camera(camera_to_world: DMat4, focal: f64, aperture: f64, w: u32, h: u32) -> CameraRays {
     let cam = Camera {
         prim_path: "/Camera".into(),
