@@ -429,6 +429,7 @@ fn render_frame(
             residual_lookups: totals.residual_lookups,
             control_collisions: totals.control_collisions,
             max_throughput_mean: totals.max_throughput / samples,
+            max_throughput_peak: totals.peak_throughput,
             density_lookups: totals.density_lookups,
             real_collisions: totals.real_collisions,
             null_collisions: totals.null_collisions,

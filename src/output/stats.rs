@@ -29,6 +29,8 @@ pub struct RenderStats {
     pub control_collisions: u64,
     /// Mean over samples of the largest channel throughput along the path.
     pub max_throughput_mean: f64,
+    /// Largest channel throughput of any path (colour explosion shows here).
+    pub max_throughput_peak: f64,
     pub density_lookups: u64,
     pub real_collisions: u64,
     pub null_collisions: u64,

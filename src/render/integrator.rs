@@ -106,6 +106,18 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         let mut origin = ray.origin;
         let mut dir = ray.dir;
         let (mut tmin, mut tmax) = (ray.tmin as f32, ray.tmax as f32);
+        // Start the camera ray just before it enters the majorant region: trackers add
+        // free-path steps to `t` in f32, and far from the origin (f32 spacing 6e-5 at
+        // t = 1e3) the steps of a dense medium would round away and stall the walk.
+        let entry = medium.index_ray(origin, dir);
+        if let Some(seg) = medium.majorants.walk(entry.o, entry.d, tmin, tmax).next() {
+            let shift = seg.t0 as f64 * (1.0 - 1e-6);
+            if shift > 0.0 {
+                origin += dir * shift;
+                tmin = (tmin as f64 - shift).max(0.0) as f32;
+                tmax = (tmax as f64 - shift) as f32;
+            }
+        }
         // Naive delta: track one channel's grey medium, and carry 3× in that channel only.
         let (sigma, mut throughput) = if self.single_channel {
             let ch = ((rng.gen::<u32>() as u64 * 3) >> 32) as usize;

@@ -5,10 +5,12 @@
 //! (the paper's "avg" probabilities) and the throughput takes the collision weights
 //! w★(λ) = μ★(λ)/(μ̄·P★), so the estimate stays unbiased.
 //!
-//! Delta tracking needs μ̄ ≥ μt. Where the density exceeds the majorant the null
-//! probability would be negative: the collision is counted in `majorant_violations`
-//! and treated as a null collision with unit weight (biased, and reported, never
-//! silent). `weighted-delta` is the estimator that stays unbiased there.
+//! Delta tracking needs μ̄ ≥ μt. A collision where any channel's extinction exceeds
+//! the majorant is counted in `majorant_violations`. While the channel average stays
+//! below μ̄ the signed null weights keep the estimate unbiased; where the null
+//! probability itself would be negative the collision is treated as a null collision
+//! with unit weight (biased, and reported, never silent). `weighted-delta` is the
+//! estimator that stays unbiased there.
 
 use super::{walk_collisions, FreePath, FreePathSampler, Query, Spectrum};
 use crate::volume::medium::Counters;
@@ -36,8 +38,10 @@ impl FreePathSampler for Delta {
             let pa = d * avg_a / mu_bar;
             let ps = d * avg_s / mu_bar;
             let pn = 1.0 - pa - ps;
-            // A tolerance for rounding where the density equals the majorant.
-            if pn < -1e-5 {
+            // A violation is any channel's extinction above the majorant (its null
+            // weight turns negative), not only the average's; with a tolerance for
+            // rounding where the density equals the majorant.
+            if d * sg.t_max > mu_bar * (1.0 + 1e-5) {
                 c.majorant_violations += 1;
             }
             let u: f32 = rng.gen();

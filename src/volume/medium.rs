@@ -44,6 +44,9 @@ pub struct Counters {
     /// Ticks inside free-path and transmittance queries, lookups and steps included.
     pub tracker_ticks: u64,
     pub tracker_calls: u64,
+    /// Largest channel throughput of any path (a maximum over samples and pixels too):
+    /// one path whose throughput explodes shows here even when the mean hides it.
+    pub peak_throughput: f64,
 }
 
 impl Counters {
@@ -62,6 +65,7 @@ impl Counters {
         self.walk_steps += o.walk_steps;
         self.tracker_ticks += o.tracker_ticks;
         self.tracker_calls += o.tracker_calls;
+        self.peak_throughput = self.peak_throughput.max(o.peak_throughput);
     }
 
     /// The next segment of a majorant walk, counted as a visited cell (and timed as
@@ -106,6 +110,7 @@ impl Counters {
         let m = w[0].abs().max(w[1].abs()).max(w[2].abs()) as f64;
         if m > self.max_throughput {
             self.max_throughput = m;
+            self.peak_throughput = self.peak_throughput.max(m);
         }
     }
 }
@@ -251,11 +256,22 @@ impl Medium {
             )));
         }
         let majorants = MajorantTree::build(&density, spec);
+        // An infinite majorant would make every free-path step 0: tracking would never
+        // advance along the ray. Finite voxels can still overflow once scaled.
+        let sigma = Sigma::new(sigma_a, sigma_s);
+        let mu_max = majorants.max_density() as f64 * sigma.t_max as f64;
+        if !(mu_max < f32::MAX as f64) {
+            return Err(invalid(format!(
+                "the largest density ({}) times the extinction cross-section ({}) overflows 32-bit floats; rescale the grid or nimbus:densityScale",
+                majorants.max_density(),
+                sigma.t_max
+            )));
+        }
         Ok(Medium {
             prim_path: prim_path.to_string(),
             density,
             world_to_index: index_to_world.inverse(),
-            sigma: Sigma::new(sigma_a, sigma_s),
+            sigma,
             g: anisotropy as f32,
             majorants,
         })

@@ -1,0 +1,242 @@
+//! Shared pieces of the stress tests: statistics helpers (the same definitions as in
+//! tests/tracking.rs), a 1-D analytic medium and a renderer over every tracker setting.
+#![allow(dead_code)]
+
+use glam::{DMat4, DVec3};
+use nimbus::render::camera::CameraRays;
+use nimbus::render::film::{Aov, Film};
+use nimbus::render::integrator::Integrator;
+use nimbus::render::lights::Lights;
+use nimbus::render::sampler::pixel_sampler;
+use nimbus::scene::Camera;
+use nimbus::track::{
+    self, Dispatch, FreePathSampler, SchemeKind, TrackerKind, TrackerSettings,
+    TransmittanceEstimator, TransmittanceKind,
+};
+use nimbus::volume::medium::{Counters, Medium};
+
+/// Mean and standard error of samples.
+pub fn mean_se(v: &[f64]) -> (f64, f64) {
+    let n = v.len() as f64;
+    let m = v.iter().sum::<f64>() / n;
+    let var = v.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / (n - 1.0);
+    (m, (var / n).sqrt())
+}
+
+/// Optical depth of the piecewise-linear interpolant of `f` sampled at integer x, from
+/// x = a to x = b (exact trapezoid integration per voxel interval, clipped): what
+/// trilinear reconstruction gives along a ray through voxel centres.
+pub fn optical_depth(f: &dyn Fn(f64) -> f64, a: f64, b: f64) -> f64 {
+    let mut tau = 0.0;
+    let mut x0 = a;
+    while x0 < b {
+        let i = x0.floor();
+        let x1 = (i + 1.0).min(b);
+        let lerp = |x: f64| f(i) + (f(i + 1.0) - f(i)) * (x - i);
+        tau += 0.5 * (lerp(x0) + lerp(x1)) * (x1 - x0);
+        x0 = x1;
+    }
+    tau
+}
+
+/// Every tracker setting a render can select: each tracker, with each scheme where the
+/// scheme matters, with both shadow-ray estimators.
+pub fn all_settings(majorant_scale: f32) -> Vec<TrackerSettings> {
+    use clap::ValueEnum;
+    let mut out = Vec::new();
+    for &tracker in TrackerKind::value_variants() {
+        let schemes: &[SchemeKind] = if tracker.uses_scheme() {
+            SchemeKind::value_variants()
+        } else {
+            &[SchemeKind::HistAvg]
+        };
+        for &scheme in schemes {
+            for &transmittance in TransmittanceKind::value_variants() {
+                out.push(TrackerSettings {
+                    tracker,
+                    scheme,
+                    transmittance,
+                    majorant_scale,
+                    ..TrackerSettings::default()
+                });
+            }
+        }
+    }
+    out
+}
+
+pub fn label(s: &TrackerSettings) -> String {
+    let scheme = if s.tracker.uses_scheme() {
+        format!("/{}", s.scheme.name())
+    } else {
+        String::new()
+    };
+    format!(
+        "{}{}+{} (majorant ×{})",
+        s.tracker.name(),
+        scheme,
+        s.transmittance.name(),
+        s.majorant_scale
+    )
+}
+
+/// A pinhole camera placed by `camera_to_world` (looking down its −Z), with a square
+/// aperture `aperture` over focal length `focal`.
+pub fn camera(camera_to_world: DMat4, focal: f64, aperture: f64, w: u32, h: u32) -> CameraRays {
+    let cam = Camera {
+        prim_path: "/Camera".into(),
+        camera_to_world,
+        focal_length: focal,
+        horizontal_aperture: aperture,
+        vertical_aperture: aperture,
+        horizontal_aperture_offset: 0.0,
+        vertical_aperture_offset: 0.0,
+        clipping_range: (1e-6, 1e12),
+    };
+    CameraRays::new(&cam, w, h)
+}
+
+/// A camera on +Z at distance `dist` looking at the origin.
+pub fn camera_on_z(dist: f64, focal: f64, aperture: f64, w: u32, h: u32) -> CameraRays {
+    camera(
+        DMat4::from_translation(DVec3::new(0.0, 0.0, dist)),
+        focal,
+        aperture,
+        w,
+        h,
+    )
+}
+
+/// What one render of a test scene needs.
+pub struct Setup<'a> {
+    pub medium: &'a Medium,
+    pub lights: &'a Lights,
+    pub camera: &'a CameraRays,
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub max_depth: u32,
+    pub seed: u64,
+}
+
+enum Mode {
+    Film,
+    /// Paths through one image position, each with its own counters.
+    Samples {
+        fx: f64,
+        fy: f64,
+        n: usize,
+    },
+}
+
+pub enum Output {
+    Film(Film),
+    Samples(Vec<([f64; 3], Counters)>),
+}
+
+struct Run<'a, 'b> {
+    setup: &'b Setup<'a>,
+    settings: TrackerSettings,
+    mode: Mode,
+}
+
+impl Dispatch<Output> for Run<'_, '_> {
+    fn run<F: FreePathSampler, E: TransmittanceEstimator>(
+        self,
+        free_path: F,
+        transmittance: E,
+    ) -> Output {
+        let s = self.setup;
+        let it = Integrator {
+            free_path,
+            transmittance,
+            single_channel: self.settings.tracker == TrackerKind::NaiveDelta,
+            majorant_scale: self.settings.majorant_scale,
+            profile: false,
+            medium: s.medium,
+            lights: s.lights,
+            camera: s.camera,
+            width: s.width,
+            height: s.height,
+            spp: s.spp,
+            max_depth: s.max_depth,
+            seed: s.seed,
+        };
+        match self.mode {
+            Mode::Film => Output::Film(it.render(&|| {})),
+            Mode::Samples { fx, fy, n } => {
+                let mut rng = pixel_sampler(s.seed, 0);
+                Output::Samples(
+                    (0..n)
+                        .map(|_| {
+                            let mut c = Counters::default();
+                            let r = it.sample(fx, fy, &mut rng, &mut c).rgb;
+                            (r, c)
+                        })
+                        .collect(),
+                )
+            }
+        }
+    }
+}
+
+pub fn render(setup: &Setup, settings: &TrackerSettings) -> Film {
+    match track::dispatch(
+        settings,
+        Run {
+            setup,
+            settings: *settings,
+            mode: Mode::Film,
+        },
+    ) {
+        Output::Film(f) => f,
+        Output::Samples(_) => unreachable!(),
+    }
+}
+
+/// `n` independent paths through image position (`fx`, `fy`), with per-path counters.
+pub fn paths(
+    setup: &Setup,
+    settings: &TrackerSettings,
+    fx: f64,
+    fy: f64,
+    n: usize,
+) -> Vec<([f64; 3], Counters)> {
+    match track::dispatch(
+        settings,
+        Run {
+            setup,
+            settings: *settings,
+            mode: Mode::Samples { fx, fy, n },
+        },
+    ) {
+        Output::Samples(s) => s,
+        Output::Film(_) => unreachable!(),
+    }
+}
+
+/// Asserts that no pixel of any AOV is NaN or infinite and that no sample was dropped
+/// as non-finite (the film drops such samples; here none may occur at all).
+pub fn assert_film_finite(what: &str, film: &Film) {
+    for aov in Aov::ALL {
+        let ch = film.channel(aov);
+        if let Some(i) = ch.iter().position(|v| !v.is_finite()) {
+            panic!("{what}: AOV {} pixel {i} is {}", aov.channel_name(), ch[i]);
+        }
+    }
+    let (_, samples, nonfinite) = film.totals();
+    assert_eq!(
+        nonfinite, 0,
+        "{what}: {nonfinite} of {samples} samples were NaN or infinite"
+    );
+}
+
+/// Multiplier of the stress suite's sample counts (`NIMBUS_STRESS=N`, default 1): the
+/// heavy run is `NIMBUS_STRESS=20 cargo t --test stress`.
+pub fn stress_factor() -> usize {
+    std::env::var("NIMBUS_STRESS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .filter(|&n: &usize| n >= 1)
+        .unwrap_or(1)
+}
