@@ -1388,3 +1388,22 @@ fn zero_scale_volume_is_a_clear_error() {
     assert_clean_error(&o, "singular");
     assert!(!out.exists());
 }
+
+/// Results are ordinary files: a new EXR is rw-r--r-- (not the temporary file's private
+/// 0600), and a re-render keeps the mode the user gave the old file.
+#[cfg(unix)]
+#[test]
+fn outputs_get_ordinary_permissions() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("new.exr");
+    let stage = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cloud/cloud.usda");
+    let o = nimbus(&render_args(stage, out.to_str().unwrap()));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+    assert_eq!(mode(&out), 0o644);
+    std::fs::set_permissions(&out, std::fs::Permissions::from_mode(0o640)).unwrap();
+    let o = nimbus(&render_args(stage, out.to_str().unwrap()));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(mode(&out), 0o640);
+}

@@ -25,21 +25,40 @@ pub fn write_atomically(
         message,
     };
     let dir = target_dir(path).map_err(err)?;
-    let mut tmp = tempfile::Builder::new()
-        .prefix(".nimbus-")
-        .suffix(".tmp")
-        .tempfile_in(dir)
-        .map_err(|e| {
-            err(format!(
-                "cannot create a temporary file in {}: {e}",
-                dir.display()
-            ))
-        })?;
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".nimbus-").suffix(".tmp");
+    if let Some(mode) = output_permissions(path) {
+        builder.permissions(mode);
+    }
+    let mut tmp = builder.tempfile_in(dir).map_err(|e| {
+        err(format!(
+            "cannot create a temporary file in {}: {e}",
+            dir.display()
+        ))
+    })?;
     fill(tmp.as_file_mut()).map_err(err)?;
     tmp.as_file_mut().flush().map_err(|e| err(e.to_string()))?;
     tmp.as_file().sync_all().map_err(|e| err(e.to_string()))?;
     tmp.persist(path).map_err(|e| err(e.error.to_string()))?;
     Ok(())
+}
+
+/// The mode of a result file: an existing file's own (replacing it keeps its mode),
+/// else (Unix) rw-r--r-- like a file a user creates — not the temporary file's private
+/// 0600. `None`: the temporary file's default.
+fn output_permissions(path: &Path) -> Option<std::fs::Permissions> {
+    if let Ok(meta) = std::fs::metadata(path) {
+        return Some(meta.permissions());
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        Some(std::fs::Permissions::from_mode(0o644))
+    }
+    #[cfg(not(unix))]
+    {
+        None
+    }
 }
 
 /// Checks up front that `path` can be written (its folder exists and accepts a file),
