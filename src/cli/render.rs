@@ -149,6 +149,15 @@ pub fn parse_resolution(s: &str) -> Result<(u32, u32), String> {
 /// rendering so an absurd resolution is refused with a message instead of an abort.
 const MAX_FILM_BYTES: u64 = 8 << 30;
 
+/// Memory the system can give a new allocation without swapping (`MemAvailable` of
+/// /proc/meminfo, Linux); `None` where that is not known.
+fn available_memory_bytes() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
 /// An inclusive range of whole frames (`--frames A-B`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct FrameRange {
@@ -322,6 +331,15 @@ fn render_frame(
             film_bytes as f64 / (1u64 << 30) as f64,
             MAX_FILM_BYTES >> 30
         );
+    }
+    if let Some(available) = available_memory_bytes() {
+        if film_bytes > available {
+            bail!(
+                "resolution {width}x{height} needs {:.2} GiB of film memory, more than the {:.2} GiB this machine has available",
+                film_bytes as f64 / (1u64 << 30) as f64,
+                available as f64 / (1u64 << 30) as f64
+            );
+        }
     }
     let spec = majorant_spec(args.octree_depth, settings, args.majorant_cell)?;
     let mut medium = medium_for_scene_with(&scene, spec)?;
