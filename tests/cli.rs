@@ -1067,7 +1067,8 @@ fn render_products_each_get_their_vars() {
         Some("/Render/Counters")
     );
     for (key, want) in [
-        ("nimbus:tracker", "delta"),
+        // `auto` (the default) picks spectral decomposition: the medium is chromatic.
+        ("nimbus:tracker", "spectral-decomposition"),
         ("nimbus:scheme", "hist-avg"),
         ("nimbus:transmittance", "ratio"),
         ("nimbus:version", env!("CARGO_PKG_VERSION")),

@@ -170,5 +170,50 @@ pub fn run(args: InfoArgs) -> Result<()> {
             }
         }
     }
+    print_analysis(&scene, args.octree_depth.clamp(1, MAX_DEPTH));
     Ok(())
+}
+
+/// The scene analysis and what `--tracker auto` would pick (at the stage's resolution).
+fn print_analysis(scene: &crate::scene::Scene, depth: u32) {
+    use crate::render::analysis::Analysis;
+    use crate::render::camera::CameraRays;
+    use crate::render::job::medium_for_scene_with;
+    use crate::render::lights::Lights;
+    use crate::track::TrackerSettings;
+    let size = scene.settings.resolution;
+    let analysed = medium_for_scene_with(scene, MajorantSpec::Octree { depth }).and_then(|m| {
+        let lights = Lights::from_scene(scene)?;
+        let camera = CameraRays::new(&scene.camera, size.0.max(1), size.1.max(1));
+        Ok(Analysis::of(&m, &lights, &camera, size))
+    });
+    match analysed {
+        Ok(a) => {
+            println!(
+                "analysis: grey {}, emissive {}, constant albedo {}, homogeneous {}, empty leaves {:.1}% (depth {depth}), isotropic {}, max albedo {:.3}, lights emitting {} of {}, volume visible {}",
+                a.grey,
+                a.emissive,
+                a.constant_albedo,
+                a.homogeneous,
+                100.0 * a.empty_cell_fraction,
+                a.isotropic,
+                a.max_albedo,
+                a.lights_emitting,
+                a.lights_total,
+                a.volume_visible
+            );
+            let (t, reason) = a.choose(TrackerSettings::default(), false);
+            println!(
+                "tracker auto: {} scheme {}{}: {reason}",
+                t.tracker.name(),
+                t.scheme.name(),
+                if t.options.no_absorption_events {
+                    ", no absorption events"
+                } else {
+                    ""
+                }
+            );
+        }
+        Err(e) => println!("analysis: unavailable ({e:#})"),
+    }
 }

@@ -3,6 +3,7 @@
 use crate::output::exr::{write_exr, ExrMetadata};
 use crate::output::stats::RenderStats;
 use crate::output::{check_writable, write_atomically};
+use crate::render::analysis::Analysis;
 use crate::render::camera::CameraRays;
 use crate::render::film::Aov;
 use crate::render::job::{medium_for_scene_with, RenderJob};
@@ -64,9 +65,10 @@ pub struct RenderArgs {
     /// save lookups (bounds stay valid, only cost changes); 0 keeps every level.
     #[arg(long, default_value_t = 1.0, value_name = "LOOKUPS")]
     pub octree_prune: f32,
-    /// Free-path sampler (overrides nimbus:tracker; default delta).
-    #[arg(long, value_enum)]
-    pub tracker: Option<TrackerKind>,
+    /// Free-path sampler (overrides nimbus:tracker). `auto` (the default) picks the
+    /// tracker, scheme and options from the scene analysis; the stats say what and why.
+    #[arg(long, value_parser = tracker_values())]
+    pub tracker: Option<String>,
     /// Event probabilities for `spectral` and `spectral-decomposition` (overrides
     /// nimbus:scheme; default hist-avg).
     #[arg(long, value_enum)]
@@ -282,7 +284,8 @@ fn render_frame(
     };
     let scene = load_stage(&args.stage, &opts)?;
     let settings = &scene.settings;
-    let tracking = tracker_settings(args, settings)?;
+    let request = tracker_settings(args, settings)?;
+    let mut tracking = request.settings;
     let outputs: Vec<ProductOutput> =
         product_outputs(args.output.as_deref(), settings, &extra_aovs)
             .with_context(|| format!("{}", args.stage.display()))?
@@ -343,9 +346,6 @@ fn render_frame(
     }
     let spec = majorant_spec(args.octree_depth, settings, args.majorant_cell)?;
     let mut medium = medium_for_scene_with(&scene, spec)?;
-    if matches!(spec, MajorantSpec::Octree { .. }) {
-        medium.prune_majorants(args.octree_prune, tracking.pays_residual());
-    }
     let load_seconds = wall.elapsed().as_secs_f64();
 
     let lights = Lights::from_scene(&scene)?;
@@ -371,6 +371,33 @@ fn render_frame(
         );
     }
     let camera = CameraRays::new(c, width, height);
+    let analysis = Analysis::of(&medium, &lights, &camera, (width, height));
+    let auto_reason = request.auto.then(|| {
+        let (t, reason) = analysis.choose(tracking, request.scheme_given);
+        tracking = t;
+        reason
+    });
+    if let Some(reason) = &auto_reason {
+        eprintln!(
+            "nimbus: tracker auto: {} (scheme {}{}): {reason}",
+            tracking.tracker.name(),
+            tracking.scheme.name(),
+            if tracking.options.no_absorption_events {
+                ", no absorption events"
+            } else {
+                ""
+            }
+        );
+    }
+    if !analysis.volume_visible {
+        eprintln!(
+            "nimbus: warning: no camera ray of a 16x16 probe grid reaches the volume {}: only light it scatters or shadows could show",
+            medium.prim_path
+        );
+    }
+    if matches!(spec, MajorantSpec::Octree { .. }) {
+        medium.prune_majorants(args.octree_prune, tracking.pays_residual());
+    }
     let job = RenderJob {
         medium: &medium,
         lights: &lights,
@@ -469,6 +496,10 @@ fn render_frame(
             other_tracker_seconds: times.map(|t| t.other_tracker_seconds),
             timer_empty_region_ns: calibration
                 .map(|c| c.empty_region_ticks / c.ticks_per_second * 1e9),
+            no_absorption_events: tracking.options.no_absorption_events,
+            reduced_termination: tracking.options.reduced_termination,
+            tracker_auto_reason: auto_reason.clone(),
+            analysis: analysis.clone(),
         };
         let json = serde_json::to_string_pretty(&stats)?;
         write_atomically(path, |f| {
@@ -558,7 +589,26 @@ pub fn majorant_spec(
 
 /// Tracker settings: flags override the stage's render settings, which override the
 /// defaults.
-fn tracker_settings(args: &RenderArgs, stage: &RenderSettings) -> Result<TrackerSettings> {
+/// `auto` and every tracker name.
+fn tracker_values() -> clap::builder::PossibleValuesParser {
+    let mut v = vec![clap::builder::PossibleValue::new("auto")];
+    v.extend(
+        TrackerKind::value_variants()
+            .iter()
+            .filter_map(|k| k.to_possible_value()),
+    );
+    clap::builder::PossibleValuesParser::new(v)
+}
+
+/// The tracker settings the flags and the stage ask for: `auto` (no tracker named, or
+/// `auto`) leaves the tracker to [`Analysis::choose`].
+struct TrackerRequest {
+    settings: TrackerSettings,
+    auto: bool,
+    scheme_given: bool,
+}
+
+fn tracker_settings(args: &RenderArgs, stage: &RenderSettings) -> Result<TrackerRequest> {
     fn from_stage<T: ValueEnum>(
         stage: &RenderSettings,
         attr: &str,
@@ -579,10 +629,19 @@ fn tracker_settings(args: &RenderArgs, stage: &RenderSettings) -> Result<Tracker
         })
     }
     let d = TrackerSettings::default();
-    let tracker = args
-        .tracker
-        .or(from_stage(stage, "nimbus:tracker", &stage.tracker)?)
-        .unwrap_or(d.tracker);
+    let named = match &args.tracker {
+        Some(t) => Some(t.clone()),
+        None => stage.tracker.clone(),
+    };
+    let auto = named.as_deref().is_none_or(|t| t == "auto");
+    let tracker = if auto {
+        d.tracker
+    } else if let Some(t) = &args.tracker {
+        TrackerKind::from_str(t, false).map_err(|e| anyhow::anyhow!("--tracker {t}: {e}"))?
+    } else {
+        from_stage(stage, "nimbus:tracker", &stage.tracker)?.unwrap_or(d.tracker)
+    };
+    let scheme_given = args.scheme.is_some() || stage.scheme.is_some();
     let scheme = args
         .scheme
         .or(from_stage(stage, "nimbus:scheme", &stage.scheme)?)
@@ -608,7 +667,7 @@ fn tracker_settings(args: &RenderArgs, stage: &RenderSettings) -> Result<Tracker
             args.majorant_scale
         );
     }
-    Ok(TrackerSettings {
+    let settings = TrackerSettings {
         tracker,
         scheme,
         transmittance,
@@ -619,6 +678,11 @@ fn tracker_settings(args: &RenderArgs, stage: &RenderSettings) -> Result<Tracker
         },
         majorant_scale: args.majorant_scale,
         profile: args.profile,
+    };
+    Ok(TrackerRequest {
+        settings,
+        auto,
+        scheme_given,
     })
 }
 

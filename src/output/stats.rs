@@ -54,4 +54,11 @@ pub struct RenderStats {
     pub traversal_seconds: Option<f64>,
     pub other_tracker_seconds: Option<f64>,
     pub timer_empty_region_ns: Option<f64>,
+    /// Scheme options in effect.
+    pub no_absorption_events: bool,
+    pub reduced_termination: bool,
+    /// Why `--tracker auto` chose the tracker (null when one was named).
+    pub tracker_auto_reason: Option<String>,
+    /// The scene analysis the render was planned from.
+    pub analysis: crate::render::analysis::Analysis,
 }

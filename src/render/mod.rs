@@ -1,6 +1,7 @@
 //! The integrator and everything a sample needs: camera rays, the sampler, the phase
 //! function, lights, and the film that accumulates pixels and AOVs.
 
+pub mod analysis;
 pub mod camera;
 pub mod film;
 pub mod integrator;

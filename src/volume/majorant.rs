@@ -388,6 +388,21 @@ impl MajorantTree {
         Some((self.origin, self.origin + d * l.edge))
     }
 
+    /// Fraction of the leaf cells whose maximum is 0 (crossed without any lookup).
+    pub fn empty_leaf_fraction(&self) -> f64 {
+        let Some(l) = self.levels.first() else {
+            return 1.0;
+        };
+        let (mut empty, mut cells) = (0u64, 0u64);
+        for (s, b) in l.bounds.iter().enumerate() {
+            if cell_of(l.dims, s).is_some() {
+                cells += 1;
+                empty += (b[1] == 0.0) as u64;
+            }
+        }
+        empty as f64 / cells.max(1) as f64
+    }
+
     /// Bounds of leaf cell `c` (for tests and tools).
     pub fn leaf_bounds(&self, c: [i32; 3]) -> Option<(f32, f32)> {
         let l = self.levels.first()?;

@@ -1,0 +1,159 @@
+//! The scene analysis classifies generated scenes correctly, and `--tracker auto`
+//! picks what its rules say and reports it.
+
+use glam::{DMat4, DVec3};
+use nimbus::render::analysis::Analysis;
+use nimbus::render::camera::CameraRays;
+use nimbus::render::lights::Lights;
+use nimbus::scene::Camera;
+use nimbus::track::{SchemeKind, TrackerKind, TrackerSettings};
+use nimbus::volume::grid::Grid;
+use nimbus::volume::majorant::MajorantSpec;
+use nimbus::volume::medium::Medium;
+use nimbus::volume::procedural::grid_from_fn;
+use std::process::Command;
+
+/// A 16³ grid over [-1, 1]³ with density `f`, as a medium with σa, σs per channel.
+fn medium(f: impl Fn(DVec3) -> f64 + Sync, sa: [f64; 3], ss: [f64; 3], g: f64) -> Medium {
+    let vs = 2.0 / 16.0;
+    let raw = grid_from_fn("density", [16; 3], DVec3::splat(-1.0 + 0.5 * vs), vs, f);
+    Medium::with_majorants(
+        "/Vol",
+        Grid::from_raw(&raw).unwrap(),
+        DMat4::IDENTITY,
+        1.0,
+        sa,
+        ss,
+        g,
+        MajorantSpec::Octree { depth: 5 },
+    )
+    .unwrap()
+}
+
+/// A camera at z = 10 looking down −Z (towards the volume), or turned around.
+fn camera(away: bool) -> CameraRays {
+    let turn = if away {
+        DMat4::from_rotation_y(std::f64::consts::PI)
+    } else {
+        DMat4::IDENTITY
+    };
+    let cam = Camera {
+        prim_path: "/Camera".into(),
+        camera_to_world: DMat4::from_translation(DVec3::new(0.0, 0.0, 10.0)) * turn,
+        focal_length: 50.0,
+        horizontal_aperture: 36.0,
+        vertical_aperture: 24.0,
+        horizontal_aperture_offset: 0.0,
+        vertical_aperture_offset: 0.0,
+        clipping_range: (0.1, 1e6),
+    };
+    CameraRays::new(&cam, 32, 24)
+}
+
+fn sky(env: [f64; 3]) -> Lights {
+    Lights {
+        suns: vec![],
+        environment: env,
+        env_maps: vec![],
+        spheres: vec![],
+        rects: vec![],
+    }
+}
+
+#[test]
+fn analysis_classifies_generated_scenes() {
+    let grey = [0.1; 3];
+    let scat = [0.9; 3];
+    // A constant cube: homogeneous, grey, isotropic, no empty leaves inside... except
+    // the one-voxel rim of the majorant region, where the field falls off.
+    let cube = medium(|_| 0.5, grey, scat, 0.0);
+    let a = Analysis::of(&cube, &sky([1.0; 3]), &camera(false), (32, 24));
+    assert!(a.grey && a.homogeneous && a.isotropic && a.volume_visible);
+    assert!(!a.emissive && a.constant_albedo);
+    assert!((a.max_albedo - 0.9).abs() < 1e-6);
+    assert_eq!((a.lights_emitting, a.lights_total), (1, 1));
+
+    // A sphere of density in a corner-empty box, chromatic, anisotropic: not
+    // homogeneous, some empty leaves, chromatic.
+    let ball = medium(
+        |p| if p.length() < 0.6 { 1.0 + p.x } else { 0.0 },
+        [0.2, 0.3, 0.6],
+        [1.1, 1.2, 1.0],
+        0.4,
+    );
+    let a = Analysis::of(&ball, &sky([0.0; 3]), &camera(false), (32, 24));
+    assert!(!a.grey && !a.homogeneous && !a.isotropic && a.volume_visible);
+    assert!(a.empty_cell_fraction > 0.2, "{}", a.empty_cell_fraction);
+    assert_eq!((a.lights_emitting, a.lights_total), (0, 1));
+
+    // The camera turned away sees nothing of it.
+    let a = Analysis::of(&ball, &sky([1.0; 3]), &camera(true), (32, 24));
+    assert!(!a.volume_visible);
+}
+
+#[test]
+fn auto_follows_its_rules() {
+    let cam = camera(false);
+    let grey = medium(|_| 0.5, [0.1; 3], [0.9; 3], 0.0);
+    let a = Analysis::of(&grey, &sky([1.0; 3]), &cam, (32, 24));
+    let (t, _) = a.choose(TrackerSettings::default(), false);
+    assert_eq!(t.tracker, TrackerKind::Delta);
+    assert!(!t.options.no_absorption_events);
+
+    let chroma = medium(|_| 0.5, [0.2, 0.3, 0.6], [1.1, 1.2, 1.0], 0.0);
+    let a = Analysis::of(&chroma, &sky([1.0; 3]), &cam, (32, 24));
+    let base = TrackerSettings {
+        scheme: SchemeKind::Max,
+        ..TrackerSettings::default()
+    };
+    let (t, reason) = a.choose(base, false);
+    assert_eq!(t.tracker, TrackerKind::SpectralDecomposition);
+    assert_eq!(t.scheme, SchemeKind::HistAvg);
+    assert!(t.options.no_absorption_events);
+    assert!(reason.contains("chromatic"));
+    // A scheme the user named is kept.
+    let (t, _) = a.choose(base, true);
+    assert_eq!(t.scheme, SchemeKind::Max);
+}
+
+/// The example scenes through the CLI: `auto` (the default) picks delta for the grey
+/// cloud and spectral decomposition without absorption events for the chromatic medium,
+/// and the stats say so and why; a named tracker is used as named, with no reason.
+#[test]
+fn auto_is_the_default_and_is_reported() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |scene: &str, extra: &[&str]| -> serde_json::Value {
+        let stage = format!("{}/scenes/{scene}/{scene}.usda", env!("CARGO_MANIFEST_DIR"));
+        let stats = dir.path().join(format!("{scene}.json"));
+        let out = Command::new(env!("CARGO_BIN_EXE_nimbus"))
+            .args(["render", &stage, "--res", "8x6", "--spp", "1", "-o"])
+            .arg(dir.path().join(format!("{scene}.exr")))
+            .arg("--stats")
+            .arg(&stats)
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap()
+    };
+    let cloud = run("cloud", &[]);
+    assert_eq!(cloud["tracker"], "delta");
+    assert_eq!(cloud["analysis"]["grey"], true);
+    assert!(cloud["tracker_auto_reason"]
+        .as_str()
+        .unwrap()
+        .contains("grey"));
+    let chromatic = run("chromatic", &[]);
+    assert_eq!(chromatic["tracker"], "spectral-decomposition");
+    assert_eq!(chromatic["scheme"], "hist-avg");
+    assert_eq!(chromatic["no_absorption_events"], true);
+    assert_eq!(chromatic["analysis"]["grey"], false);
+    let named = run("chromatic", &["--tracker", "delta"]);
+    assert_eq!(named["tracker"], "delta");
+    assert!(named["tracker_auto_reason"].is_null());
+    assert_eq!(named["no_absorption_events"], false);
+}
