@@ -123,6 +123,23 @@ impl Level {
     }
 }
 
+impl Level {
+    /// The packed bounds of the (up to 8) cells of this level under cell `p` of the
+    /// level above.
+    fn children(&self, p: [i32; 3]) -> impl Iterator<Item = [f32; 2]> + '_ {
+        (0..8).filter_map(move |k| {
+            let c = [
+                2 * p[0] + (k & 1),
+                2 * p[1] + ((k >> 1) & 1),
+                2 * p[2] + (k >> 2),
+            ];
+            (0..3)
+                .all(|a| c[a] < self.dims[a])
+                .then(|| self.bounds[self.index(c)])
+        })
+    }
+}
+
 /// Storage slots of a level of `dims` cells (padded to whole bricks).
 fn storage_len(dims: [i32; 3]) -> usize {
     brick_dims(dims)
@@ -301,16 +318,7 @@ impl MajorantTree {
                     };
                     let w = |b: [f32; 2]| if cost.residual { b[1] - b[0] } else { b[1] };
                     let (mut sum, mut n) = (0.0f32, 0);
-                    for k in 0..8 {
-                        let c = [
-                            2 * p[0] + (k & 1),
-                            2 * p[1] + ((k >> 1) & 1),
-                            2 * p[2] + (k >> 2),
-                        ];
-                        if (0..3).any(|a| c[a] >= child.dims[a]) {
-                            continue;
-                        }
-                        let cb = child.bounds[child.index(c)];
+                    for cb in child.children(p) {
                         if !is_terminal(cb) {
                             return 0;
                         }
@@ -457,16 +465,7 @@ fn reduce(child: &Level) -> Level {
             let mut kids = [[0f32; 2]; 8];
             let mut nk = 0;
             let mut all_terminal = true;
-            for k in 0..8 {
-                let c = [
-                    2 * p[0] + (k & 1),
-                    2 * p[1] + ((k >> 1) & 1),
-                    2 * p[2] + (k >> 2),
-                ];
-                if (0..3).any(|a| c[a] >= child.dims[a]) {
-                    continue;
-                }
-                let packed = child.bounds[child.index(c)];
+            for packed in child.children(p) {
                 let cb = unpack(packed);
                 b[0] = b[0].min(cb[0]);
                 b[1] = b[1].max(cb[1]);
