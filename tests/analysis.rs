@@ -54,9 +54,7 @@ fn sky(env: [f64; 3]) -> Lights {
     Lights {
         suns: vec![],
         environment: env,
-        env_maps: vec![],
-        spheres: vec![],
-        rects: vec![],
+        ..Lights::default()
     }
 }
 

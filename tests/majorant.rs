@@ -331,6 +331,20 @@ fn estimates(m: &Medium, n: usize, seed: u64) -> [(f64, f64); 3] {
     })
 }
 
+/// Two-sample z-test of each estimate of `e` against `reference`: |z| < 4.
+fn assert_agree(what: &str, reference: &[(f64, f64); 3], e: &[(f64, f64); 3]) {
+    for (k, name) in ["delta escape", "decomposition escape", "ratio T"]
+        .iter()
+        .enumerate()
+    {
+        let ((m0, s0), (m1, s1)) = (reference[k], e[k]);
+        let se = (s0 * s0 + s1 * s1).sqrt();
+        let z = if se > 0.0 { (m1 - m0) / se } else { 0.0 };
+        eprintln!("{what} {name}: {m1:.5} vs {m0:.5} (z {z:.2})");
+        assert!(z.abs() < 4.0, "{what} {name}: {m1} vs {m0}, z {z}");
+    }
+}
+
 /// Delta, decomposition and ratio tracking at depths 2, 4, 6 and 8 agree with depth 1
 /// (N = 40000 samples per estimate, seeds 100+depth vs 1; |z| < 4).
 #[test]
@@ -340,17 +354,7 @@ fn trackers_agree_across_depths() {
     let reference = estimates(&medium(grid(), 1), n, 1);
     for depth in [2, 4, 6, 8] {
         let e = estimates(&medium(grid(), depth), n, 100 + depth as u64);
-        for (k, name) in ["delta escape", "decomposition escape", "ratio T"]
-            .iter()
-            .enumerate()
-        {
-            let (m0, s0) = reference[k];
-            let (m1, s1) = e[k];
-            let se = (s0 * s0 + s1 * s1).sqrt();
-            let z = if se > 0.0 { (m1 - m0) / se } else { 0.0 };
-            eprintln!("depth {depth} {name}: {m1:.5} vs {m0:.5} (z {z:.2})");
-            assert!(z.abs() < 4.0, "depth {depth} {name}: {m1} vs {m0}, z {z}");
-        }
+        assert_agree(&format!("depth {depth}"), &reference, &e);
     }
 }
 
@@ -407,16 +411,7 @@ fn pruned_octree_keeps_bounds_and_estimates() {
     let mut m = medium(blob_grid(5, 32), 8);
     assert!(m.prune_majorants(4.0, true) > 0);
     let e = estimates(&m, n, 300);
-    for (k, name) in ["delta escape", "decomposition escape", "ratio T"]
-        .iter()
-        .enumerate()
-    {
-        let ((m0, s0), (m1, s1)) = (reference[k], e[k]);
-        let se = (s0 * s0 + s1 * s1).sqrt();
-        let z = if se > 0.0 { (m1 - m0) / se } else { 0.0 };
-        eprintln!("pruned {name}: {m1:.5} vs {m0:.5} (z {z:.2})");
-        assert!(z.abs() < 4.0, "pruned {name}: {m1} vs {m0}, z {z}");
-    }
+    assert_agree("pruned", &reference, &e);
 }
 
 /// `nimbus bench octree --csv` writes exactly the documented columns, one row per

@@ -62,9 +62,7 @@ fn sun_and_sky() -> Lights {
             cos_half_angle: 1.0,
         }],
         environment: [0.3, 0.4, 0.6],
-        env_maps: vec![],
-        spheres: vec![],
-        rects: vec![],
+        ..Lights::default()
     }
 }
 
@@ -72,9 +70,7 @@ fn sky(env: [f64; 3]) -> Lights {
     Lights {
         suns: vec![],
         environment: env,
-        env_maps: vec![],
-        spheres: vec![],
-        rects: vec![],
+        ..Lights::default()
     }
 }
 

@@ -99,18 +99,15 @@ impl Analysis {
 
 fn count_lights(l: &Lights) -> (usize, usize) {
     let nonzero = |c: [f64; 3]| c.iter().any(|&x| x > 0.0);
-    let suns = l.suns.iter().map(|s| nonzero(s.irradiance));
-    let spheres = l.spheres.iter().map(|s| nonzero(s.radiance));
-    let rects = l.rects.iter().map(|r| nonzero(r.radiance));
-    let maps = l.env_maps.iter().map(|_| true);
-    let dome = std::iter::once(nonzero(l.environment));
-    let all: Vec<bool> = suns
-        .chain(spheres)
-        .chain(rects)
-        .chain(maps)
-        .chain(dome)
-        .collect();
-    (all.iter().filter(|&&x| x).count(), all.len())
+    let emits = l
+        .suns
+        .iter()
+        .map(|s| nonzero(s.irradiance))
+        .chain(l.spheres.iter().map(|s| nonzero(s.radiance)))
+        .chain(l.rects.iter().map(|r| nonzero(r.radiance)))
+        .chain(l.env_maps.iter().map(|_| true))
+        .chain([nonzero(l.environment)]);
+    emits.fold((0, 0), |(e, n), x| (e + x as usize, n + 1))
 }
 
 fn homogeneous(m: &Medium) -> bool {
