@@ -106,6 +106,27 @@ pub fn run(args: InfoArgs) -> Result<()> {
             "volume: {} densityField {} densityScale {} absorption {:?} scattering {:?} anisotropy {}",
             v.prim_path, v.density.prim_path, v.density_scale, v.absorption, v.scattering, v.anisotropy
         );
+        let e = &v.emission;
+        match &e.temperature {
+            Some((name, f)) => println!(
+                "  emission: blackbody from temperatureField {name} ({}) temperatureScale {} K/unit blackbodyIntensity {}: Le = {} * (T/1000 K)^4 * rgb(T)",
+                f.prim_path, e.temperature_scale, e.blackbody_intensity, e.blackbody_intensity
+            ),
+            None => println!("  emission: no temperatureField (no blackbody emission)"),
+        }
+        match &e.emission {
+            Some((name, f)) => println!(
+                "  emission: emissionField {name} ({}) emissionColor {:?} emissionScale {}: Le = {:?} * value",
+                f.prim_path,
+                e.emission_color,
+                e.emission_scale,
+                e.emission_color.map(|c| c * e.emission_scale)
+            ),
+            None => println!("  emission: no emissionField"),
+        }
+        if e.is_emissive() {
+            println!("  emission source term: absorption * density * Le (nothing emits where density is 0)");
+        }
         if let Some(shader) = &v.material_shader {
             println!("  parameters from the bound material's volume shader {shader}");
         }

@@ -86,7 +86,7 @@ pub struct RenderArgs {
     #[arg(long)]
     pub reduced_termination: bool,
     /// Never sample absorption events; absorption lives in the weights (non-emissive
-    /// media only).
+    /// media only: an emissive medium is an error).
     #[arg(long)]
     pub no_absorption_events: bool,
     /// Multiplies every majorant; below 1 makes them non-bounding (for testing the
@@ -372,6 +372,12 @@ fn render_frame(
     }
     let camera = CameraRays::new(c, width, height);
     let analysis = Analysis::of(&medium, &lights, &camera, (width, height));
+    if analysis.emissive && tracking.options.no_absorption_events {
+        bail!(
+            "--no-absorption-events: volume {} emits light (nimbus:temperatureField / nimbus:emissionField), and emission is collected at absorption events; drop the flag",
+            medium.prim_path
+        );
+    }
     let auto_reason = request.auto.then(|| {
         let (t, reason) = analysis.choose(tracking, request.scheme_given);
         tracking = t;
@@ -476,6 +482,7 @@ fn render_frame(
             max_throughput_mean: totals.max_throughput / samples,
             max_throughput_peak: totals.peak_throughput,
             density_lookups: totals.density_lookups,
+            emission_lookups: totals.emission_lookups,
             real_collisions: totals.real_collisions,
             null_collisions: totals.null_collisions,
             cells_visited: totals.cells_visited,

@@ -32,6 +32,8 @@ pub struct RenderStats {
     /// Largest channel throughput of any path (colour explosion shows here).
     pub max_throughput_peak: f64,
     pub density_lookups: u64,
+    /// Emission grid lookups (at absorption events of an emissive medium).
+    pub emission_lookups: u64,
     pub real_collisions: u64,
     pub null_collisions: u64,
     pub cells_visited: u64,

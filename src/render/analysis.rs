@@ -14,8 +14,9 @@ use serde::Serialize;
 pub struct Analysis {
     /// σa and σs equal in every channel: one channel's tracking is exact.
     pub grey: bool,
-    /// Emission fields are not supported yet, so every medium is non-emissive: the
-    /// trackers never need absorption events to collect emission.
+    /// The medium has an emission source (temperature or emission field): emission
+    /// is collected at absorption events, so they must stay (no
+    /// `no_absorption_events`).
     pub emissive: bool,
     /// σs/σt is the same everywhere (density-driven media with constant coefficients):
     /// collisions need no albedo lookup.
@@ -48,7 +49,7 @@ impl Analysis {
         let (emitting, total) = count_lights(lights);
         Analysis {
             grey: s.is_grey(),
-            emissive: false,
+            emissive: medium.emission.is_some(),
             constant_albedo: true,
             homogeneous: homogeneous(medium),
             empty_cell_fraction: medium.majorants.empty_leaf_fraction(),

@@ -1,7 +1,8 @@
 //! The volumetric path tracer: delta tracking for free paths, Henyey–Greenstein
 //! scattering up to a maximum depth, next-event estimation to suns, sphere and rect
 //! lights and the environment (domes, constant or textured) with ratio-tracking
-//! transmittance, MIS between environment NEE and phase sampling.
+//! transmittance, MIS between environment NEE and phase sampling, and volume emission
+//! collected at absorption events.
 
 use crate::render::camera::CameraRays;
 use crate::render::film::{Film, Pixel};
@@ -163,9 +164,16 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                     }
                     break;
                 }
-                FreePath::Absorb { .. } => {
+                FreePath::Absorb { t } => {
                     if depth == 0 {
                         alpha = 1.0;
+                    }
+                    // Emission is collected at absorption events: the tracker has
+                    // applied the absorption weight μa(λ)/(μ̄·Pa), so throughput × Le is
+                    // the collision estimate of ∫ T·μa·Le (the source term μa·Le).
+                    if let Some(emission) = &medium.emission {
+                        let le = emission.radiance(origin + dir * t as f64, counters);
+                        self.add(&mut radiance, throughput, le, 1.0);
                     }
                     break;
                 }

@@ -5,10 +5,12 @@ use crate::render::camera::CameraRays;
 use crate::render::film::Film;
 use crate::render::integrator::Integrator;
 use crate::render::lights::Lights;
-use crate::scene::Scene;
+use crate::scene::schema::tokens;
+use crate::scene::{Field, Scene, Volume};
 use crate::track::{
     self, Dispatch, FreePathSampler, TrackerKind, TrackerSettings, TransmittanceEstimator,
 };
+use crate::volume::emission::{Emission, EmissionGrid, EmissionParams};
 use crate::volume::grid::Grid;
 use crate::volume::majorant::MajorantSpec;
 use crate::volume::medium::Medium;
@@ -109,18 +111,8 @@ pub fn medium_for_scene_with(scene: &Scene, spec: MajorantSpec) -> anyhow::Resul
             volume.prim_path
         );
     }
-    let field = &volume.density;
-    let raw = vdb::read_float_grid(&field.file, &field.field_name, field.field_index)
-        .with_context(|| format!("volume {}: field {}", volume.prim_path, field.prim_path))?;
-    let grid =
-        Grid::from_raw(&raw).with_context(|| format!("{}: {}", field.file, field.prim_path))?;
-    if grid.sanitized_voxels > 0 {
-        eprintln!(
-            "nimbus: warning: {}: grid '{}' has {} NaN, infinite or negative voxels; they are treated as 0",
-            field.file, grid.name, grid.sanitized_voxels
-        );
-    }
-    Ok(Medium::with_majorants(
+    let grid = load_grid(volume, "density", &volume.density)?;
+    let mut medium = Medium::with_majorants(
         &volume.prim_path,
         grid,
         volume.volume_to_world,
@@ -129,5 +121,62 @@ pub fn medium_for_scene_with(scene: &Scene, spec: MajorantSpec) -> anyhow::Resul
         volume.scattering,
         volume.anisotropy,
         spec,
+    )?;
+    medium.set_emission(emission_for_volume(volume)?);
+    Ok(medium)
+}
+
+/// Loads one float grid of a volume's field; `role` names what it is for in errors.
+fn load_grid(volume: &Volume, role: &str, field: &Field) -> anyhow::Result<Grid> {
+    let raw = vdb::read_float_grid(&field.file, &field.field_name, field.field_index)
+        .with_context(|| {
+            format!(
+                "volume {}: {role} field {}",
+                volume.prim_path, field.prim_path
+            )
+        })?;
+    let grid =
+        Grid::from_raw(&raw).with_context(|| format!("{}: {}", field.file, field.prim_path))?;
+    if grid.sanitized_voxels > 0 {
+        eprintln!(
+            "nimbus: warning: {}: grid '{}' has {} NaN, infinite or negative voxels; they are treated as 0",
+            field.file, grid.name, grid.sanitized_voxels
+        );
+    }
+    Ok(grid)
+}
+
+/// The emission of a volume: loads only the grids `nimbus:temperatureField` and
+/// `nimbus:emissionField` name (none when both are empty) and checks the parameters.
+pub fn emission_for_volume(volume: &Volume) -> anyhow::Result<Option<Emission>> {
+    let e = &volume.emission;
+    let params = EmissionParams {
+        temperature_scale: e.temperature_scale,
+        blackbody_intensity: e.blackbody_intensity,
+        emission_color: e.emission_color,
+        emission_scale: e.emission_scale,
+    };
+    // Bad numbers are reported before any grid is read.
+    params.check(&volume.prim_path)?;
+    let load = |attr: &str, named: &Option<(String, Field)>| -> anyhow::Result<_> {
+        let Some((name, field)) = named else {
+            return Ok(None);
+        };
+        let role = format!("{attr} `{name}`");
+        let grid = load_grid(volume, &role, field)?;
+        Ok(Some(EmissionGrid::new(
+            &volume.prim_path,
+            &role,
+            grid,
+            volume.volume_to_world,
+        )?))
+    };
+    let temperature = load(tokens::TEMPERATURE_FIELD, &e.temperature)?;
+    let field = load(tokens::EMISSION_FIELD, &e.emission)?;
+    Ok(Emission::new(
+        &volume.prim_path,
+        temperature,
+        field,
+        params,
     )?)
 }

@@ -135,13 +135,60 @@ pub struct Volume {
     pub anisotropy: f64,
     /// All `field:*` relationships of the volume, for `nimbus info`.
     pub fields: Vec<(String, Field)>,
+    /// Emission (`nimbus:temperatureField`, `nimbus:emissionField` and their
+    /// parameters); `VolumeEmission::default()` (no fields) when the volume emits nothing.
+    pub emission: VolumeEmission,
     /// When the parameters come from a bound material (no `NimbusVolumeAPI`): the
     /// volume shader read, as "prim path (info:id)".
     pub material_shader: Option<String>,
 }
 
+/// The emission configuration of a volume, as authored (schema fallbacks applied; the
+/// numbers are checked when the medium is built). Emitted radiance at x is
+///
+/// Le(x) = blackbodyIntensity · (T/1000 K)⁴ · rgb(T) + emissionScale · emissionColor · e(x),
+/// T = temperatureScale · temperature(x),
+///
+/// with rgb(T) UsdLux's colour-temperature colour (luminance 1); the source term of the
+/// radiative transfer equation is μa(x)·Le(x), so nothing emits where the density is 0.
+#[derive(Clone, Debug, PartialEq)]
+pub struct VolumeEmission {
+    /// `nimbus:temperatureField`: the relationship name and its field, if set.
+    pub temperature: Option<(String, Field)>,
+    /// `nimbus:temperatureScale` (Kelvin per grid unit).
+    pub temperature_scale: f64,
+    /// `nimbus:blackbodyIntensity`.
+    pub blackbody_intensity: f64,
+    /// `nimbus:emissionField`: the relationship name and its field, if set.
+    pub emission: Option<(String, Field)>,
+    /// `nimbus:emissionColor`.
+    pub emission_color: [f64; 3],
+    /// `nimbus:emissionScale`.
+    pub emission_scale: f64,
+}
+
+impl Default for VolumeEmission {
+    fn default() -> Self {
+        VolumeEmission {
+            temperature: None,
+            temperature_scale: 1.0,
+            blackbody_intensity: 1.0,
+            emission: None,
+            emission_color: [1.0; 3],
+            emission_scale: 1.0,
+        }
+    }
+}
+
+impl VolumeEmission {
+    /// Whether any emission field is configured.
+    pub fn is_emissive(&self) -> bool {
+        self.temperature.is_some() || self.emission.is_some()
+    }
+}
+
 /// A UsdVolOpenVDBAsset prim, resolved.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Field {
     pub prim_path: String,
     /// The resolved file path (absolute or relative to the working directory).

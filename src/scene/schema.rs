@@ -40,6 +40,12 @@ pub mod tokens {
     pub const ABSORPTION: &str = "nimbus:absorption";
     pub const SCATTERING: &str = "nimbus:scattering";
     pub const ANISOTROPY: &str = "nimbus:anisotropy";
+    pub const TEMPERATURE_FIELD: &str = "nimbus:temperatureField";
+    pub const TEMPERATURE_SCALE: &str = "nimbus:temperatureScale";
+    pub const BLACKBODY_INTENSITY: &str = "nimbus:blackbodyIntensity";
+    pub const EMISSION_FIELD: &str = "nimbus:emissionField";
+    pub const EMISSION_COLOR: &str = "nimbus:emissionColor";
+    pub const EMISSION_SCALE: &str = "nimbus:emissionScale";
     pub const SAMPLES: &str = "nimbus:samples";
     pub const MAX_DEPTH: &str = "nimbus:maxDepth";
     pub const SEED: &str = "nimbus:seed";

@@ -333,12 +333,14 @@ impl Loader<'_> {
                 scattering: m.scattering,
                 anisotropy: m.anisotropy,
                 fields,
+                emission: VolumeEmission::default(),
                 material_shader: Some(format!("{} ({})", m.shader, m.shader_id)),
             });
         }
         let density_name = read_string(prim, tokens::DENSITY_FIELD, t)?
             .unwrap_or_else(|| DEFAULT_DENSITY_FIELD.to_string());
         let density = self.density_field(prim, &density_name, &fields)?;
+        let emission = self.emission(prim, &fields)?;
         Ok(Volume {
             prim_path: prim.path().to_string(),
             volume_to_world: self.world_transform(prim)?,
@@ -348,6 +350,7 @@ impl Loader<'_> {
             scattering: read_vec3(prim, tokens::SCATTERING, t)?.unwrap_or([0.9; 3]),
             anisotropy: read_f64(prim, tokens::ANISOTROPY, t)?.unwrap_or(0.0),
             fields,
+            emission,
             material_shader: None,
         })
     }
@@ -379,6 +382,64 @@ impl Loader<'_> {
                 ),
             )),
         }
+    }
+
+    /// The emission configuration of a volume with `NimbusVolumeAPI`: the fields
+    /// `nimbus:temperatureField` and `nimbus:emissionField` name (empty = none) and
+    /// their parameters (checked when the medium is built).
+    fn emission(
+        &self,
+        prim: &Prim,
+        fields: &[(String, Field)],
+    ) -> Result<VolumeEmission, SceneError> {
+        let t = self.time;
+        let d = VolumeEmission::default();
+        Ok(VolumeEmission {
+            temperature: self.named_field(prim, tokens::TEMPERATURE_FIELD, fields)?,
+            temperature_scale: read_f64(prim, tokens::TEMPERATURE_SCALE, t)?
+                .unwrap_or(d.temperature_scale),
+            blackbody_intensity: read_f64(prim, tokens::BLACKBODY_INTENSITY, t)?
+                .unwrap_or(d.blackbody_intensity),
+            emission: self.named_field(prim, tokens::EMISSION_FIELD, fields)?,
+            emission_color: read_vec3(prim, tokens::EMISSION_COLOR, t)?.unwrap_or(d.emission_color),
+            emission_scale: read_f64(prim, tokens::EMISSION_SCALE, t)?.unwrap_or(d.emission_scale),
+        })
+    }
+
+    /// The field a token attribute names (`attr` = "flames" → `field:flames`), `None`
+    /// when the attribute is empty or unset. A name with no OpenVDBAsset field is an
+    /// error listing the volume's fields.
+    fn named_field(
+        &self,
+        prim: &Prim,
+        attr: &str,
+        fields: &[(String, Field)],
+    ) -> Result<Option<(String, Field)>, SceneError> {
+        let name = read_string(prim, attr, self.time)?.unwrap_or_default();
+        if name.is_empty() {
+            return Ok(None);
+        }
+        if let Some((n, field)) = fields.iter().find(|(n, _)| *n == name) {
+            return Ok(Some((n.clone(), field.clone())));
+        }
+        let rel = format!("{FIELD_PREFIX}{name}");
+        let known: Vec<String> = fields
+            .iter()
+            .map(|(n, _)| format!("{FIELD_PREFIX}{n}"))
+            .collect();
+        let known = if known.is_empty() {
+            "none".to_string()
+        } else {
+            known.join(", ")
+        };
+        let problem = match first_target(prim, &rel)? {
+            None => format!("the volume has no relationship `{rel}` with a target"),
+            Some(target) => format!("`{rel}` targets {target}, which is not an OpenVDBAsset prim"),
+        };
+        Err(prim_error(
+            prim.path(),
+            format!("{attr} = \"{name}\": {problem}; the volume's OpenVDB fields: {known}"),
+        ))
     }
 
     /// Every `field:*` relationship whose target is an OpenVDBAsset. A target that

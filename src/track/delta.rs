@@ -47,6 +47,12 @@ impl FreePathSampler for Delta {
             let u: f32 = rng.gen();
             if u < pa {
                 c.real_collisions += 1;
+                // Absorption weight w_a(λ) = μa(λ)/(μ̄·Pa) = σa(λ)/avg σa (1 for grey
+                // media), for the emission collected at absorption events.
+                for ch in 0..3 {
+                    throughput[ch] *= sg.a[ch] / avg_a;
+                }
+                c.observe_throughput(*throughput);
                 return ControlFlow::Break(FreePath::Absorb { t });
             }
             if u < pa + ps {

@@ -25,7 +25,8 @@ pub use crate::volume::medium::Spectrum;
 pub enum FreePath {
     /// A real scattering collision at distance `t`.
     Scatter { t: f32 },
-    /// A real absorption collision: the path ends (no emission yet).
+    /// A real absorption collision: the path ends. The throughput carries the
+    /// absorption weight μa(λ)/(μ̄·Pa), so the integrator adds throughput × Le here.
     Absorb { t: f32 },
     /// The ray left the medium (or reached `tmax`) without a real collision.
     Escape,

@@ -6,6 +6,7 @@
 //! direction is *not* normalised, so `t` keeps world units and the coefficients stay
 //! per world unit length, whatever the grid's voxel size or the volume's transform).
 
+use crate::volume::emission::Emission;
 use crate::volume::grid::Grid;
 use crate::volume::majorant::{MajorantSpec, MajorantTree, PruneCost, Segment, TreeWalk};
 use crate::volume::ticks;
@@ -30,6 +31,9 @@ pub struct Counters {
     pub residual_lookups: u64,
     /// Collisions of the control process of decomposition tracking (no lookup).
     pub control_collisions: u64,
+    /// Evaluations of emission grids (temperature and emission field, one each), made
+    /// only at absorption events; not counted in `density_lookups`.
+    pub emission_lookups: u64,
     /// Largest channel throughput seen along the path (per sample a maximum; summed
     /// over samples in a pixel, so the pixel's AOV is its mean).
     pub max_throughput: f64,
@@ -58,6 +62,7 @@ impl Counters {
         self.majorant_violations += o.majorant_violations;
         self.residual_lookups += o.residual_lookups;
         self.control_collisions += o.control_collisions;
+        self.emission_lookups += o.emission_lookups;
         self.max_throughput += o.max_throughput;
         self.timing |= o.timing;
         self.lookup_ticks += o.lookup_ticks;
@@ -177,6 +182,9 @@ pub struct Medium {
     /// Henyey–Greenstein asymmetry.
     pub g: f32,
     pub majorants: MajorantTree,
+    /// Emission (temperature and/or emission grids), collected at absorption events;
+    /// `None` for a non-emissive medium. Set with [`Medium::set_emission`].
+    pub emission: Option<Emission>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -274,6 +282,7 @@ impl Medium {
             sigma,
             g: anisotropy as f32,
             majorants,
+            emission: None,
         })
     }
 
@@ -300,6 +309,12 @@ impl Medium {
     /// Rebuilds the majorant structure (e.g. to compare octree depths on one grid).
     pub fn set_majorants(&mut self, spec: MajorantSpec) {
         self.majorants = MajorantTree::build(&self.density, spec);
+    }
+
+    /// Makes the medium emissive (or not, with `None`). Emission changes no majorant:
+    /// it is looked up only at absorption events.
+    pub fn set_emission(&mut self, emission: Option<Emission>) {
+        self.emission = emission;
     }
 
     /// Maps a world-space ray (any direction length; `t` is measured in units of it).
