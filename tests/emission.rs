@@ -1,0 +1,727 @@
+//! Volume emission (issue 8): the integrator against closed-form answers for every
+//! tracker, the blackbody mapping, loading from stages (bad input included) and the
+//! EmberGen fire from ../shared/data.
+
+mod common;
+
+use common::{mean_se, paths, Setup};
+use glam::{DMat4, DVec3};
+use nimbus::render::lights::{usd_blackbody_rgb, Lights};
+use nimbus::track::{SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
+use nimbus::volume::emission::{blackbody_radiance, Emission, EmissionGrid, EmissionParams};
+use nimbus::volume::grid::{Grid, RawGrid};
+use nimbus::volume::medium::{Counters, Medium};
+use nimbus::volume::procedural::grid_from_fn;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+// ----- analytic media ----------------------------------------------------------------------
+
+/// A cube of 16³ unit-density voxels of size 1/16 centred at the origin (as in
+/// tests/render_analytic.rs): an axis-parallel ray through it sees optical depth σt
+/// exactly.
+fn cube(sigma_a: [f64; 3], sigma_s: [f64; 3], g: f64) -> Medium {
+    let n = 16;
+    let vs = 1.0 / n as f64;
+    let raw = grid_from_fn(
+        "density",
+        [n, n, n],
+        DVec3::splat(-0.5 + 0.5 * vs),
+        vs,
+        |_| 1.0,
+    );
+    Medium::new(
+        "/Cube",
+        Grid::from_raw(&raw).unwrap(),
+        DMat4::IDENTITY,
+        1.0,
+        sigma_a,
+        sigma_s,
+        g,
+        8,
+    )
+    .unwrap()
+}
+
+/// A constant grid `value` over [−0.8125, 0.8125]³ (14³ voxels of 1/8, another transform
+/// than the density's): its reconstruction is exactly `value` wherever the cube's
+/// density is non-zero, so the emission is constant over the medium.
+fn constant_grid(name: &str, value: f64) -> Grid {
+    let raw = grid_from_fn(name, [14, 14, 14], DVec3::splat(-0.8125), 0.125, |_| value);
+    Grid::from_raw(&raw).unwrap()
+}
+
+fn emission_grid(name: &str, value: f64) -> EmissionGrid {
+    EmissionGrid::new("/Cube", name, constant_grid(name, value), DMat4::IDENTITY).unwrap()
+}
+
+/// Temperature 1500 grid units × 2 K/unit = 3000 K at blackbody intensity 0.01, plus an
+/// emission field of 0.5 × colour (0.2, 0.4, 0.8) × scale 2.
+fn both_sources() -> (Emission, [f64; 3]) {
+    let params = EmissionParams {
+        temperature_scale: 2.0,
+        blackbody_intensity: 0.01,
+        emission_color: [0.2, 0.4, 0.8],
+        emission_scale: 2.0,
+    };
+    let e = Emission::new(
+        "/Cube",
+        Some(emission_grid("temperature", 1500.0)),
+        Some(emission_grid("flames", 0.5)),
+        params,
+    )
+    .unwrap()
+    .unwrap();
+    let bb = usd_blackbody_rgb(3000.0);
+    let le = [0, 1, 2].map(|c| 0.01 * 81.0 * bb[c] + 0.5 * 2.0 * params.emission_color[c]);
+    (e, le)
+}
+
+/// Every free-path sampler: each tracker, each scheme where it matters (ratio shadows;
+/// these media never scatter or use the shadow estimator where noted).
+fn trackers() -> Vec<TrackerSettings> {
+    use clap::ValueEnum;
+    let mut out = Vec::new();
+    for &tracker in TrackerKind::value_variants() {
+        let schemes: &[SchemeKind] = if tracker.uses_scheme() {
+            SchemeKind::value_variants()
+        } else {
+            &[SchemeKind::HistAvg]
+        };
+        for &scheme in schemes {
+            out.push(TrackerSettings {
+                tracker,
+                scheme,
+                transmittance: TransmittanceKind::Ratio,
+                ..TrackerSettings::default()
+            });
+        }
+    }
+    out
+}
+
+fn name(s: &TrackerSettings) -> String {
+    if s.tracker.uses_scheme() {
+        format!("{}/{}", s.tracker.name(), s.scheme.name())
+    } else {
+        s.tracker.name().to_string()
+    }
+}
+
+/// z-scores per channel of the mean of `n` paths through the image centre against
+/// `expected` (standard error from the sample variance).
+fn z_scores(setup: &Setup, s: &TrackerSettings, n: usize, expected: [f64; 3]) -> [f64; 3] {
+    let p = paths(setup, s, 4.5, 4.5, n);
+    let lookups: u64 = p.iter().map(|(_, c)| c.emission_lookups).sum();
+    assert!(lookups > 0, "{}: no emission lookup", name(s));
+    [0, 1, 2].map(|c| {
+        let v: Vec<f64> = p.iter().map(|(rgb, _)| rgb[c]).collect();
+        let (m, se) = mean_se(&v);
+        (m - expected[c]) / se.max(1e-12)
+    })
+}
+
+/// A purely absorbing cube (σs = 0) with constant emission Le in a constant
+/// environment E, seen along its axis (length 1, optical depth σa):
+/// L = E·e^{−σa} + Le·(1 − e^{−σa}) per channel. Grey σa = 1 and chromatic
+/// σa = (0.5, 1, 2) (which exercises delta tracking's absorption weight σa(λ)/avg σa).
+/// Estimator: one path per sample (emission collected at absorption events), every
+/// tracker and scheme, N = 40,000 paths each through the centre pixel, seed 5;
+/// |z| < 4 per channel with the standard error from the sample variance (a family of
+/// 2 × 13 × 3 tests: a false alarm has probability ≈ 5e-3 for a correct estimator).
+#[test]
+fn absorbing_emitting_cube_matches_closed_form() {
+    let env = [0.3, 0.2, 0.1];
+    let lights = Lights {
+        environment: env,
+        ..Default::default()
+    };
+    let cam = common::camera_on_z(10.0, 1000.0, 10.0, 9, 9);
+    for sigma_a in [[1.0; 3], [0.5, 1.0, 2.0]] {
+        let mut m = cube(sigma_a, [0.0; 3], 0.0);
+        let (e, le) = both_sources();
+        m.set_emission(Some(e));
+        let expected =
+            [0, 1, 2].map(|c| env[c] * (-sigma_a[c]).exp() + le[c] * (1.0 - (-sigma_a[c]).exp()));
+        let setup = Setup {
+            medium: &m,
+            lights: &lights,
+            camera: &cam,
+            width: 9,
+            height: 9,
+            spp: 1,
+            max_depth: 64,
+            seed: 5,
+        };
+        for s in trackers() {
+            let z = z_scores(&setup, &s, 40_000, expected);
+            eprintln!("σa {sigma_a:?} {}: z {z:.2?}", name(&s));
+            assert!(
+                z.iter().all(|z| z.abs() < 4.0),
+                "σa {sigma_a:?} {}: z = {z:?} (expected {expected:?})",
+                name(&s)
+            );
+        }
+    }
+}
+
+/// Kirchhoff's law: a medium that emits Le = E inside a constant environment E is in
+/// equilibrium, L = E everywhere, whatever σa, σs and g (L = E solves the transfer
+/// equation: −μt·E + μa·E + μs·E = 0). Exercises emission at absorption events after
+/// any number of scatterings, with NEE and MIS. Chromatic σa = (0.5, 1, 1.5), σs =
+/// (1.5, 1, 0.5), g = 0.3; depth 10,000 with Russian roulette (bias far below the
+/// noise). Every tracker and scheme, N = 20,000 paths each, seed 5; |z| < 4 per channel.
+#[test]
+fn emitting_cube_in_matching_environment_is_invisible() {
+    let env = [0.8, 1.0, 1.3];
+    let lights = Lights {
+        environment: env,
+        ..Default::default()
+    };
+    let cam = common::camera_on_z(10.0, 1000.0, 10.0, 9, 9);
+    let mut m = cube([0.5, 1.0, 1.5], [1.5, 1.0, 0.5], 0.3);
+    let e = Emission::new(
+        "/Cube",
+        None,
+        Some(emission_grid("flames", 2.0)),
+        EmissionParams {
+            emission_color: env,
+            emission_scale: 0.5,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    m.set_emission(e);
+    let setup = Setup {
+        medium: &m,
+        lights: &lights,
+        camera: &cam,
+        width: 9,
+        height: 9,
+        spp: 1,
+        max_depth: 10_000,
+        seed: 5,
+    };
+    for s in trackers() {
+        let z = z_scores(&setup, &s, 20_000, env);
+        eprintln!("{}: z {z:.2?}", name(&s));
+        assert!(z.iter().all(|z| z.abs() < 4.0), "{}: z = {z:?}", name(&s));
+    }
+}
+
+/// Without emission the medium has no emission lookups at all; with it, lookups happen
+/// only at absorption events (one per configured grid), never in the free-path loops,
+/// and density lookups do not count them.
+#[test]
+fn emission_lookups_only_at_absorption_events() {
+    let lights = Lights::default();
+    let cam = common::camera_on_z(10.0, 1000.0, 10.0, 9, 9);
+    let s = TrackerSettings::default();
+    let mut m = cube([1.0; 3], [0.0; 3], 0.0);
+    let run = |m: &Medium| {
+        let setup = Setup {
+            medium: m,
+            lights: &lights,
+            camera: &cam,
+            width: 9,
+            height: 9,
+            spp: 1,
+            max_depth: 64,
+            seed: 3,
+        };
+        paths(&setup, &s, 4.5, 4.5, 2_000)
+    };
+    let plain = run(&m);
+    assert!(plain.iter().all(|(_, c)| c.emission_lookups == 0));
+    let (e, _) = both_sources();
+    m.set_emission(Some(e));
+    let lit = run(&m);
+    for ((_, a), (rgb, b)) in plain.iter().zip(&lit) {
+        // Same random stream, same collisions: emission consumes no random numbers.
+        assert_eq!(a.density_lookups, b.density_lookups);
+        assert_eq!(a.real_collisions, b.real_collisions);
+        // σs = 0: every real collision is an absorption, two grids each.
+        assert_eq!(b.emission_lookups, 2 * b.real_collisions);
+        assert_eq!(rgb.iter().any(|&v| v > 0.0), b.real_collisions > 0);
+    }
+}
+
+// ----- the blackbody mapping ------------------------------------------------------------------
+
+/// Le_bb = I·(T/1000 K)⁴·rgb(T) with rgb(T) = UsdLux's colour (pxr's table; compared
+/// with pxr itself in tests/lights.rs and tests/usd_loading.rs), whose Rec. 709
+/// luminance is 1: the luminance of Le_bb is I·(T/1000 K)⁴ (Stefan–Boltzmann's shape).
+/// T ≤ 0 (and NaN) emits nothing.
+#[test]
+fn blackbody_radiance_is_t4_times_usdlux_colour() {
+    for &(t, i) in &[
+        (1000.0, 1.0),
+        (1500.0, 2.0),
+        (3000.0, 0.25),
+        (6500.0, 1.0),
+        (12000.0, 0.5),
+    ] {
+        let got = blackbody_radiance(t, i);
+        let rgb = usd_blackbody_rgb(t);
+        let s = i * (t / 1000.0f64).powi(4);
+        for c in 0..3 {
+            assert!((got[c] - s * rgb[c]).abs() <= 1e-12 * s, "{t} K: {got:?}");
+        }
+        let y = 0.2126 * got[0] + 0.7152 * got[1] + 0.0722 * got[2];
+        assert!(
+            (y - s).abs() <= 1e-9 * s,
+            "{t} K: luminance {y}, expected {s}"
+        );
+    }
+    assert_eq!(blackbody_radiance(1000.0, 1.0), usd_blackbody_rgb(1000.0));
+    for t in [0.0, -300.0, f64::NAN] {
+        assert_eq!(blackbody_radiance(t, 1.0), [0.0; 3], "{t}");
+    }
+}
+
+/// `Emission::radiance` at a point: the temperature grid × temperatureScale through the
+/// blackbody, plus the emission field × colour × scale; one lookup per grid.
+#[test]
+fn emission_radiance_combines_both_sources() {
+    let (e, le) = both_sources();
+    let mut c = Counters::default();
+    let got = e.radiance(DVec3::new(0.1, -0.2, 0.3), &mut c);
+    for ch in 0..3 {
+        assert!(
+            (got[ch] - le[ch]).abs() <= 1e-6 * le[ch],
+            "{got:?} vs {le:?}"
+        );
+    }
+    assert_eq!((c.emission_lookups, c.density_lookups), (2, 0));
+    // Outside the grids: nothing.
+    assert_eq!(e.radiance(DVec3::splat(5.0), &mut c), [0.0; 3]);
+    // A temperature-only source with a temperature scale.
+    let t = Emission::new(
+        "/Cube",
+        Some(emission_grid("temperature", 0.5)),
+        None,
+        EmissionParams {
+            temperature_scale: 4000.0,
+            blackbody_intensity: 3.0,
+            ..Default::default()
+        },
+    )
+    .unwrap()
+    .unwrap();
+    let got = t.radiance(DVec3::ZERO, &mut c);
+    let want = blackbody_radiance(2000.0, 3.0);
+    for ch in 0..3 {
+        assert!(
+            (got[ch] - want[ch]).abs() <= 1e-6 * want[0],
+            "{got:?} vs {want:?}"
+        );
+    }
+}
+
+/// Negative or non-finite parameters are errors naming the prim and the attribute.
+#[test]
+fn bad_emission_parameters_are_errors() {
+    let cases: [(&str, EmissionParams); 5] = [
+        (
+            "nimbus:temperatureScale",
+            EmissionParams {
+                temperature_scale: -1.0,
+                ..Default::default()
+            },
+        ),
+        (
+            "nimbus:blackbodyIntensity",
+            EmissionParams {
+                blackbody_intensity: f64::NAN,
+                ..Default::default()
+            },
+        ),
+        (
+            "nimbus:emissionScale",
+            EmissionParams {
+                emission_scale: f64::INFINITY,
+                ..Default::default()
+            },
+        ),
+        (
+            "nimbus:emissionScale",
+            EmissionParams {
+                emission_scale: -0.5,
+                ..Default::default()
+            },
+        ),
+        (
+            "nimbus:emissionColor",
+            EmissionParams {
+                emission_color: [1.0, -1.0, 1.0],
+                ..Default::default()
+            },
+        ),
+    ];
+    for (attr, p) in cases {
+        let e = Emission::new("/Fire", None, Some(emission_grid("flames", 1.0)), p)
+            .err()
+            .unwrap_or_else(|| panic!("{attr}: accepted"))
+            .to_string();
+        assert!(e.contains("/Fire") && e.contains(attr), "{e}");
+    }
+    // No grid at all: no emission.
+    assert!(
+        Emission::new("/Fire", None, None, EmissionParams::default())
+            .unwrap()
+            .is_none()
+    );
+}
+
+// ----- stages ------------------------------------------------------------------------------------
+
+use nimbus::render::job::medium_for_scene;
+use nimbus::scene::{load_stage, LoadOptions};
+
+fn write_vdb(path: &Path, grids: &[RawGrid]) {
+    nimbus::volume::vdb::write_float_grids(path, grids).expect("write vdb");
+}
+
+/// A stage with a volume `/V` whose fields `density`, `temperature` and `flames` are the
+/// grids of one file `grids.vdb`; `attrs` go on the volume.
+fn fire_stage(dir: &Path, attrs: &str) -> PathBuf {
+    let text = format!(
+        r#"#usda 1.0
+def Camera "Cam" {{
+    double3 xformOp:translate = (0, 0, 10)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+    float focalLength = 1000
+    float horizontalAperture = 10
+    float verticalAperture = 10
+}}
+def Volume "V" (apiSchemas = ["NimbusVolumeAPI"]) {{
+{attrs}
+    rel field:density = </V/density>
+    rel field:temperature = </V/temperature>
+    rel field:flames = </V/flames>
+    def OpenVDBAsset "density" {{ asset filePath = @./grids.vdb@
+        token fieldName = "density" }}
+    def OpenVDBAsset "temperature" {{ asset filePath = @./grids.vdb@
+        token fieldName = "temperature" }}
+    def OpenVDBAsset "flames" {{ asset filePath = @./grids.vdb@
+        token fieldName = "flames" }}
+}}
+"#
+    );
+    let path = dir.join("fire.usda");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+fn cube_grids() -> Vec<RawGrid> {
+    let n = 16;
+    let vs = 1.0 / n as f64;
+    let o = DVec3::splat(-0.5 + 0.5 * vs);
+    vec![
+        grid_from_fn("density", [n, n, n], o, vs, |_| 1.0),
+        grid_from_fn(
+            "temperature",
+            [14, 14, 14],
+            DVec3::splat(-0.8125),
+            0.125,
+            |_| 1.5,
+        ),
+        grid_from_fn("flames", [14, 14, 14], DVec3::splat(-0.8125), 0.125, |_| {
+            0.5
+        }),
+    ]
+}
+
+/// A stage's emission attributes reach the medium: the loaded medium radiates what the
+/// attributes say (files written by Nimbus' VDB writer, read back by the reader).
+#[test]
+fn stage_emission_reaches_the_medium() {
+    let dir = tempfile::tempdir().unwrap();
+    write_vdb(&dir.path().join("grids.vdb"), &cube_grids());
+    let stage = fire_stage(
+        dir.path(),
+        r#"    token nimbus:temperatureField = "temperature"
+    float nimbus:temperatureScale = 2000
+    float nimbus:blackbodyIntensity = 0.1
+    token nimbus:emissionField = "flames"
+    color3f nimbus:emissionColor = (0.25, 0.5, 1)
+    float nimbus:emissionScale = 4"#,
+    );
+    let scene = load_stage(&stage, &LoadOptions::default()).unwrap();
+    let v = &scene.volumes[0];
+    assert_eq!(v.emission.temperature.as_ref().unwrap().0, "temperature");
+    assert_eq!(v.emission.emission.as_ref().unwrap().0, "flames");
+    assert_eq!(v.emission.emission_color, [0.25, 0.5, 1.0]);
+    let m = medium_for_scene(&scene, 8).unwrap();
+    let e = m.emission.as_ref().expect("emissive");
+    let got = e.radiance(DVec3::ZERO, &mut Counters::default());
+    let bb = blackbody_radiance(3000.0, 0.1);
+    let want = [0, 1, 2].map(|c| bb[c] + [0.25, 0.5, 1.0][c] * 4.0 * 0.5);
+    for c in 0..3 {
+        assert!(
+            (got[c] - want[c]).abs() <= 1e-5 * want[c],
+            "{got:?} vs {want:?}"
+        );
+    }
+    // Without the attributes, the same stage does not emit (and no grid is loaded).
+    let plain = fire_stage(dir.path(), "");
+    let scene = load_stage(&plain, &LoadOptions::default()).unwrap();
+    assert!(!scene.volumes[0].emission.is_emissive());
+    assert!(medium_for_scene(&scene, 8).unwrap().emission.is_none());
+}
+
+fn load_message(stage: &Path) -> String {
+    let msg = match load_stage(stage, &LoadOptions::default()) {
+        Err(e) => e.to_string(),
+        Ok(scene) => match medium_for_scene(&scene, 8) {
+            Err(e) => format!("{e:#}"),
+            Ok(_) => panic!("{} loaded", stage.display()),
+        },
+    };
+    eprintln!("{msg}");
+    msg
+}
+
+/// A field name with no relationship: the error names the prim, the attribute and the
+/// missing relationship, and lists the volume's fields.
+#[test]
+fn missing_emission_field_lists_the_fields() {
+    let dir = tempfile::tempdir().unwrap();
+    write_vdb(&dir.path().join("grids.vdb"), &cube_grids());
+    for attr in ["nimbus:emissionField", "nimbus:temperatureField"] {
+        let stage = fire_stage(dir.path(), &format!("    token {attr} = \"heat\""));
+        let msg = load_message(&stage);
+        for needle in [
+            "/V",
+            attr,
+            "field:heat",
+            "field:density, field:flames, field:temperature",
+        ] {
+            assert!(msg.contains(needle), "no '{needle}' in: {msg}");
+        }
+    }
+}
+
+/// A grid the file does not hold is an error naming the volume, the attribute, the field
+/// prim and the grids the file has.
+#[test]
+fn emission_grid_missing_from_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut grids = cube_grids();
+    grids.truncate(2); // no flames grid
+    write_vdb(&dir.path().join("grids.vdb"), &grids);
+    let stage = fire_stage(dir.path(), "    token nimbus:emissionField = \"flames\"");
+    let msg = load_message(&stage);
+    for needle in [
+        "/V",
+        "nimbus:emissionField",
+        "/V/flames",
+        "\"density\", \"temperature\"",
+    ] {
+        assert!(msg.contains(needle), "no '{needle}' in: {msg}");
+    }
+}
+
+/// An emission field that is not a float grid (a Vec3s grid) is an error naming the
+/// volume, the attribute and the grid's type.
+#[test]
+fn non_float_emission_grid_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("grids.vdb");
+    write_vdb(&path, &cube_grids());
+    // Same-length type name for the third grid (flames), so the file stays consistent.
+    let mut bytes = std::fs::read(&path).unwrap();
+    let at: Vec<usize> = bytes
+        .windows(16)
+        .enumerate()
+        .filter(|(_, w)| *w == b"Tree_float_5_4_3")
+        .map(|(i, _)| i)
+        .collect();
+    assert_eq!(at.len(), 3, "one type name per grid");
+    bytes[at[2]..at[2] + 16].copy_from_slice(b"Tree_vec3s_5_4_3");
+    std::fs::write(&path, &bytes).unwrap();
+    let stage = fire_stage(dir.path(), "    token nimbus:emissionField = \"flames\"");
+    let msg = load_message(&stage);
+    for needle in [
+        "/V",
+        "nimbus:emissionField",
+        "flames",
+        "Vec3s, expected float",
+    ] {
+        assert!(msg.contains(needle), "no '{needle}' in: {msg}");
+    }
+}
+
+/// Negative scales authored on the stage are errors naming the prim and the attribute.
+#[test]
+fn bad_scale_on_stage_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    write_vdb(&dir.path().join("grids.vdb"), &cube_grids());
+    for (attr, line) in [
+        ("nimbus:emissionScale", "float nimbus:emissionScale = -2"),
+        (
+            "nimbus:temperatureScale",
+            "float nimbus:temperatureScale = -300",
+        ),
+        (
+            "nimbus:blackbodyIntensity",
+            "float nimbus:blackbodyIntensity = -1",
+        ),
+    ] {
+        let stage = fire_stage(
+            dir.path(),
+            &format!(
+                "    token nimbus:emissionField = \"flames\"\n    token nimbus:temperatureField = \"temperature\"\n    {line}"
+            ),
+        );
+        let msg = load_message(&stage);
+        assert!(
+            msg.contains("/V") && msg.contains(attr) && msg.contains("non-negative"),
+            "{msg}"
+        );
+    }
+}
+
+/// `--no-absorption-events` on an emissive medium is refused (emission is collected at
+/// absorption events); the same render without the flag works and emits.
+#[test]
+fn no_absorption_events_refused_for_emissive_media() {
+    let dir = tempfile::tempdir().unwrap();
+    write_vdb(&dir.path().join("grids.vdb"), &cube_grids());
+    let stage = fire_stage(dir.path(), "    token nimbus:emissionField = \"flames\"");
+    let out = dir.path().join("out.exr");
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "render".to_string(),
+            stage.display().to_string(),
+            "-o".into(),
+            out.display().to_string(),
+            "--res".into(),
+            "8x8".into(),
+            "--spp".into(),
+            "4".into(),
+        ];
+        args.extend(extra.iter().map(|s| s.to_string()));
+        Command::new(env!("CARGO_BIN_EXE_nimbus"))
+            .args(&args)
+            .output()
+            .unwrap()
+    };
+    let o = run(&["--tracker", "spectral", "--no-absorption-events"]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(!e.contains("panicked"), "{e}");
+    assert!(
+        e.contains("--no-absorption-events") && e.contains("/V") && e.contains("emits"),
+        "{e}"
+    );
+    let o = run(&["--tracker", "spectral"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (_, _, chans) = nimbus::output::exr::read_channels(&out).unwrap();
+    let r = &chans.iter().find(|c| c.0 == "R").unwrap().1;
+    assert!(r.iter().any(|&v| v > 0.0), "no emission in the render");
+}
+
+// ----- real data ---------------------------------------------------------------------------------
+
+fn shared_data() -> Option<PathBuf> {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/embergen_fire_a");
+    if p.join("embergen_fire_a_50.vdb").is_file() {
+        Some(p)
+    } else {
+        eprintln!(
+            "SKIPPED: {} is absent (the EmberGen fire from ../shared/data)",
+            p.display()
+        );
+        None
+    }
+}
+
+/// The EmberGen fire (frame 50: grids `flames` and `temperature`, no density) with
+/// `temperature` as the density field and `flames` as the emission field, unlit (no
+/// lights, black environment): everything the camera sees is emission. It renders with
+/// non-zero, finite radiance under the tracker `auto` picks and under spectral
+/// tracking; each is checked to look emission up.
+#[test]
+fn embergen_fire_emits() {
+    use nimbus::render::analysis::Analysis;
+    use nimbus::render::camera::CameraRays;
+    use nimbus::render::job::RenderJob;
+    let Some(data) = shared_data() else {
+        return;
+    };
+    let vdb = data.join("embergen_fire_a_50.vdb");
+    let dir = tempfile::tempdir().unwrap();
+    let stage = dir.path().join("fire.usda");
+    std::fs::write(
+        &stage,
+        format!(
+            r#"#usda 1.0
+def Camera "Cam" {{
+    double3 xformOp:translate = (0, -25, 120)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+    float focalLength = 50
+    float horizontalAperture = 36
+    float verticalAperture = 36
+}}
+def Volume "Fire" (apiSchemas = ["NimbusVolumeAPI"]) {{
+    token nimbus:densityField = "temperature"
+    color3f nimbus:absorption = (0.5, 0.5, 0.5)
+    color3f nimbus:scattering = (0.5, 0.5, 0.5)
+    token nimbus:emissionField = "flames"
+    color3f nimbus:emissionColor = (1, 0.5, 0.2)
+    float nimbus:emissionScale = 40
+    rel field:temperature = </Fire/temperature>
+    rel field:flames = </Fire/flames>
+    def OpenVDBAsset "temperature" {{ asset filePath = @{vdb}@
+        token fieldName = "temperature" }}
+    def OpenVDBAsset "flames" {{ asset filePath = @{vdb}@
+        token fieldName = "flames" }}
+}}
+"#,
+            vdb = vdb.display()
+        ),
+    )
+    .unwrap();
+    let scene = load_stage(&stage, &LoadOptions::default()).unwrap();
+    let medium = medium_for_scene(&scene, 8).unwrap();
+    assert!(medium.emission.is_some());
+    let lights = Lights::from_scene(&scene).unwrap();
+    let (w, h) = (32, 32);
+    let camera = CameraRays::new(&scene.camera, w, h);
+    let analysis = Analysis::of(&medium, &lights, &camera, (w, h));
+    assert!(analysis.emissive && analysis.volume_visible);
+    let (auto, _) = analysis.choose(TrackerSettings::default(), false);
+    assert!(!auto.options.no_absorption_events);
+    let spectral = TrackerSettings {
+        tracker: TrackerKind::Spectral,
+        ..TrackerSettings::default()
+    };
+    for tracking in [auto, spectral] {
+        let job = RenderJob {
+            medium: &medium,
+            lights: &lights,
+            camera: &camera,
+            width: w,
+            height: h,
+            spp: 8,
+            max_depth: 16,
+            seed: 1,
+            tracking,
+        };
+        let film = job.render(&|| {});
+        common::assert_film_finite(tracking.tracker.name(), &film);
+        let (totals, samples, _) = film.totals();
+        let sum: [f64; 3] = [0, 1, 2].map(|c| film.pixels.iter().map(|p| p.rgb[c]).sum());
+        eprintln!(
+            "{}: radiance sum {sum:?} over {samples} samples, {} emission lookups, {} density lookups",
+            tracking.tracker.name(),
+            totals.emission_lookups,
+            totals.density_lookups
+        );
+        assert!(totals.emission_lookups > 0);
+        assert!(sum.iter().all(|&s| s.is_finite() && s > 0.0), "{sum:?}");
+        // Colour (1, 0.5, 0.2): the channels keep the emission colour's ratios.
+        assert!((sum[1] / sum[0] - 0.5).abs() < 1e-3, "{sum:?}");
+    }
+}
