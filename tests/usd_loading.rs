@@ -194,6 +194,76 @@ fn assert_volumes(scene: &Scene, expected: &Value) {
         assert_vec("absorption", &v.absorption, &e["absorption"], tol);
         assert_vec("scattering", &v.scattering, &e["scattering"], tol);
         assert_num("anisotropy", v.anisotropy, &e["anisotropy"], tol);
+        assert_emission(what, &v.emission, &e["emission"]);
+    }
+}
+
+/// The emission configuration (issue 8): the named fields and the parameters pxr
+/// resolves (authored, time-sampled or schema fallbacks).
+fn assert_emission(what: &str, actual: &nimbus::scene::VolumeEmission, expected: &Value) {
+    let tol = f32_tol();
+    for (attr, field, e) in [
+        (
+            "temperatureField",
+            &actual.temperature,
+            &expected["temperature"],
+        ),
+        ("emissionField", &actual.emission, &expected["emission"]),
+    ] {
+        match (field, e.as_array()) {
+            (None, None) => {}
+            (Some((name, f)), Some(pair)) => {
+                assert_eq!(name, pair[0].as_str().unwrap(), "{what} {attr}");
+                assert_field(&format!("{what} {attr}"), f, &pair[1]);
+            }
+            (a, _) => panic!("{what} {attr}: got {a:?}, pxr says {e}"),
+        }
+    }
+    assert_num(
+        "temperatureScale",
+        actual.temperature_scale,
+        &expected["temperature_scale"],
+        tol,
+    );
+    assert_num(
+        "blackbodyIntensity",
+        actual.blackbody_intensity,
+        &expected["blackbody_intensity"],
+        tol,
+    );
+    assert_vec(
+        "emissionColor",
+        &actual.emission_color,
+        &expected["emission_color"],
+        tol,
+    );
+    assert_num(
+        "emissionScale",
+        actual.emission_scale,
+        &expected["emission_scale"],
+        tol,
+    );
+}
+
+/// The blackbody emission model against pxr: intensity · (T/1000 K)⁴ ·
+/// `UsdLux.BlackbodyTemperatureAsRgb(T)` (pxr evaluates the colour in float: relative
+/// tolerance 1e-5 of the largest channel).
+#[test]
+fn blackbody_emission_matches_pxr() {
+    let Some((_dir, expected)) = generate_fixtures() else {
+        return;
+    };
+    for case in expected["blackbody_emission"].as_array().unwrap() {
+        let (t, i) = (num(&case[0]), num(&case[1]));
+        let e: Vec<f64> = case[2].as_array().unwrap().iter().map(num).collect();
+        let got = nimbus::volume::emission::blackbody_radiance(t, i);
+        let scale = e.iter().cloned().fold(0.0, f64::max);
+        for c in 0..3 {
+            assert!(
+                (got[c] - e[c]).abs() <= 1e-5 * scale,
+                "{t} K × {i}: got {got:?}, pxr says {e:?}"
+            );
+        }
     }
 }
 
