@@ -725,3 +725,27 @@ def Volume "Fire" (apiSchemas = ["NimbusVolumeAPI"]) {{
         assert!((sum[1] / sum[0] - 0.5).abs() < 1e-3, "{sum:?}");
     }
 }
+
+/// The analysis marks an emissive medium, and `auto` then keeps absorption events for a
+/// chromatic medium (spectral decomposition, hist-avg) instead of dropping them.
+#[test]
+fn analysis_of_emissive_media_keeps_absorption_events() {
+    use nimbus::render::analysis::Analysis;
+    let cam = common::camera_on_z(10.0, 1000.0, 10.0, 9, 9);
+    let lights = Lights::default();
+    let mut m = cube([0.2, 0.3, 0.6], [1.1, 1.2, 1.0], 0.0);
+    let a = Analysis::of(&m, &lights, &cam, (9, 9));
+    assert!(!a.emissive);
+    let (t, _) = a.choose(TrackerSettings::default(), false);
+    assert!(t.options.no_absorption_events);
+    let (e, _) = both_sources();
+    m.set_emission(Some(e));
+    let a = Analysis::of(&m, &lights, &cam, (9, 9));
+    assert!(a.emissive && !a.grey);
+    let (t, reason) = a.choose(TrackerSettings::default(), false);
+    assert_eq!(
+        (t.tracker, t.scheme),
+        (TrackerKind::SpectralDecomposition, SchemeKind::HistAvg)
+    );
+    assert!(!t.options.no_absorption_events, "{reason}");
+}
