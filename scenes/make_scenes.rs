@@ -2,12 +2,13 @@
 //!
 //!     cargo run --release --ignore-rust-version --example make_scenes
 //!
-//! Writes scenes/cloud/cloud.vdb and scenes/chromatic/chromatic.vdb (uncompressed float
-//! grids that both OpenVDB and vdb-rs read). The .usda files beside them are hand-written.
+//! Writes scenes/cloud/cloud.vdb, scenes/chromatic/chromatic.vdb and scenes/fire/fire.vdb
+//! (uncompressed float grids that both OpenVDB and vdb-rs read). The .usda files beside
+//! them are hand-written.
 
 use glam::DVec3;
 use nimbus::volume::procedural::{cloud_density, fbm, grid_from_fn};
-use nimbus::volume::vdb::write_float_grid;
+use nimbus::volume::vdb::{write_float_grid, write_float_grids};
 use std::path::Path;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -41,6 +42,55 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "chromatic: {} leaves, {} active voxels",
         puff.leaves.len(),
         puff.active_voxel_count()
+    );
+
+    // The fire: a plume of smoke (`density`) rising from a hot base, and a `temperature`
+    // grid (0 to 1, scaled to Kelvin by nimbus:temperatureScale) hottest in the core
+    // of the base and cooling with height; 40 × 64 × 40 voxels over [-0.625, 0.625] ×
+    // [-1, 1] × [-0.625, 0.625].
+    let voxel = 2.0 / 64.0;
+    let dims = [40, 64, 40];
+    let origin = DVec3::new(
+        -0.625 + 0.5 * voxel,
+        -1.0 + 0.5 * voxel,
+        -0.625 + 0.5 * voxel,
+    );
+    // Height h in [0, 1] from the base; the plume's radius narrows with a wobble.
+    let plume = |p: DVec3| {
+        let h = ((p.y + 1.0) / 2.0).clamp(0.0, 1.0);
+        let sway = 0.12 * h * (fbm(DVec3::new(0.0, p.y * 1.5, 5.0), 3) - 0.5);
+        let r = ((p.x - sway).powi(2) + p.z * p.z).sqrt();
+        let radius = 0.12 + 0.38 * (1.0 - h).powf(0.6) * h.powf(0.15).max(0.35);
+        let n = fbm(p * 4.0 + DVec3::new(2.3, -6.0 * h, 8.1), 4);
+        (h, (1.0 - r / radius + (n - 0.5) * 0.6).clamp(0.0, 1.0))
+    };
+    let smoke = grid_from_fn("density", dims, origin, voxel, |p| {
+        let (h, s) = plume(p);
+        // Thin at the base (flames), denser smoke above.
+        let v = s * (0.35 + 0.65 * h);
+        if v < 0.02 {
+            0.0
+        } else {
+            v
+        }
+    });
+    let temperature = grid_from_fn("temperature", dims, origin, voxel, |p| {
+        let (h, s) = plume(p);
+        let v = s.powf(0.7) * (1.0 - h / 0.65).clamp(0.0, 1.0);
+        if v < 0.02 {
+            0.0
+        } else {
+            v
+        }
+    });
+    write_float_grids(
+        &root.join("fire/fire.vdb"),
+        &[smoke.clone(), temperature.clone()],
+    )?;
+    println!(
+        "fire: density {} active voxels, temperature {} active voxels",
+        smoke.active_voxel_count(),
+        temperature.active_voxel_count()
     );
     Ok(())
 }
