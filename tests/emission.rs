@@ -620,6 +620,54 @@ fn no_absorption_events_refused_for_emissive_media() {
     let (_, _, chans) = nimbus::output::exr::read_channels(&out).unwrap();
     let r = &chans.iter().find(|c| c.0 == "R").unwrap().1;
     assert!(r.iter().any(|&v| v > 0.0), "no emission in the render");
+    // `nimbus bench error` refuses the option too, before rendering anything.
+    let o = Command::new(env!("CARGO_BIN_EXE_nimbus"))
+        .args(["bench", "error"])
+        .arg(&stage)
+        .args(["--trackers", "delta,spectral:hist-avg:no-absorption-events"])
+        .args([
+            "--res",
+            "4x4",
+            "--budgets",
+            "0.1",
+            "--seeds",
+            "1",
+            "--cache-dir",
+        ])
+        .arg(dir.path().join("cache"))
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(
+        e.contains("no-absorption-events") && e.contains("/V"),
+        "{e}"
+    );
+}
+
+/// `nimbus info` prints the emission configuration and the analysis says emissive.
+#[test]
+fn info_prints_emission() {
+    let dir = tempfile::tempdir().unwrap();
+    write_vdb(&dir.path().join("grids.vdb"), &cube_grids());
+    let stage = fire_stage(
+        dir.path(),
+        "    token nimbus:temperatureField = \"temperature\"\n    float nimbus:temperatureScale = 1500\n    token nimbus:emissionField = \"flames\"\n    float nimbus:emissionScale = 3",
+    );
+    let o = Command::new(env!("CARGO_BIN_EXE_nimbus"))
+        .arg("info")
+        .arg(&stage)
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for needle in [
+        "blackbody from temperatureField temperature (/V/temperature) temperatureScale 1500",
+        "emissionField flames (/V/flames) emissionColor [1.0, 1.0, 1.0] emissionScale 3",
+        "emissive true",
+    ] {
+        assert!(out.contains(needle), "no '{needle}' in:\n{out}");
+    }
 }
 
 // ----- real data ---------------------------------------------------------------------------------

@@ -274,6 +274,18 @@ pub fn run(args: ErrorArgs) -> Result<()> {
     };
     let spec = majorant_spec(args.octree_depth, settings, args.majorant_cell)?;
     let medium = medium_for_scene_with(&scene, spec)?;
+    if medium.emission.is_some() {
+        if let Some(t) = trackers
+            .iter()
+            .find(|t| t.settings.options.no_absorption_events)
+        {
+            bail!(
+                "{}: volume {} emits light, and emission is collected at absorption events; drop {NO_ABSORPTION_EVENTS} from it",
+                t.label,
+                medium.prim_path
+            );
+        }
+    }
     let lights = Lights::from_scene(&scene)?;
     let camera = CameraRays::new(&scene.camera, width, height);
     let pool = rayon::ThreadPoolBuilder::new()
