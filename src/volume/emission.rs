@@ -149,8 +149,8 @@ impl Emission {
         if let Some(f) = &self.field {
             let e = f.sample(p, c);
             if e > 0.0 {
-                for ch in 0..3 {
-                    le[ch] += self.field_rgb[ch] * e;
+                for (l, f) in le.iter_mut().zip(self.field_rgb) {
+                    *l += f * e;
                 }
             }
         }
@@ -162,7 +162,7 @@ impl Emission {
 /// rgb(T) UsdLux's colour of temperature T (luminance 1, so the luminance of the result
 /// is `intensity · (T/1000 K)⁴`); 0 for T ≤ 0 (and NaN).
 pub fn blackbody_radiance(kelvin: f64, intensity: f64) -> [f64; 3] {
-    if !(kelvin > 0.0) || !kelvin.is_finite() {
+    if kelvin.is_nan() || kelvin <= 0.0 || kelvin.is_infinite() {
         return [0.0; 3];
     }
     let s = intensity * (kelvin / 1000.0).powi(4);
