@@ -179,6 +179,7 @@ fn full_path(c: &mut Criterion) {
             transmittance: Ratio,
             single_channel: false,
             majorant_scale: 1.0,
+            count: true,
             profile: false,
             medium: &medium,
             lights: &lights,

@@ -19,6 +19,7 @@
 //! samples, where the normal approximation holds. The tests still catch bias: delta with
 //! its majorant scaled by 0.3 (biased) fails (checked by hand with the config below).
 
+use nimbus::render::analysis::CodePaths;
 use nimbus::render::camera::CameraRays;
 use nimbus::render::film::Film;
 use nimbus::render::job::{medium_for_scene, RenderJob};
@@ -50,6 +51,7 @@ fn setup(scene: &str) -> Setup {
 
 fn render(s: &Setup, tracking: TrackerSettings, spp: u32, seed: u64) -> Film {
     RenderJob {
+        paths: CodePaths::default(),
         medium: &s.medium,
         lights: &s.lights,
         camera: &s.camera,

@@ -2,11 +2,11 @@
 //! picks what its rules say and reports it.
 
 use glam::{DMat4, DVec3};
-use nimbus::render::analysis::Analysis;
+use nimbus::render::analysis::{Analysis, Given};
 use nimbus::render::camera::CameraRays;
 use nimbus::render::lights::Lights;
 use nimbus::scene::Camera;
-use nimbus::track::{SchemeKind, TrackerKind, TrackerSettings};
+use nimbus::track::{SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
 use nimbus::volume::grid::Grid;
 use nimbus::volume::majorant::MajorantSpec;
 use nimbus::volume::medium::Medium;
@@ -92,26 +92,51 @@ fn analysis_classifies_generated_scenes() {
 #[test]
 fn auto_follows_its_rules() {
     let cam = camera(false);
-    let grey = medium(|_| 0.5, [0.1; 3], [0.9; 3], 0.0);
+    // Heterogeneous (a linear ramp) unless said otherwise.
+    let ramp = |p: DVec3| 0.5 + 0.25 * p.x;
+    let grey = medium(ramp, [0.1; 3], [0.9; 3], 0.0);
     let a = Analysis::of(&grey, &sky([1.0; 3]), &cam, (32, 24));
-    let (t, _) = a.choose(TrackerSettings::default(), false);
+    assert!(!a.homogeneous);
+    let (t, _) = a.choose(TrackerSettings::default(), Given::default());
     assert_eq!(t.tracker, TrackerKind::Delta);
+    assert_eq!(t.transmittance, TransmittanceKind::Ratio);
     assert!(!t.options.no_absorption_events);
 
-    let chroma = medium(|_| 0.5, [0.2, 0.3, 0.6], [1.1, 1.2, 1.0], 0.0);
+    let chroma = medium(ramp, [0.2, 0.3, 0.6], [1.1, 1.2, 1.0], 0.0);
     let a = Analysis::of(&chroma, &sky([1.0; 3]), &cam, (32, 24));
     let base = TrackerSettings {
         scheme: SchemeKind::Max,
         ..TrackerSettings::default()
     };
-    let (t, reason) = a.choose(base, false);
+    let (t, reason) = a.choose(base, Given::default());
     assert_eq!(t.tracker, TrackerKind::SpectralDecomposition);
     assert_eq!(t.scheme, SchemeKind::HistAvg);
+    assert_eq!(t.transmittance, TransmittanceKind::Ratio);
     assert!(t.options.no_absorption_events);
     assert!(reason.contains("chromatic"));
     // A scheme the user named is kept.
-    let (t, _) = a.choose(base, true);
+    let named = Given {
+        scheme: true,
+        transmittance: true,
+    };
+    let (t, _) = a.choose(base, named);
     assert_eq!(t.scheme, SchemeKind::Max);
+
+    // Homogeneous media: the decomposition family with residual ratio tracking (closed
+    // form inside), unless the user named the shadow-ray estimator.
+    let cube = medium(|_| 0.5, [0.1; 3], [0.9; 3], 0.0);
+    let a = Analysis::of(&cube, &sky([1.0; 3]), &cam, (32, 24));
+    let (t, reason) = a.choose(TrackerSettings::default(), Given::default());
+    assert_eq!(t.tracker, TrackerKind::Decomposition);
+    assert_eq!(t.transmittance, TransmittanceKind::ResidualRatio);
+    assert!(reason.contains("homogeneous"), "{reason}");
+    let (t, _) = a.choose(TrackerSettings::default(), named);
+    assert_eq!(t.transmittance, TransmittanceKind::Ratio);
+    let chroma_cube = medium(|_| 0.5, [0.2, 0.3, 0.6], [1.1, 1.2, 1.0], 0.0);
+    let a = Analysis::of(&chroma_cube, &sky([1.0; 3]), &cam, (32, 24));
+    let (t, _) = a.choose(TrackerSettings::default(), Given::default());
+    assert_eq!(t.tracker, TrackerKind::SpectralDecomposition);
+    assert_eq!(t.transmittance, TransmittanceKind::ResidualRatio);
 }
 
 /// The example scenes through the CLI: `auto` (the default) picks delta for the grey
@@ -140,6 +165,12 @@ fn auto_is_the_default_and_is_reported() {
     };
     let cloud = run("cloud", &[]);
     assert_eq!(cloud["tracker"], "delta");
+    // The grey cloud runs the single-channel trackers unless told not to; the stats
+    // need the counts, so counting is on.
+    assert_eq!(cloud["code_paths"]["single_channel"], true);
+    assert_eq!(cloud["code_paths"]["counting"], true);
+    let general = run("cloud", &["--no-specialise"]);
+    assert_eq!(general["code_paths"]["single_channel"], false);
     assert_eq!(cloud["analysis"]["grey"], true);
     assert!(cloud["tracker_auto_reason"]
         .as_str()
@@ -150,6 +181,7 @@ fn auto_is_the_default_and_is_reported() {
     assert_eq!(chromatic["scheme"], "hist-avg");
     assert_eq!(chromatic["no_absorption_events"], true);
     assert_eq!(chromatic["analysis"]["grey"], false);
+    assert_eq!(chromatic["code_paths"]["single_channel"], false);
     let named = run("chromatic", &["--tracker", "delta"]);
     assert_eq!(named["tracker"], "delta");
     assert!(named["tracker_auto_reason"].is_null());

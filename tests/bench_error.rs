@@ -222,6 +222,51 @@ fn bench_error_writes_csv_and_plot_and_reuses_the_cached_reference() {
     assert_eq!(cached_references(&cache).len(), 2);
 }
 
+/// `auto` stands for the stage's `--tracker auto` choice, labelled with it; the budgets
+/// can run on the wall clock too.
+#[test]
+fn bench_error_resolves_auto_per_stage() {
+    let tmp = tempfile::tempdir().unwrap();
+    let csv = tmp.path().join("auto.csv");
+    let stage = stage();
+    let o = nimbus(&[
+        "bench",
+        "error",
+        stage.as_str(),
+        "--res",
+        "8x6",
+        "--reference-spp",
+        "16",
+        "--cache-dir",
+        tmp.path().join("cache").to_str().unwrap(),
+        "--trackers",
+        "delta,auto",
+        "--budgets",
+        "60",
+        "--seeds",
+        "1",
+        "--spp",
+        "1",
+        "--clock",
+        "wall",
+        "--csv",
+        csv.to_str().unwrap(),
+    ]);
+    assert_ok(&o);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("auto: chromatic medium"), "{out}");
+    assert!(out.contains("wall clock"), "{out}");
+    let (_, rows) = read_csv(&csv);
+    let labels: Vec<&str> = rows.iter().map(|r| r.tracker.as_str()).collect();
+    assert_eq!(
+        labels,
+        [
+            "delta",
+            "auto=spectral-decomposition:hist-avg:no-absorption-events"
+        ]
+    );
+}
+
 #[test]
 fn bench_error_bad_input_fails_cleanly() {
     let tmp = tempfile::tempdir().unwrap();

@@ -408,6 +408,7 @@ fn samples(
         transmittance: Ratio,
         single_channel: false,
         majorant_scale: 1.0,
+        count: true,
         profile: false,
         medium,
         lights,

@@ -69,6 +69,7 @@ fn integrator<'a>(
         transmittance: Ratio,
         single_channel: false,
         majorant_scale: 1.0,
+        count: true,
         profile: false,
         medium,
         lights,

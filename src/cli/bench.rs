@@ -12,10 +12,10 @@
 //! the wall time.
 
 use crate::output::{check_writable, write_atomically};
+use crate::render::analysis::CodePaths;
 use crate::render::camera::CameraRays;
 use crate::render::job::{medium_for_scene_with, RenderJob};
 use crate::render::lights::Lights;
-use crate::scene::{load_stage, LoadOptions};
 use crate::track::{TrackerKind, TrackerSettings, TransmittanceKind};
 use crate::volume::majorant::{MajorantSpec, MAX_DEPTH};
 use crate::volume::ticks::{Calibration, TrackerTimes};
@@ -30,6 +30,9 @@ pub enum BenchCommand {
     Octree(OctreeArgs),
     /// Error against time: relMSE of each tracker at each time budget vs a reference.
     Error(super::bench_error::ErrorArgs),
+    /// The specialised code paths (single-channel grey tracking, counting compiled
+    /// out) against the general ones, with the tracker `auto` picks.
+    Paths(super::bench_paths::PathsArgs),
 }
 
 #[derive(Args, Debug)]
@@ -56,6 +59,7 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
     match cmd {
         BenchCommand::Octree(a) => octree(a),
         BenchCommand::Error(a) => super::bench_error::run(a),
+        BenchCommand::Paths(a) => super::bench_paths::run(a),
     }
 }
 
@@ -83,18 +87,11 @@ fn octree(args: OctreeArgs) -> Result<()> {
     if let Some(p) = &args.csv {
         check_writable(p)?;
     }
-    let scene = load_stage(
-        &args.stage,
-        &LoadOptions {
-            frame: None,
-            camera: None,
-        },
-    )?;
+    let (scene, width, height) = args.sampling.load_stage(&args.stage)?;
     let s = &scene.settings;
-    let (width, height) = args.sampling.res.unwrap_or(s.resolution);
     let spp = args.sampling.spp.unwrap_or(s.samples);
-    if width == 0 || height == 0 || spp == 0 {
-        bail!("resolution and samples per pixel must be positive");
+    if spp == 0 {
+        bail!("--spp must be at least 1");
     }
     let seed = args.sampling.seed.unwrap_or(s.seed);
     let mut medium = medium_for_scene_with(
@@ -124,6 +121,7 @@ fn octree(args: OctreeArgs) -> Result<()> {
                 medium.prune_majorants(args.prune, residual)
             });
             let job = RenderJob {
+                paths: CodePaths::default(),
                 medium: &medium,
                 lights: &lights,
                 camera: &camera,
@@ -150,6 +148,7 @@ fn octree(args: OctreeArgs) -> Result<()> {
             let total_seconds = start.elapsed().as_secs_f64();
             let (c, _, _) = film.totals();
             let timed_job = RenderJob {
+                paths: CodePaths::default(),
                 tracking: TrackerSettings {
                     profile: true,
                     ..job.tracking

@@ -8,11 +8,11 @@ use super::error_plot::{self, Series};
 use super::reference::{self, ReferenceSettings, Rgb};
 use super::render::{majorant_spec, SamplingArgs};
 use crate::output::{check_writable, write_atomically};
+use crate::render::analysis::{Analysis, CodePaths, Given};
 use crate::render::camera::CameraRays;
 use crate::render::job::{medium_for_scene_with, RenderJob};
 use crate::render::lights::Lights;
-use crate::render::progressive::{render_progressive, Budget};
-use crate::scene::{load_stage, LoadOptions};
+use crate::render::progressive::{render_progressive, Budget, Clock};
 use crate::track::{SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
@@ -27,6 +27,7 @@ pub struct ErrorArgs {
     /// [:no-absorption-events][:reduced-termination], e.g.
     /// `spectral-decomposition:hist-avg` or `decomposition:residual-ratio`. Scheme default
     /// hist-avg, shadow rays default ratio tracking; the options as the `render` flags.
+    /// `auto` is what `render --tracker auto` picks for the stage.
     #[arg(
         long,
         value_delimiter = ',',
@@ -66,6 +67,10 @@ pub struct ErrorArgs {
     /// Majorant octree depth, as for `render`.
     #[arg(long)]
     pub octree_depth: Option<u32>,
+    /// The clock of the budgets: `cpu` (the process' CPU seconds, all threads: fair on
+    /// a shared, loaded machine) or `wall`.
+    #[arg(long, value_enum, default_value_t = Clock::Cpu)]
+    pub clock: Clock,
 }
 
 pub const CSV_HEADER: &str = "tracker,budget_seconds,seed,spp,density_lookups,relmse,mse";
@@ -90,6 +95,19 @@ fn names<T: ValueEnum>() -> String {
         .join(", ")
 }
 
+/// The tracker item that stands for `--tracker auto`'s choice on the stage.
+const AUTO: &str = "auto";
+
+/// Replaces an `auto` item by the settings the scene analysis picks, labelled
+/// `auto=LABEL`, and returns the reason to print.
+fn resolve_auto(trackers: &mut [TrackerSpec], analysis: &Analysis) -> Option<String> {
+    let spec = trackers.iter_mut().find(|t| t.label == AUTO)?;
+    let (settings, reason) = analysis.choose(TrackerSettings::default(), Given::default());
+    spec.label = format!("{AUTO}={}", label_of(&settings));
+    spec.settings = settings;
+    Some(reason)
+}
+
 /// The scheme options as they are spelled in a tracker item (as the `render` flags).
 const NO_ABSORPTION_EVENTS: &str = "no-absorption-events";
 const REDUCED_TERMINATION: &str = "reduced-termination";
@@ -99,6 +117,13 @@ const REDUCED_TERMINATION: &str = "reduced-termination";
 /// trackers that use one, then the shadow-ray estimator when it is not ratio tracking,
 /// then the options.
 pub fn parse_tracker(item: &str) -> Result<TrackerSpec> {
+    if item.trim() == AUTO {
+        // Resolved per stage by `resolve_auto`, once the scene is analysed.
+        return Ok(TrackerSpec {
+            label: AUTO.into(),
+            settings: TrackerSettings::default(),
+        });
+    }
     let mut parts = item.trim().split(':');
     let name = parts.next().unwrap_or_default().trim();
     if name.is_empty() {
@@ -153,6 +178,16 @@ pub fn parse_tracker(item: &str) -> Result<TrackerSpec> {
     }
     s.scheme = scheme.unwrap_or(s.scheme);
     s.transmittance = transmittance.unwrap_or(s.transmittance);
+    Ok(TrackerSpec {
+        label: label_of(&s),
+        settings: s,
+    })
+}
+
+/// The canonical label of tracker settings: the tracker, its scheme when it uses one,
+/// the shadow-ray estimator when it is not ratio tracking, then the options.
+pub fn label_of(s: &TrackerSettings) -> String {
+    let tracker = s.tracker;
     let mut label = tracker.name().to_string();
     if tracker.uses_scheme() {
         label = format!("{label}:{}", s.scheme.name());
@@ -166,7 +201,7 @@ pub fn parse_tracker(item: &str) -> Result<TrackerSpec> {
     if s.options.reduced_termination {
         label = format!("{label}:{REDUCED_TERMINATION}");
     }
-    Ok(TrackerSpec { label, settings: s })
+    label
 }
 
 /// One render of the bench.
@@ -194,7 +229,7 @@ pub fn rgb_error(image: &Rgb, reference: &Rgb) -> (f64, f64) {
 }
 
 pub fn run(args: ErrorArgs) -> Result<()> {
-    let trackers = args
+    let mut trackers = args
         .trackers
         .iter()
         .map(|t| parse_tracker(t))
@@ -233,21 +268,8 @@ pub fn run(args: ErrorArgs) -> Result<()> {
         }
     }
 
-    let scene = load_stage(
-        &args.stage,
-        &LoadOptions {
-            frame: None,
-            camera: None,
-        },
-    )?;
+    let (scene, width, height) = args.sampling.load_stage(&args.stage)?;
     let settings = &scene.settings;
-    let (width, height) = args.sampling.res.unwrap_or(settings.resolution);
-    if width == 0 || height == 0 {
-        bail!(
-            "{}: render resolution {width}x{height} has a zero side",
-            args.stage.display()
-        );
-    }
     let base_seed = args.sampling.seed.unwrap_or(settings.seed);
     let seeds: Vec<u64> = (0..args.seeds as u64)
         .map(|i| base_seed.wrapping_add(i))
@@ -288,11 +310,16 @@ pub fn run(args: ErrorArgs) -> Result<()> {
     }
     let lights = Lights::from_scene(&scene)?;
     let camera = CameraRays::new(&scene.camera, width, height);
+    let analysis = Analysis::of(&medium, &lights, &camera, (width, height));
+    if let Some(reason) = resolve_auto(&mut trackers, &analysis) {
+        println!("auto: {reason}");
+    }
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(args.sampling.threads.unwrap_or(0))
         .build()
         .context("cannot start worker threads")?;
     let job = RenderJob {
+        paths: CodePaths::default(),
         medium: &medium,
         lights: &lights,
         camera: &camera,
@@ -317,15 +344,27 @@ pub fn run(args: ErrorArgs) -> Result<()> {
         }
     };
 
-    let runs = measure(&job, &pool, &trackers, &args.budgets, &seeds, &reference)?;
+    let runs = measure(
+        &job,
+        &pool,
+        &trackers,
+        &args.budgets,
+        &seeds,
+        &reference,
+        args.clock,
+    )?;
 
     if let Some(path) = &args.csv {
         write_csv(path, &trackers, &args.budgets, &runs)?;
     }
     println!(
-        "{} {width}x{height}, {} seeds from {base_seed}, spp cap {}",
+        "{} {width}x{height}, {} seeds from {base_seed}, {} clock, spp cap {}",
         args.stage.display(),
         seeds.len(),
+        match args.clock {
+            Clock::Cpu => "process CPU",
+            Clock::Wall => "wall",
+        },
         args.sampling
             .spp
             .map_or("none".to_string(), |s| s.to_string())
@@ -355,6 +394,7 @@ fn measure(
     budgets: &[f64],
     seeds: &[u64],
     reference: &Rgb,
+    clock: Clock,
 ) -> Result<Vec<Run>> {
     let never = AtomicBool::new(false);
     let mut runs = Vec::new();
@@ -362,6 +402,7 @@ fn measure(
         for (b, &budget) in budgets.iter().enumerate() {
             for (t, spec) in trackers.iter().enumerate() {
                 let j = RenderJob {
+                    paths: CodePaths::default(),
                     seed,
                     tracking: spec.settings,
                     ..*job
@@ -370,6 +411,7 @@ fn measure(
                     spp_cap: job.spp,
                     time_limit: Some(budget),
                     checkpoint: None,
+                    clock,
                 };
                 let (film, p) = render_progressive(&j, pool, &limits, &never, &|_| {}, |_, _| {
                     Ok::<(), anyhow::Error>(())

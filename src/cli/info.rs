@@ -1,5 +1,6 @@
 //! `nimbus info`: what Nimbus reads from a stage.
 
+use crate::render::analysis::Given;
 use crate::scene::{load_stage, LoadOptions};
 use crate::volume::grid::Grid;
 use crate::volume::majorant::{MajorantSpec, MajorantTree, MAX_DEPTH};
@@ -223,11 +224,12 @@ fn print_analysis(scene: &crate::scene::Scene, depth: u32) {
                 a.lights_total,
                 a.volume_visible
             );
-            let (t, reason) = a.choose(TrackerSettings::default(), false);
+            let (t, reason) = a.choose(TrackerSettings::default(), Given::default());
             println!(
-                "tracker auto: {} scheme {}{}: {reason}",
+                "tracker auto: {} scheme {} transmittance {}{}: {reason}",
                 t.tracker.name(),
                 t.scheme.name(),
+                t.transmittance.name(),
                 if t.options.no_absorption_events {
                     ", no absorption events"
                 } else {

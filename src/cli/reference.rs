@@ -4,9 +4,10 @@
 
 use super::compare::find;
 use crate::output::exr::{read_all_channels, write_exr, ExrMetadata};
+use crate::render::analysis::CodePaths;
 use crate::render::film::{Aov, Film};
 use crate::render::job::RenderJob;
-use crate::render::progressive::{render_progressive, Budget};
+use crate::render::progressive::{render_progressive, Budget, Clock};
 use crate::scene::{AssetLocation, Scene};
 use crate::track::TrackerSettings;
 use anyhow::{bail, Context, Result};
@@ -149,12 +150,14 @@ pub fn cached_or_render(
         path.display()
     );
     let reference_job = RenderJob {
+        paths: CodePaths::default(),
         spp: r.spp,
         seed: r.seed,
         tracking: TrackerSettings::default(),
         ..*job
     };
     let budget = Budget {
+        clock: Clock::Wall,
         spp_cap: r.spp,
         time_limit: None,
         checkpoint: None,

@@ -1,9 +1,10 @@
 //! `nimbus render`.
 
 use crate::output::exr::{write_exr, ExrMetadata};
-use crate::output::stats::RenderStats;
+use crate::output::stats::{CodePathsUsed, RenderStats};
 use crate::output::{check_writable, write_atomically};
 use crate::render::analysis::Analysis;
+use crate::render::analysis::{CodePaths, Given};
 use crate::render::camera::CameraRays;
 use crate::render::film::Aov;
 use crate::render::job::{medium_for_scene_with, RenderJob};
@@ -23,7 +24,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use crate::render::film::Film;
-use crate::render::progressive::{render_progressive, Budget, Progress};
+use crate::render::progressive::{render_progressive, Budget, Clock, Progress};
 
 #[derive(Args, Debug)]
 pub struct RenderArgs {
@@ -98,6 +99,10 @@ pub struct RenderArgs {
     /// read pair per lookup and per cell, which `nimbus bench octree` measures.
     #[arg(long)]
     pub profile: bool,
+    /// Run the general RGB trackers even where the scene analysis allows a specialised
+    /// one (single-channel tracking of grey media); for benchmarks and checks.
+    #[arg(long)]
+    pub no_specialise: bool,
     /// AOVs to write besides R, G, B, A (comma-separated): lookups, residual_lookups,
     /// real_collisions, null_collisions, control_collisions, max_throughput, variance.
     #[arg(long, value_delimiter = ',')]
@@ -129,6 +134,23 @@ pub struct SamplingArgs {
     /// Worker threads (default: all cores). The image does not depend on it.
     #[arg(long)]
     pub threads: Option<usize>,
+}
+
+impl SamplingArgs {
+    /// Loads a stage for a benchmark (default time, the settings' camera) and returns
+    /// it with the resolution: `--res`, else the render settings'; a zero side is an
+    /// error naming the stage.
+    pub fn load_stage(&self, stage: &Path) -> Result<(crate::scene::Scene, u32, u32)> {
+        let scene = load_stage(stage, &LoadOptions::default())?;
+        let (width, height) = self.res.unwrap_or(scene.settings.resolution);
+        if width == 0 || height == 0 {
+            bail!(
+                "{}: render resolution {width}x{height} has a zero side",
+                stage.display()
+            );
+        }
+        Ok((scene, width, height))
+    }
 }
 
 pub fn parse_resolution(s: &str) -> Result<(u32, u32), String> {
@@ -379,15 +401,16 @@ fn render_frame(
         );
     }
     let auto_reason = request.auto.then(|| {
-        let (t, reason) = analysis.choose(tracking, request.scheme_given);
+        let (t, reason) = analysis.choose(tracking, request.given);
         tracking = t;
         reason
     });
     if let Some(reason) = &auto_reason {
         eprintln!(
-            "nimbus: tracker auto: {} (scheme {}{}): {reason}",
+            "nimbus: tracker auto: {} (scheme {}, transmittance {}{}): {reason}",
             tracking.tracker.name(),
             tracking.scheme.name(),
+            tracking.transmittance.name(),
             if tracking.options.no_absorption_events {
                 ", no absorption events"
             } else {
@@ -414,6 +437,15 @@ fn render_frame(
         max_depth,
         seed,
         tracking,
+        paths: CodePaths {
+            // Counting is compiled out unless something reads the counts.
+            count: stats_path.is_some()
+                || args.profile
+                || outputs
+                    .iter()
+                    .any(|o| o.aovs.iter().any(|a| a.uses_counters())),
+            specialise: !args.no_specialise,
+        },
     };
 
     let pool = rayon::ThreadPoolBuilder::new()
@@ -507,6 +539,10 @@ fn render_frame(
             reduced_termination: tracking.options.reduced_termination,
             tracker_auto_reason: auto_reason.clone(),
             analysis: analysis.clone(),
+            code_paths: CodePathsUsed {
+                counting: job.paths.count,
+                single_channel: job.single_channel(),
+            },
         };
         let json = serde_json::to_string_pretty(&stats)?;
         write_atomically(path, |f| {
@@ -517,6 +553,7 @@ fn render_frame(
     };
 
     let budget = Budget {
+        clock: Clock::Wall,
         spp_cap: spp,
         time_limit: args.time_limit,
         checkpoint: args.checkpoint,
@@ -612,7 +649,7 @@ fn tracker_values() -> clap::builder::PossibleValuesParser {
 struct TrackerRequest {
     settings: TrackerSettings,
     auto: bool,
-    scheme_given: bool,
+    given: Given,
 }
 
 fn tracker_settings(args: &RenderArgs, stage: &RenderSettings) -> Result<TrackerRequest> {
@@ -689,7 +726,10 @@ fn tracker_settings(args: &RenderArgs, stage: &RenderSettings) -> Result<Tracker
     Ok(TrackerRequest {
         settings,
         auto,
-        scheme_given,
+        given: Given {
+            scheme: scheme_given,
+            transmittance: args.transmittance.is_some() || stage.transmittance.is_some(),
+        },
     })
 }
 

@@ -63,4 +63,16 @@ pub struct RenderStats {
     pub tracker_auto_reason: Option<String>,
     /// The scene analysis the render was planned from.
     pub analysis: crate::render::analysis::Analysis,
+    /// The specialised code paths the render ran (`single_channel`: grey media tracked
+    /// with one channel).
+    pub code_paths: CodePathsUsed,
+}
+
+/// The code paths of a render, as the stats report them.
+#[derive(Clone, Debug, Serialize)]
+pub struct CodePathsUsed {
+    /// Lookups and collisions were counted (always, when stats are written).
+    pub counting: bool,
+    /// Grey medium tracked single-channel (`track::grey`).
+    pub single_channel: bool,
 }

@@ -5,7 +5,7 @@
 
 use crate::render::camera::CameraRays;
 use crate::render::lights::Lights;
-use crate::track::{SchemeKind, TrackerKind, TrackerSettings};
+use crate::track::{SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
 use crate::volume::medium::Medium;
 use serde::Serialize;
 
@@ -63,29 +63,47 @@ impl Analysis {
 
     /// `--tracker auto`: the tracker, scheme and options for this scene, and why.
     /// Measured with `nimbus bench error` (README, "Scene analysis and `auto`"):
+    /// - homogeneous media: the decomposition family with residual ratio tracking —
+    ///   inside the volume a majorant cell's minimum equals its maximum, so the control
+    ///   carries the whole density: free paths and transmittance come in closed form
+    ///   and only the rim cells, where the field falls off, need lookups;
     /// - grey media: `delta` — every spectral scheme reduces to it, and it ties
     ///   spectral tracking without absorption events while beating decomposition with
     ///   the default flat majorant grid (1.09–1.13× lower relMSE on the example cloud);
+    ///   it runs single-channel ([`CodePaths::specialise`]);
     /// - chromatic, non-emissive media: `spectral-decomposition` with history-aware avg
     ///   (throughput bounded by Theorem 2 at any albedo) and no absorption events (the
     ///   absorption lives in the weights; legal only without emission), the best at equal
     ///   time on both chromatic benchmarks (9–11× below naive delta on the example).
     ///
-    /// `scheme_given`: the user set the scheme, which is kept.
-    pub fn choose(&self, base: TrackerSettings, scheme_given: bool) -> (TrackerSettings, String) {
+    /// `given`: what the user set (a named scheme or shadow-ray estimator is kept).
+    pub fn choose(&self, base: TrackerSettings, given: Given) -> (TrackerSettings, String) {
         let mut t = base;
-        if self.grey {
+        let mut reason = String::new();
+        if self.grey && !self.homogeneous {
             t.tracker = TrackerKind::Delta;
-            return (
-                t,
-                "grey medium: delta tracking is exact with unit weights (spectral schemes reduce to it)".into(),
-            );
+            reason.push_str("grey medium: delta tracking is exact with unit weights (spectral schemes reduce to it), run single-channel");
+            return (t, reason);
+        }
+        if self.homogeneous {
+            if !given.transmittance {
+                t.transmittance = TransmittanceKind::ResidualRatio;
+            }
+            reason.push_str("homogeneous medium: the cells' minimum is their maximum, so the decomposition control carries the density and free paths and transmittance come in closed form (lookups only where the field falls off at the rim)");
+        }
+        if self.grey {
+            t.tracker = TrackerKind::Decomposition;
+            reason.push_str("; grey: analog decomposition tracking");
+            return (t, reason);
         }
         t.tracker = TrackerKind::SpectralDecomposition;
-        if !scheme_given {
+        if !given.scheme {
             t.scheme = SchemeKind::HistAvg;
         }
-        let mut reason = String::from(
+        if !reason.is_empty() {
+            reason.push_str("; ");
+        }
+        reason.push_str(
             "chromatic medium: spectral decomposition tracking with history-aware avg (bounded throughput)",
         );
         if !self.emissive {
@@ -95,6 +113,35 @@ impl Analysis {
             );
         }
         (t, reason)
+    }
+}
+
+/// What the user set explicitly, which `--tracker auto` keeps.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Given {
+    pub scheme: bool,
+    pub transmittance: bool,
+}
+
+/// The specialised code paths a render runs, chosen once before it starts: each is
+/// a separate instantiation of the integrator and trackers, not a branch per collision.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct CodePaths {
+    /// Count lookups, collisions and cells per pixel (the cost AOVs, the stats,
+    /// `--profile`); off, the counting is compiled out.
+    pub count: bool,
+    /// Run the single-channel trackers on grey media (`--no-specialise` turns this
+    /// off to force the general RGB path, for benchmarks and checks).
+    pub specialise: bool,
+}
+
+impl Default for CodePaths {
+    /// Counting on, specialisations on.
+    fn default() -> Self {
+        CodePaths {
+            count: true,
+            specialise: true,
+        }
     }
 }
 

@@ -78,6 +78,12 @@ pub enum Aov {
 }
 
 impl Aov {
+    /// Whether this channel reads the per-pixel counters (a render writing none of
+    /// them compiles the counting out).
+    pub fn uses_counters(self) -> bool {
+        !matches!(self, Aov::R | Aov::G | Aov::B | Aov::A | Aov::Variance)
+    }
+
     pub const ALL: [Aov; 11] = [
         Aov::R,
         Aov::G,

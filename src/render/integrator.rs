@@ -11,7 +11,7 @@ use crate::render::lights::Lights;
 use crate::render::phase::{hg, sample_hg};
 use crate::render::sampler::{pixel_sampler, Sampler};
 use crate::track::{self, FreePath, FreePathSampler, Query, TransmittanceEstimator};
-use crate::volume::medium::{Counters, Medium, Sigma};
+use crate::volume::medium::{Counters, Medium, NoCounts, Sigma, Tally};
 use glam::DVec3;
 use rand::Rng;
 use rayon::prelude::*;
@@ -26,7 +26,11 @@ pub struct Integrator<'a, F: FreePathSampler, E: TransmittanceEstimator> {
     pub single_channel: bool,
     /// Multiplies every majorant (1 = the medium's bounds).
     pub majorant_scale: f32,
-    /// Time lookups, traversal and tracker queries into the counters (`--profile`).
+    /// Count lookups, collisions and cells into each pixel's counters (for the cost
+    /// AOVs and the stats); off, the counting is compiled out ([`NoCounts`]).
+    pub count: bool,
+    /// Time lookups, traversal and tracker queries into the counters (`--profile`;
+    /// implies `count`).
     pub profile: bool,
     pub medium: &'a Medium,
     pub lights: &'a Lights,
@@ -80,26 +84,34 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
     }
 
     fn add_samples(&self, px: &mut Pixel, rng: &mut Sampler, x: u32, y: u32, n: u32) {
+        let count = self.count || self.profile;
         for _ in 0..n {
-            let mut counters = Counters {
-                timing: self.profile,
-                ..Counters::default()
+            let fx = x as f64 + rng.gen::<f64>();
+            let fy = y as f64 + rng.gen::<f64>();
+            // One branch per sample picks the instantiation; the paths below it are
+            // monomorphised with or without counting.
+            let s = if count {
+                let mut counters = Counters {
+                    timing: self.profile,
+                    ..Counters::default()
+                };
+                let s = self.sample(fx, fy, rng, &mut counters);
+                px.counters.add(&counters);
+                s
+            } else {
+                self.sample(fx, fy, rng, &mut NoCounts)
             };
-            let jx: f64 = rng.gen();
-            let jy: f64 = rng.gen();
-            let s = self.sample(x as f64 + jx, y as f64 + jy, rng, &mut counters);
             px.add_sample(s.rgb, s.alpha);
-            px.counters.add(&counters);
         }
     }
 
     /// One path through image position (`fx`, `fy`).
-    pub fn sample(
+    pub fn sample<C: Tally>(
         &self,
         fx: f64,
         fy: f64,
         rng: &mut Sampler,
-        counters: &mut Counters,
+        counters: &mut C,
     ) -> SampleResult {
         let ray = self.camera.ray(fx, fy);
         let medium = self.medium;
@@ -217,7 +229,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
     }
 
     /// Next-event estimation from scattering vertex `p` (arrived along `dir`).
-    fn next_event(
+    fn next_event<C: Tally>(
         &self,
         p: DVec3,
         dir: DVec3,
@@ -225,7 +237,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         throughput: [f32; 3],
         radiance: &mut [f64; 3],
         rng: &mut Sampler,
-        counters: &mut Counters,
+        counters: &mut C,
     ) {
         let medium = self.medium;
         let g = medium.g as f64;
@@ -261,7 +273,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
     /// Adds a sphere or rect light sample (no MIS: scattered rays never hit these
     /// lights), its shadow ray stopping at the light.
     #[allow(clippy::too_many_arguments)]
-    fn add_light_sample(
+    fn add_light_sample<C: Tally>(
         &self,
         sample: Option<LightSample>,
         p: DVec3,
@@ -270,7 +282,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         throughput: [f32; 3],
         radiance: &mut [f64; 3],
         rng: &mut Sampler,
-        counters: &mut Counters,
+        counters: &mut C,
     ) {
         let Some(s) = sample else {
             return;
@@ -282,14 +294,14 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         }
     }
 
-    fn shadow(
+    fn shadow<C: Tally>(
         &self,
         p: DVec3,
         wi: DVec3,
         tmax: f32,
         sigma: &Sigma,
         rng: &mut Sampler,
-        counters: &mut Counters,
+        counters: &mut C,
     ) -> [f32; 3] {
         let iray = self.medium.index_ray(p, wi);
         let q = Query {

@@ -1,6 +1,7 @@
 //! A render job: a medium, lights, a camera and settings, turned into a film by the
 //! integrator instantiated for the selected estimators.
 
+use crate::render::analysis::CodePaths;
 use crate::render::camera::CameraRays;
 use crate::render::film::Film;
 use crate::render::integrator::Integrator;
@@ -27,6 +28,8 @@ pub struct RenderJob<'a> {
     pub max_depth: u32,
     pub seed: u64,
     pub tracking: TrackerSettings,
+    /// Which specialised code paths run (counting, single-channel tracking).
+    pub paths: CodePaths,
 }
 
 impl RenderJob<'_> {
@@ -36,6 +39,16 @@ impl RenderJob<'_> {
         let mut film = self.new_film();
         self.render_pass(&mut film, self.spp, progress);
         film
+    }
+
+    /// Whether the medium is tracked as grey (the analysis' test, on the cross-sections).
+    fn grey(&self) -> bool {
+        self.paths.specialise && self.medium.sigma.is_grey()
+    }
+
+    /// Whether the render runs the single-channel trackers of grey media.
+    pub fn single_channel(&self) -> bool {
+        track::single_channel(&self.tracking, self.grey())
     }
 
     /// An empty film for this job (its size, pixel streams seeded from its seed).
@@ -64,6 +77,7 @@ impl RenderJob<'_> {
                     transmittance,
                     single_channel: j.tracking.tracker == TrackerKind::NaiveDelta,
                     majorant_scale: j.tracking.majorant_scale,
+                    count: j.paths.count,
                     profile: j.tracking.profile,
                     medium: j.medium,
                     lights: j.lights,
@@ -77,8 +91,9 @@ impl RenderJob<'_> {
                 .render_pass(self.film, self.n, self.progress)
             }
         }
-        track::dispatch(
+        track::dispatch_specialised(
             &self.tracking,
+            self.grey(),
             Pass {
                 job: self,
                 film,

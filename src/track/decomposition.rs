@@ -17,7 +17,7 @@
 
 use super::scheme::{choose, probabilities, Coefficients, Event, Scheme, SchemeOptions};
 use super::{mul, FreePath, FreePathSampler, OpticalDepth, Query, Spectrum};
-use crate::volume::medium::Counters;
+use crate::volume::medium::Tally;
 use rand::Rng;
 use std::marker::PhantomData;
 
@@ -41,12 +41,12 @@ impl<S: Scheme> Decomposition<S> {
 
 impl<S: Scheme> FreePathSampler for Decomposition<S> {
     #[inline]
-    fn sample<R: Rng>(
+    fn sample<R: Rng, C: Tally>(
         &self,
         q: &Query,
         throughput: &mut Spectrum,
         rng: &mut R,
-        c: &mut Counters,
+        c: &mut C,
     ) -> FreePath {
         let sg = q.sigma;
         let mut walk = q.medium.majorants.walk(q.ray.o, q.ray.d, q.tmin, q.tmax);
@@ -78,12 +78,12 @@ impl<S: Scheme> FreePathSampler for Decomposition<S> {
                 }
                 let (event, mu_bar, k);
                 if control_first {
-                    c.control_collisions += 1;
+                    c.control_collision();
                     k = kc;
                     mu_bar = mu_c;
                 } else {
                     let d = q.medium.density(q.ray.at(t), c);
-                    c.residual_lookups += 1;
+                    c.residual_lookup();
                     let dr = d - dc;
                     k = Coefficients {
                         mu_a: sg.a.map(|s| dr * s),
@@ -91,7 +91,7 @@ impl<S: Scheme> FreePathSampler for Decomposition<S> {
                         mu_n: sg.t.map(|s| mu_r - dr * s),
                     };
                     if dr > r || (self.control == 0.0 && dr < 0.0) {
-                        c.majorant_violations += 1;
+                        c.majorant_violation();
                     }
                     mu_bar = mu_r;
                 }
@@ -102,15 +102,15 @@ impl<S: Scheme> FreePathSampler for Decomposition<S> {
                 c.observe_throughput(*throughput);
                 match event {
                     Event::Absorb => {
-                        c.real_collisions += 1;
+                        c.real_collision();
                         return FreePath::Absorb { t };
                     }
                     Event::Scatter => {
-                        c.real_collisions += 1;
+                        c.real_collision();
                         return FreePath::Scatter { t };
                     }
                     Event::Null => {
-                        c.null_collisions += 1;
+                        c.null_collision();
                         // Memoryless: only the process that fired draws its next time.
                         if control_first {
                             tc = OpticalDepth::sample(rng).time(t, mu_c);

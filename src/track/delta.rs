@@ -13,7 +13,7 @@
 //! estimator that stays unbiased there.
 
 use super::{walk_collisions, FreePath, FreePathSampler, Query, Spectrum};
-use crate::volume::medium::Counters;
+use crate::volume::medium::Tally;
 use rand::Rng;
 use std::ops::ControlFlow;
 
@@ -22,12 +22,12 @@ pub struct Delta;
 
 impl FreePathSampler for Delta {
     #[inline]
-    fn sample<R: Rng>(
+    fn sample<R: Rng, C: Tally>(
         &self,
         q: &Query,
         throughput: &mut Spectrum,
         rng: &mut R,
-        c: &mut Counters,
+        c: &mut C,
     ) -> FreePath {
         let sg = q.sigma;
         let avg_a = super::avg(sg.a);
@@ -42,11 +42,11 @@ impl FreePathSampler for Delta {
             // weight turns negative), not only the average's; with a tolerance for
             // rounding where the density equals the majorant.
             if d * sg.t_max > mu_bar * (1.0 + 1e-5) {
-                c.majorant_violations += 1;
+                c.majorant_violation();
             }
             let u: f32 = rng.gen();
             if u < pa {
-                c.real_collisions += 1;
+                c.real_collision();
                 // Absorption weight w_a(λ) = μa(λ)/(μ̄·Pa) = σa(λ)/avg σa (1 for grey
                 // media), for the emission collected at absorption events.
                 for ch in 0..3 {
@@ -56,14 +56,14 @@ impl FreePathSampler for Delta {
                 return ControlFlow::Break(FreePath::Absorb { t });
             }
             if u < pa + ps {
-                c.real_collisions += 1;
+                c.real_collision();
                 for ch in 0..3 {
                     throughput[ch] *= d * sg.s[ch] / (mu_bar * ps);
                 }
                 c.observe_throughput(*throughput);
                 return ControlFlow::Break(FreePath::Scatter { t });
             }
-            c.null_collisions += 1;
+            c.null_collision();
             if pn > 0.0 {
                 for ch in 0..3 {
                     throughput[ch] *= (mu_bar - d * sg.t[ch]) / (mu_bar * pn);

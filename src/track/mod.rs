@@ -10,11 +10,12 @@
 
 pub mod decomposition;
 pub mod delta;
+pub mod grey;
 pub mod ratio;
 pub mod scheme;
 pub mod spectral;
 
-use crate::volume::medium::{Counters, IndexRay, Medium, Sigma};
+use crate::volume::medium::{IndexRay, Medium, Sigma, Tally};
 use rand::Rng;
 use std::ops::ControlFlow;
 
@@ -47,18 +48,18 @@ pub struct Query<'a> {
 
 /// Samples the first real collision, multiplying `throughput` by collision weights.
 pub trait FreePathSampler: Sync {
-    fn sample<R: Rng>(
+    fn sample<R: Rng, C: Tally>(
         &self,
         q: &Query,
         throughput: &mut Spectrum,
         rng: &mut R,
-        c: &mut Counters,
+        c: &mut C,
     ) -> FreePath;
 }
 
 /// Estimates transmittance along a shadow ray.
 pub trait TransmittanceEstimator: Sync {
-    fn transmittance<R: Rng>(&self, q: &Query, rng: &mut R, c: &mut Counters) -> Spectrum;
+    fn transmittance<R: Rng, C: Tally>(&self, q: &Query, rng: &mut R, c: &mut C) -> Spectrum;
 }
 
 /// Walks the tentative collisions of the null-collision process whose majorant is
@@ -67,11 +68,11 @@ pub trait TransmittanceEstimator: Sync {
 /// a lookup. `at(t, μ̄, rng, counters)` decides each collision; breaking returns its
 /// value, running off the end returns `None`. (pbrt-v4's `SampleT_maj`, monomorphised.)
 #[inline(always)]
-pub fn walk_collisions<R: Rng, T>(
+pub fn walk_collisions<R: Rng, C: Tally, T>(
     q: &Query,
     rng: &mut R,
-    c: &mut Counters,
-    mut at: impl FnMut(f32, f32, &mut R, &mut Counters) -> ControlFlow<T>,
+    c: &mut C,
+    mut at: impl FnMut(f32, f32, &mut R, &mut C) -> ControlFlow<T>,
 ) -> Option<T> {
     let mut walk = q.medium.majorants.walk(q.ray.o, q.ray.d, q.tmin, q.tmax);
     let mut tau = OpticalDepth::sample(rng);
@@ -298,6 +299,21 @@ pub fn dispatch<T>(s: &TrackerSettings, f: impl Dispatch<T>) -> T {
         TransmittanceKind::Ratio => dispatch_free_path(s, o, ratio::Ratio, f),
         TransmittanceKind::ResidualRatio => dispatch_free_path(s, o, ratio::ResidualRatio, f),
     }
+}
+
+/// [`dispatch`] with the specialised trackers of the scene analysis: for a grey medium
+/// (`grey`, checked against the cross-sections by the caller) delta tracking with ratio
+/// tracking runs single-channel ([`grey`]); every other choice runs as [`dispatch`].
+pub fn dispatch_specialised<T>(s: &TrackerSettings, grey: bool, f: impl Dispatch<T>) -> T {
+    if single_channel(s, grey) {
+        return f.run(grey::GreyDelta, grey::GreyRatio);
+    }
+    dispatch(s, f)
+}
+
+/// Whether [`dispatch_specialised`] runs the single-channel trackers.
+pub fn single_channel(s: &TrackerSettings, grey: bool) -> bool {
+    grey && s.tracker == TrackerKind::Delta && s.transmittance == TransmittanceKind::Ratio
 }
 
 fn dispatch_free_path<T, E: TransmittanceEstimator>(

@@ -12,7 +12,7 @@
 //! probability [`RR_SURVIVAL`] and is divided by it, which keeps it unbiased.
 
 use super::{walk_collisions, OpticalDepth, Query, Spectrum, TransmittanceEstimator};
-use crate::volume::medium::Counters;
+use crate::volume::medium::Tally;
 use rand::Rng;
 use std::ops::ControlFlow;
 
@@ -45,12 +45,12 @@ fn roulette<R: Rng>(tr: &mut Spectrum, rng: &mut R) -> bool {
 }
 
 impl TransmittanceEstimator for Ratio {
-    fn transmittance<R: Rng>(&self, q: &Query, rng: &mut R, c: &mut Counters) -> Spectrum {
+    fn transmittance<R: Rng, C: Tally>(&self, q: &Query, rng: &mut R, c: &mut C) -> Spectrum {
         let sg = q.sigma;
         let mut tr = [1f32; 3];
         walk_collisions(q, rng, c, |t, mu_bar, rng, c| {
             let d = q.medium.density(q.ray.at(t), c);
-            c.null_collisions += 1;
+            c.null_collision();
             for ch in 0..3 {
                 tr[ch] *= 1.0 - d * sg.t[ch] / mu_bar;
             }
@@ -65,7 +65,7 @@ impl TransmittanceEstimator for Ratio {
 }
 
 impl TransmittanceEstimator for ResidualRatio {
-    fn transmittance<R: Rng>(&self, q: &Query, rng: &mut R, c: &mut Counters) -> Spectrum {
+    fn transmittance<R: Rng, C: Tally>(&self, q: &Query, rng: &mut R, c: &mut C) -> Spectrum {
         let sg = q.sigma;
         let mut tr = [1f32; 3];
         let mut walk = q.medium.majorants.walk(q.ray.o, q.ray.d, q.tmin, q.tmax);
@@ -95,8 +95,8 @@ impl TransmittanceEstimator for ResidualRatio {
                 t = tc;
                 tau = OpticalDepth::sample(rng);
                 let d = q.medium.density(q.ray.at(t), c);
-                c.residual_lookups += 1;
-                c.null_collisions += 1;
+                c.residual_lookup();
+                c.null_collision();
                 for ch in 0..3 {
                     tr[ch] *= 1.0 - (d - seg.dmin) * sg.t[ch] / mu_r;
                 }

@@ -7,7 +7,7 @@
 
 use super::scheme::{choose, probabilities, Coefficients, Event, Scheme, SchemeOptions};
 use super::{mul, walk_collisions, FreePath, FreePathSampler, Query, Spectrum};
-use crate::volume::medium::Counters;
+use crate::volume::medium::Tally;
 use rand::Rng;
 use std::marker::PhantomData;
 use std::ops::ControlFlow;
@@ -29,12 +29,12 @@ impl<S: Scheme> Spectral<S> {
 
 impl<S: Scheme> FreePathSampler for Spectral<S> {
     #[inline]
-    fn sample<R: Rng>(
+    fn sample<R: Rng, C: Tally>(
         &self,
         q: &Query,
         throughput: &mut Spectrum,
         rng: &mut R,
-        c: &mut Counters,
+        c: &mut C,
     ) -> FreePath {
         let sg = q.sigma;
         walk_collisions(q, rng, c, |t, mu_bar, rng, c| {
@@ -45,7 +45,7 @@ impl<S: Scheme> FreePathSampler for Spectral<S> {
                 mu_n: sg.t.map(|s| mu_bar - d * s),
             };
             if k.mu_n.iter().any(|&m| m < 0.0) {
-                c.majorant_violations += 1;
+                c.majorant_violation();
             }
             let p = probabilities::<S>(&k, mu_bar, *throughput, self.options);
             let (event, w) = choose(&k, mu_bar, p, rng.gen());
@@ -53,15 +53,15 @@ impl<S: Scheme> FreePathSampler for Spectral<S> {
             c.observe_throughput(*throughput);
             match event {
                 Event::Absorb => {
-                    c.real_collisions += 1;
+                    c.real_collision();
                     ControlFlow::Break(FreePath::Absorb { t })
                 }
                 Event::Scatter => {
-                    c.real_collisions += 1;
+                    c.real_collision();
                     ControlFlow::Break(FreePath::Scatter { t })
                 }
                 Event::Null => {
-                    c.null_collisions += 1;
+                    c.null_collision();
                     ControlFlow::Continue(())
                 }
             }

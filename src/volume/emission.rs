@@ -18,7 +18,7 @@
 
 use crate::render::lights::usd_blackbody_rgb;
 use crate::volume::grid::Grid;
-use crate::volume::medium::{Counters, MediumError};
+use crate::volume::medium::{MediumError, Tally};
 use glam::{DMat4, DVec3};
 
 /// An emission grid with its world → index transform.
@@ -55,8 +55,8 @@ impl EmissionGrid {
 
     /// The trilinearly reconstructed value at world point `p` (one emission lookup).
     #[inline]
-    pub fn sample(&self, p: DVec3, c: &mut Counters) -> f64 {
-        c.emission_lookups += 1;
+    pub fn sample<C: Tally>(&self, p: DVec3, c: &mut C) -> f64 {
+        c.emission_lookup();
         let i = self.world_to_index.transform_point3(p).as_vec3();
         self.grid.sample_trilinear(i.to_array()) as f64
     }
@@ -140,7 +140,7 @@ impl Emission {
 
     /// Emitted radiance Le at world point `p` (one lookup per grid).
     #[inline]
-    pub fn radiance(&self, p: DVec3, c: &mut Counters) -> [f64; 3] {
+    pub fn radiance<C: Tally>(&self, p: DVec3, c: &mut C) -> [f64; 3] {
         let mut le = [0.0; 3];
         if let Some(t) = &self.temperature {
             let kelvin = self.params.temperature_scale * t.sample(p, c);

@@ -72,11 +72,89 @@ impl Counters {
         self.tracker_calls += o.tracker_calls;
         self.peak_throughput = self.peak_throughput.max(o.peak_throughput);
     }
+}
 
+/// What the trackers count as they go: [`Counters`] counts (for the cost AOVs, the
+/// stats and `--profile`); [`NoCounts`] counts nothing, so a render that asked for
+/// none of those compiles every increment out (the trackers and the integrator are
+/// generic over it, instantiated once per render).
+pub trait Tally {
+    /// Whether lookups and walk steps are timed (`--profile`).
+    fn timing(&self) -> bool;
+    /// One evaluation of the density field, `ticks` long when timing.
+    fn density_lookup(&mut self, ticks: u64);
+    fn real_collision(&mut self);
+    fn null_collision(&mut self);
+    fn majorant_violation(&mut self);
+    /// A density lookup made by residual tracking (also counted as a density lookup).
+    fn residual_lookup(&mut self);
+    fn control_collision(&mut self);
+    /// One evaluation of an emission grid (at an absorption event).
+    fn emission_lookup(&mut self);
+    /// Records a path throughput for the `max_throughput` statistic.
+    fn observe_throughput(&mut self, w: Spectrum);
     /// The next segment of a majorant walk, counted as a visited cell (and timed as
     /// traversal when timing).
+    fn next_segment(&mut self, walk: &mut TreeWalk) -> Option<Segment>;
+    /// Starts timing a tracker query (0 when not timing).
+    fn tracker_start(&self) -> u64;
+    /// Ends the tracker query started at `t0`.
+    fn tracker_stop(&mut self, t0: u64);
+}
+
+impl Tally for Counters {
     #[inline(always)]
-    pub fn next_segment(&mut self, walk: &mut TreeWalk) -> Option<Segment> {
+    fn timing(&self) -> bool {
+        self.timing
+    }
+
+    #[inline(always)]
+    fn density_lookup(&mut self, ticks: u64) {
+        self.density_lookups += 1;
+        self.lookup_ticks += ticks;
+    }
+
+    #[inline(always)]
+    fn real_collision(&mut self) {
+        self.real_collisions += 1;
+    }
+
+    #[inline(always)]
+    fn null_collision(&mut self) {
+        self.null_collisions += 1;
+    }
+
+    #[inline(always)]
+    fn majorant_violation(&mut self) {
+        self.majorant_violations += 1;
+    }
+
+    #[inline(always)]
+    fn residual_lookup(&mut self) {
+        self.residual_lookups += 1;
+    }
+
+    #[inline(always)]
+    fn control_collision(&mut self) {
+        self.control_collisions += 1;
+    }
+
+    #[inline(always)]
+    fn emission_lookup(&mut self) {
+        self.emission_lookups += 1;
+    }
+
+    #[inline(always)]
+    fn observe_throughput(&mut self, w: Spectrum) {
+        let m = w[0].abs().max(w[1].abs()).max(w[2].abs()) as f64;
+        if m > self.max_throughput {
+            self.max_throughput = m;
+            self.peak_throughput = self.peak_throughput.max(m);
+        }
+    }
+
+    #[inline(always)]
+    fn next_segment(&mut self, walk: &mut TreeWalk) -> Option<Segment> {
         let seg = if self.timing {
             let t0 = ticks::now();
             let seg = walk.next();
@@ -90,9 +168,8 @@ impl Counters {
         seg
     }
 
-    /// Starts timing a tracker query (0 when not timing).
     #[inline(always)]
-    pub fn tracker_start(&self) -> u64 {
+    fn tracker_start(&self) -> u64 {
         if self.timing {
             ticks::now()
         } else {
@@ -100,24 +177,50 @@ impl Counters {
         }
     }
 
-    /// Ends the tracker query started at `t0`.
     #[inline(always)]
-    pub fn tracker_stop(&mut self, t0: u64) {
+    fn tracker_stop(&mut self, t0: u64) {
         if self.timing {
             self.tracker_ticks += ticks::now() - t0;
             self.tracker_calls += 1;
         }
     }
+}
 
-    /// Records a path throughput for the `max_throughput` statistic.
+/// The tally of a render that wants no counts: every method is empty.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct NoCounts;
+
+impl Tally for NoCounts {
     #[inline(always)]
-    pub fn observe_throughput(&mut self, w: Spectrum) {
-        let m = w[0].abs().max(w[1].abs()).max(w[2].abs()) as f64;
-        if m > self.max_throughput {
-            self.max_throughput = m;
-            self.peak_throughput = self.peak_throughput.max(m);
-        }
+    fn timing(&self) -> bool {
+        false
     }
+    #[inline(always)]
+    fn density_lookup(&mut self, _ticks: u64) {}
+    #[inline(always)]
+    fn real_collision(&mut self) {}
+    #[inline(always)]
+    fn null_collision(&mut self) {}
+    #[inline(always)]
+    fn majorant_violation(&mut self) {}
+    #[inline(always)]
+    fn residual_lookup(&mut self) {}
+    #[inline(always)]
+    fn control_collision(&mut self) {}
+    #[inline(always)]
+    fn emission_lookup(&mut self) {}
+    #[inline(always)]
+    fn observe_throughput(&mut self, _w: Spectrum) {}
+    #[inline(always)]
+    fn next_segment(&mut self, walk: &mut TreeWalk) -> Option<Segment> {
+        walk.next()
+    }
+    #[inline(always)]
+    fn tracker_start(&self) -> u64 {
+        0
+    }
+    #[inline(always)]
+    fn tracker_stop(&mut self, _t0: u64) {}
 }
 
 /// A ray mapped into a medium's index space.
@@ -330,14 +433,14 @@ impl Medium {
     /// Density (already scaled into extinction units by σ) at an index-space point.
     /// Every call is one density lookup.
     #[inline(always)]
-    pub fn density(&self, p: Vec3, counters: &mut Counters) -> f32 {
-        counters.density_lookups += 1;
-        if counters.timing {
+    pub fn density<C: Tally>(&self, p: Vec3, counters: &mut C) -> f32 {
+        if counters.timing() {
             let t0 = ticks::now();
             let d = self.density.sample_trilinear(p.to_array());
-            counters.lookup_ticks += ticks::now() - t0;
+            counters.density_lookup(ticks::now() - t0);
             d
         } else {
+            counters.density_lookup(0);
             self.density.sample_trilinear(p.to_array())
         }
     }

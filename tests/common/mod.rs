@@ -152,6 +152,7 @@ impl Dispatch<Output> for Run<'_, '_> {
             transmittance,
             single_channel: self.settings.tracker == TrackerKind::NaiveDelta,
             majorant_scale: self.settings.majorant_scale,
+            count: true,
             profile: false,
             medium: s.medium,
             lights: s.lights,
