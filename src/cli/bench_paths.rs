@@ -2,7 +2,9 @@
 //! stage. The tracker `--tracker auto` picks is rendered four ways — the general RGB
 //! trackers or the specialised ones (single-channel tracking of grey media), each with
 //! the per-pixel counting on (cost AOVs, stats) or compiled out (an RGB-only render) —
-//! in interleaved rounds with the same seed, so machine noise hits all four alike.
+//! in interleaved rounds with the same seed, so machine noise hits all four alike,
+//! timed on the process' CPU clock (other programs on a shared machine do not inflate
+//! it).
 //! Prints the median seconds per sample of each and the ratios, and checks that the
 //! four images agree (equal decisions: differences are rounding only).
 
@@ -12,11 +14,11 @@ use crate::render::camera::CameraRays;
 use crate::render::film::{Aov, Film};
 use crate::render::job::{medium_for_scene_with, RenderJob};
 use crate::render::lights::Lights;
+use crate::render::progressive::{Clock, Stopwatch};
 use crate::track::TrackerSettings;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use std::path::PathBuf;
-use std::time::Instant;
 
 #[derive(Args, Debug)]
 pub struct PathsArgs {
@@ -116,9 +118,9 @@ pub fn run(args: PathsArgs) -> Result<()> {
     for _ in 0..args.rounds {
         for (i, (_, paths)) in VARIANTS.iter().enumerate() {
             let j = job(*paths);
-            let t0 = Instant::now();
+            let t0 = Stopwatch::start(Clock::Cpu);
             let film = pool.install(|| j.render(&|| {}));
-            seconds[i].push(t0.elapsed().as_secs_f64());
+            seconds[i].push(t0.elapsed());
             films[i] = Some(film);
         }
     }
@@ -126,7 +128,7 @@ pub fn run(args: PathsArgs) -> Result<()> {
     let medians: Vec<f64> = seconds.iter_mut().map(|v| median(v)).collect();
     println!(
         "{:<24} {:>12} {:>14}",
-        "variant", "median (s)", "ns per sample"
+        "variant", "median CPU s", "ns per sample"
     );
     for ((name, _), m) in VARIANTS.iter().zip(&medians) {
         println!("{name:<24} {m:>12.4} {:>14.1}", m / samples * 1e9);
