@@ -33,18 +33,8 @@ impl FreePathSampler for Delta {
         let avg_a = super::avg(sg.a);
         let avg_s = super::avg(sg.s);
         walk_collisions(q, rng, c, |t, mu_bar, rng, c| {
-            let d = q.medium.density(q.ray.at(t), c);
-            // P★ = avg_λ μ★(λ) / μ̄.
-            let pa = d * avg_a / mu_bar;
-            let ps = d * avg_s / mu_bar;
+            let Collision { d, pa, ps, u } = collide(q, t, mu_bar, avg_a, avg_s, rng, c);
             let pn = 1.0 - pa - ps;
-            // A violation is any channel's extinction above the majorant (its null
-            // weight turns negative), not only the average's; with a tolerance for
-            // rounding where the density equals the majorant.
-            if d * sg.t_max > mu_bar * (1.0 + 1e-5) {
-                c.majorant_violation();
-            }
-            let u: f32 = rng.gen();
             if u < pa {
                 c.real_collision();
                 // Absorption weight w_a(λ) = μa(λ)/(μ̄·Pa) = σa(λ)/avg σa (1 for grey
@@ -73,5 +63,41 @@ impl FreePathSampler for Delta {
             ControlFlow::Continue(())
         })
         .unwrap_or(FreePath::Escape)
+    }
+}
+
+/// A tentative collision of delta tracking: the density there, the event
+/// probabilities P★ = avg_λ μ★(λ)/μ̄ and the uniform that decides between them.
+pub(super) struct Collision {
+    pub d: f32,
+    pub pa: f32,
+    pub ps: f32,
+    pub u: f32,
+}
+
+/// Looks up the density at `t`, computes the probabilities and draws the uniform;
+/// counts a violation where any channel's extinction exceeds the majorant (its null
+/// weight turns negative), not only the average's, with a tolerance for rounding
+/// where the density equals the majorant. Shared with the single-channel tracker,
+/// which must make the same decisions from the same numbers.
+#[inline(always)]
+pub(super) fn collide<R: Rng, C: Tally>(
+    q: &Query,
+    t: f32,
+    mu_bar: f32,
+    avg_a: f32,
+    avg_s: f32,
+    rng: &mut R,
+    c: &mut C,
+) -> Collision {
+    let d = q.medium.density(q.ray.at(t), c);
+    if d * q.sigma.t_max > mu_bar * (1.0 + 1e-5) {
+        c.majorant_violation();
+    }
+    Collision {
+        d,
+        pa: d * avg_a / mu_bar,
+        ps: d * avg_s / mu_bar,
+        u: rng.gen(),
     }
 }

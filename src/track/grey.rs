@@ -8,6 +8,7 @@
 //! of weights that are 1 there. [`dispatch_specialised`](super::dispatch_specialised)
 //! picks them only for grey media.
 
+use super::delta::{collide, Collision};
 use super::ratio::{RR_SURVIVAL, RR_THRESHOLD};
 use super::{
     avg, walk_collisions, FreePath, FreePathSampler, Query, Spectrum, TransmittanceEstimator,
@@ -38,13 +39,7 @@ impl FreePathSampler for GreyDelta {
         let avg_a = avg(sg.a);
         let avg_s = avg(sg.s);
         walk_collisions(q, rng, c, |t, mu_bar, rng, c| {
-            let d = q.medium.density(q.ray.at(t), c);
-            let pa = d * avg_a / mu_bar;
-            let ps = d * avg_s / mu_bar;
-            if d * sg.t_max > mu_bar * (1.0 + 1e-5) {
-                c.majorant_violation();
-            }
-            let u: f32 = rng.gen();
+            let Collision { pa, ps, u, .. } = collide(q, t, mu_bar, avg_a, avg_s, rng, c);
             if u < pa {
                 c.real_collision();
                 return ControlFlow::Break(FreePath::Absorb { t });
