@@ -593,13 +593,20 @@ fn render_frame(
             p.passes
         );
     }
+    // Without counting (no cost AOV, no stats) there are no lookups to report.
+    let lookups = match job.paths.count {
+        true => format!(
+            ", {:.1} lookups/sample",
+            totals.density_lookups as f64 / (width as f64 * height as f64 * p.spp as f64)
+        ),
+        false => String::new(),
+    };
     eprintln!(
-        "nimbus: wrote {} ({width}x{height}, {} spp in {} passes, {:.2} s, {:.1} lookups/sample)",
+        "nimbus: wrote {} ({width}x{height}, {} spp in {} passes, {:.2} s{lookups})",
         list_paths(&outputs),
         p.spp,
         p.passes,
         p.seconds,
-        totals.density_lookups as f64 / (width as f64 * height as f64 * p.spp as f64)
     );
     Ok(())
 }
