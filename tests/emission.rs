@@ -18,32 +18,6 @@ use std::process::Command;
 
 // ----- analytic media ----------------------------------------------------------------------
 
-/// A cube of 16³ unit-density voxels of size 1/16 centred at the origin (as in
-/// tests/render_analytic.rs): an axis-parallel ray through it sees optical depth σt
-/// exactly.
-fn cube(sigma_a: [f64; 3], sigma_s: [f64; 3], g: f64) -> Medium {
-    let n = 16;
-    let vs = 1.0 / n as f64;
-    let raw = grid_from_fn(
-        "density",
-        [n, n, n],
-        DVec3::splat(-0.5 + 0.5 * vs),
-        vs,
-        |_| 1.0,
-    );
-    Medium::new(
-        "/Cube",
-        Grid::from_raw(&raw).unwrap(),
-        DMat4::IDENTITY,
-        1.0,
-        sigma_a,
-        sigma_s,
-        g,
-        8,
-    )
-    .unwrap()
-}
-
 /// A constant grid `value` over [−0.8125, 0.8125]³ (14³ voxels of 1/8, another transform
 /// than the density's): its reconstruction is exactly `value` wherever the cube's
 /// density is non-zero, so the emission is constant over the medium.
@@ -81,24 +55,10 @@ fn both_sources() -> (Emission, [f64; 3]) {
 /// Every free-path sampler: each tracker, each scheme where it matters (ratio shadows;
 /// these media never scatter or use the shadow estimator where noted).
 fn trackers() -> Vec<TrackerSettings> {
-    use clap::ValueEnum;
-    let mut out = Vec::new();
-    for &tracker in TrackerKind::value_variants() {
-        let schemes: &[SchemeKind] = if tracker.uses_scheme() {
-            SchemeKind::value_variants()
-        } else {
-            &[SchemeKind::HistAvg]
-        };
-        for &scheme in schemes {
-            out.push(TrackerSettings {
-                tracker,
-                scheme,
-                transmittance: TransmittanceKind::Ratio,
-                ..TrackerSettings::default()
-            });
-        }
-    }
-    out
+    common::all_settings(1.0)
+        .into_iter()
+        .filter(|s| s.transmittance == TransmittanceKind::Ratio)
+        .collect()
 }
 
 fn name(s: &TrackerSettings) -> String {
@@ -139,7 +99,7 @@ fn absorbing_emitting_cube_matches_closed_form() {
     };
     let cam = common::camera_on_z(10.0, 1000.0, 10.0, 9, 9);
     for sigma_a in [[1.0; 3], [0.5, 1.0, 2.0]] {
-        let mut m = cube(sigma_a, [0.0; 3], 0.0);
+        let mut m = common::unit_cube(1.0, sigma_a, [0.0; 3], 0.0);
         let (e, le) = both_sources();
         m.set_emission(Some(e));
         let expected =
@@ -180,7 +140,7 @@ fn emitting_cube_in_matching_environment_is_invisible() {
         ..Default::default()
     };
     let cam = common::camera_on_z(10.0, 1000.0, 10.0, 9, 9);
-    let mut m = cube([0.5, 1.0, 1.5], [1.5, 1.0, 0.5], 0.3);
+    let mut m = common::unit_cube(1.0, [0.5, 1.0, 1.5], [1.5, 1.0, 0.5], 0.3);
     let e = Emission::new(
         "/Cube",
         None,
@@ -218,7 +178,7 @@ fn emission_lookups_only_at_absorption_events() {
     let lights = Lights::default();
     let cam = common::camera_on_z(10.0, 1000.0, 10.0, 9, 9);
     let s = TrackerSettings::default();
-    let mut m = cube([1.0; 3], [0.0; 3], 0.0);
+    let mut m = common::unit_cube(1.0, [1.0; 3], [0.0; 3], 0.0);
     let run = |m: &Medium| {
         let setup = Setup {
             medium: m,
@@ -492,14 +452,15 @@ fn missing_emission_field_lists_the_fields() {
     for attr in ["nimbus:emissionField", "nimbus:temperatureField"] {
         let stage = fire_stage(dir.path(), &format!("    token {attr} = \"heat\""));
         let msg = load_message(&stage);
-        for needle in [
-            "/V",
-            attr,
-            "field:heat",
-            "field:density, field:flames, field:temperature",
-        ] {
-            assert!(msg.contains(needle), "no '{needle}' in: {msg}");
-        }
+        assert_mentions(
+            &msg,
+            &[
+                "/V",
+                attr,
+                "field:heat",
+                "field:density, field:flames, field:temperature",
+            ],
+        );
     }
 }
 
@@ -513,14 +474,15 @@ fn emission_grid_missing_from_file() {
     write_vdb(&dir.path().join("grids.vdb"), &grids);
     let stage = fire_stage(dir.path(), "    token nimbus:emissionField = \"flames\"");
     let msg = load_message(&stage);
-    for needle in [
-        "/V",
-        "nimbus:emissionField",
-        "/V/flames",
-        "\"density\", \"temperature\"",
-    ] {
-        assert!(msg.contains(needle), "no '{needle}' in: {msg}");
-    }
+    assert_mentions(
+        &msg,
+        &[
+            "/V",
+            "nimbus:emissionField",
+            "/V/flames",
+            "\"density\", \"temperature\"",
+        ],
+    );
 }
 
 /// An emission field that is not a float grid (a Vec3s grid) is an error naming the
@@ -543,14 +505,15 @@ fn non_float_emission_grid_is_an_error() {
     std::fs::write(&path, &bytes).unwrap();
     let stage = fire_stage(dir.path(), "    token nimbus:emissionField = \"flames\"");
     let msg = load_message(&stage);
-    for needle in [
-        "/V",
-        "nimbus:emissionField",
-        "flames",
-        "Vec3s, expected float",
-    ] {
-        assert!(msg.contains(needle), "no '{needle}' in: {msg}");
-    }
+    assert_mentions(
+        &msg,
+        &[
+            "/V",
+            "nimbus:emissionField",
+            "flames",
+            "Vec3s, expected float",
+        ],
+    );
 }
 
 /// Negative scales authored on the stage are errors naming the prim and the attribute.
@@ -783,7 +746,7 @@ fn analysis_of_emissive_media_keeps_absorption_events() {
     use nimbus::render::analysis::Analysis;
     let cam = common::camera_on_z(10.0, 1000.0, 10.0, 9, 9);
     let lights = Lights::default();
-    let mut m = cube([0.2, 0.3, 0.6], [1.1, 1.2, 1.0], 0.0);
+    let mut m = common::unit_cube(1.0, [0.2, 0.3, 0.6], [1.1, 1.2, 1.0], 0.0);
     let a = Analysis::of(&m, &lights, &cam, (9, 9));
     assert!(!a.emissive);
     let (t, _) = a.choose(TrackerSettings::default(), Given::default());
@@ -849,7 +812,7 @@ fn grey_single_channel_trackers_collect_emission() {
         ..Default::default()
     };
     let cam = common::camera_on_z(10.0, 1000.0, 10.0, 9, 9);
-    let mut m = cube([1.0; 3], [0.0; 3], 0.0);
+    let mut m = common::unit_cube(1.0, [1.0; 3], [0.0; 3], 0.0);
     let (e, le) = both_sources();
     m.set_emission(Some(e));
     let it = Integrator {
@@ -881,4 +844,11 @@ fn grey_single_channel_trackers_collect_emission() {
         (mean - (env[ch] * tr + le[ch] * (1.0 - tr))) / se.max(1e-12)
     });
     assert!(z.iter().all(|z| z.abs() < 4.0), "z = {z:?}");
+}
+
+/// Asserts that the message `msg` contains every one of `needles`.
+fn assert_mentions(msg: &str, needles: &[&str]) {
+    for needle in needles {
+        assert!(msg.contains(needle), "no '{needle}' in: {msg}");
+    }
 }

@@ -2,6 +2,8 @@
 //! (`tests/fixtures/make_light_stages.py`), bad textures, and renders against
 //! closed-form (or quadrature) answers.
 
+mod common;
+
 use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -15,9 +17,7 @@ use nimbus::render::sampler::pixel_sampler;
 use nimbus::scene::{load_stage, Camera, LoadOptions};
 use nimbus::track::delta::Delta;
 use nimbus::track::ratio::Ratio;
-use nimbus::volume::grid::Grid;
 use nimbus::volume::medium::{Counters, Medium};
-use nimbus::volume::procedural::grid_from_fn;
 use rand::{Rng, SeedableRng};
 use serde_json::Value;
 
@@ -351,32 +351,6 @@ fn latlong_texture_is_read_through_the_stage() {
 
 // ----- rendering ---------------------------------------------------------------------
 
-/// A cube of N³ unit-density voxels, side `side`, centred at the origin. Its trilinear
-/// density is exactly 1 inside [−side/2 + h/2, side/2 − h/2]³ (h the voxel size) and
-/// ramps linearly to 0 across each face, symmetrically about the face plane.
-fn cube(side: f64, sigma_a: [f64; 3], sigma_s: [f64; 3], g: f64) -> Medium {
-    let n = 16;
-    let vs = 1.0 / n as f64;
-    let raw = grid_from_fn(
-        "density",
-        [n, n, n],
-        DVec3::splat(-0.5 + 0.5 * vs),
-        vs,
-        |_| 1.0,
-    );
-    Medium::new(
-        "/Cube",
-        Grid::from_raw(&raw).unwrap(),
-        DMat4::from_scale(DVec3::splat(side)),
-        1.0,
-        sigma_a,
-        sigma_s,
-        g,
-        8,
-    )
-    .unwrap()
-}
-
 /// A 9×9 camera at `position` looking down −Z; its central pixel's ray is exactly −Z,
 /// over [near, far] (depths along −Z).
 fn camera(position: DVec3, near: f64, far: f64) -> CameraRays {
@@ -472,7 +446,7 @@ fn slab(g: f64) -> SlabSetup {
     let ray = cam.ray(4.5, 4.5);
     assert!((ray.dir - DVec3::NEG_Z).length() < 1e-12);
     SlabSetup {
-        medium: cube(20.0, [SIGMA_T - SIGMA_S; 3], [SIGMA_S; 3], g),
+        medium: common::unit_cube(20.0, [SIGMA_T - SIGMA_S; 3], [SIGMA_S; 3], g),
         t0: ray.tmin,
         t1: ray.tmax,
         cam,
@@ -642,7 +616,7 @@ fn sun_disk_single_scattering_matches_quadrature() {
 /// A cube (side 1, σa = 0.5, σs = (2, 1, 0.5), g = 0.5, multiple scattering) in front of
 /// a camera on +Z, lit by `lights`.
 fn lit_cube(lights: &Lights, n: usize, seed: u64) -> Vec<[f64; 3]> {
-    let medium = cube(1.0, [0.5; 3], [2.0, 1.0, 0.5], 0.5);
+    let medium = common::unit_cube(1.0, [0.5; 3], [2.0, 1.0, 0.5], 0.5);
     let cam = camera(DVec3::new(0.0, 0.0, 10.0), 0.1, 1e6);
     samples(&medium, lights, &cam, 64, n, seed)
 }

@@ -1,6 +1,8 @@
 //! The integrator against closed-form answers, on a homogeneous cube lit by a constant
 //! dome (built in Rust, no files involved; the CLI-level tests render stages).
 
+mod common;
+
 use glam::{DMat4, DVec3};
 use nimbus::render::camera::CameraRays;
 use nimbus::render::integrator::Integrator;
@@ -9,35 +11,7 @@ use nimbus::render::sampler::pixel_sampler;
 use nimbus::scene::Camera;
 use nimbus::track::delta::Delta;
 use nimbus::track::ratio::Ratio;
-use nimbus::volume::grid::Grid;
 use nimbus::volume::medium::{Counters, Medium};
-use nimbus::volume::procedural::grid_from_fn;
-
-/// A cube of N³ unit-density voxels of size 1/N centred at the origin. Its reconstructed
-/// density is 1 inside, ramping to 0 over the outer half-voxel shell on each side, so an
-/// axis-parallel ray through it sees optical depth σt·(N voxels)·(1/N) = σt exactly.
-fn cube(sigma_a: [f64; 3], sigma_s: [f64; 3], g: f64) -> Medium {
-    let n = 16;
-    let vs = 1.0 / n as f64;
-    let raw = grid_from_fn(
-        "density",
-        [n, n, n],
-        DVec3::splat(-0.5 + 0.5 * vs),
-        vs,
-        |_| 1.0,
-    );
-    Medium::new(
-        "/Cube",
-        Grid::from_raw(&raw).unwrap(),
-        DMat4::IDENTITY,
-        1.0,
-        sigma_a,
-        sigma_s,
-        g,
-        8,
-    )
-    .unwrap()
-}
 
 /// A narrow camera on the +Z axis at distance 10 looking at the origin: every ray of the
 /// central pixels crosses the cube within 1e-4 of its axis length.
@@ -106,7 +80,7 @@ fn z_scores(s: &[[f64; 3]], expected: [f64; 3]) -> [f64; 3] {
 #[test]
 fn absorbing_cube_transmits_dome_exactly() {
     let sigma_a = [0.5, 1.0, 2.0];
-    let m = cube(sigma_a, [0.0; 3], 0.0);
+    let m = common::unit_cube(1.0, sigma_a, [0.0; 3], 0.0);
     let lights = Lights {
         suns: vec![],
         environment: [1.0, 2.0, 0.5],
@@ -126,7 +100,7 @@ fn absorbing_cube_transmits_dome_exactly() {
 #[test]
 fn conservative_cube_in_constant_environment_is_invisible() {
     for g in [0.0, 0.7] {
-        let m = cube([0.0; 3], [4.0, 2.0, 1.0], g);
+        let m = common::unit_cube(1.0, [0.0; 3], [4.0, 2.0, 1.0], g);
         let lights = Lights {
             suns: vec![],
             environment: [0.8, 1.0, 1.3],
@@ -141,7 +115,7 @@ fn conservative_cube_in_constant_environment_is_invisible() {
 /// Rendering is deterministic for a seed, whatever the number of threads.
 #[test]
 fn render_is_deterministic_across_thread_counts() {
-    let m = cube([0.2; 3], [1.5, 1.0, 0.5], 0.3);
+    let m = common::unit_cube(1.0, [0.2; 3], [1.5, 1.0, 0.5], 0.3);
     let lights = Lights {
         suns: vec![],
         environment: [1.0; 3],
@@ -168,7 +142,7 @@ fn render_is_deterministic_across_thread_counts() {
 #[test]
 fn passes_accumulate_like_a_single_pass() {
     use nimbus::render::film::Film;
-    let m = cube([0.2; 3], [1.5, 1.0, 0.5], 0.3);
+    let m = common::unit_cube(1.0, [0.2; 3], [1.5, 1.0, 0.5], 0.3);
     let lights = Lights {
         suns: vec![],
         environment: [1.0; 3],

@@ -6,7 +6,7 @@
 use super::compare::channel_error;
 use super::error_plot::{self, Series};
 use super::reference::{self, ReferenceSettings, Rgb};
-use super::render::{majorant_spec, SamplingArgs};
+use super::render::{MajorantArgs, SamplingArgs};
 use crate::output::{check_writable, write_atomically};
 use crate::render::analysis::{Analysis, CodePaths, Given};
 use crate::render::camera::CameraRays;
@@ -61,12 +61,9 @@ pub struct ErrorArgs {
     /// Samples, resolution, base seed, threads; `--spp` caps the samples of every render.
     #[command(flatten)]
     pub sampling: SamplingArgs,
-    /// Edge of a majorant cell in voxels (0 = one global majorant), as for `render`.
-    #[arg(long, default_value_t = 8)]
-    pub majorant_cell: u32,
-    /// Majorant octree depth, as for `render`.
-    #[arg(long)]
-    pub octree_depth: Option<u32>,
+    /// Majorant structure, as for `render`.
+    #[command(flatten)]
+    pub majorants: MajorantArgs,
     /// The clock of the budgets: `cpu` (the process' CPU seconds, all threads: fair on
     /// a shared, loaded machine) or `wall`.
     #[arg(long, value_enum, default_value_t = Clock::Cpu)]
@@ -294,7 +291,7 @@ pub fn run(args: ErrorArgs) -> Result<()> {
         }
         None => None,
     };
-    let spec = majorant_spec(args.octree_depth, settings, args.majorant_cell)?;
+    let spec = args.majorants.spec(settings)?;
     let medium = medium_for_scene_with(&scene, spec)?;
     if medium.emission.is_some() {
         if let Some(t) = trackers

@@ -8,7 +8,7 @@
 //! Prints the median seconds per sample of each and the ratios, and checks that the
 //! four images agree (equal decisions: differences are rounding only).
 
-use super::render::{majorant_spec, SamplingArgs};
+use super::render::{MajorantArgs, SamplingArgs};
 use crate::render::analysis::{Analysis, CodePaths, Given};
 use crate::render::camera::CameraRays;
 use crate::render::film::{Aov, Film};
@@ -31,12 +31,9 @@ pub struct PathsArgs {
     /// work disturbs one worker least).
     #[command(flatten)]
     pub sampling: SamplingArgs,
-    /// Edge of a majorant cell in voxels, as for `render`.
-    #[arg(long, default_value_t = 8)]
-    pub majorant_cell: u32,
-    /// Majorant octree depth, as for `render`.
-    #[arg(long)]
-    pub octree_depth: Option<u32>,
+    /// Majorant structure, as for `render`.
+    #[command(flatten)]
+    pub majorants: MajorantArgs,
 }
 
 /// The four variants, in the order they are rendered in each round.
@@ -81,7 +78,7 @@ pub fn run(args: PathsArgs) -> Result<()> {
     if spp == 0 {
         bail!("--spp must be at least 1");
     }
-    let spec = majorant_spec(args.octree_depth, s, args.majorant_cell)?;
+    let spec = args.majorants.spec(s)?;
     let medium = medium_for_scene_with(&scene, spec)?;
     let lights = Lights::from_scene(&scene)?;
     let camera = CameraRays::new(&scene.camera, width, height);

@@ -53,14 +53,8 @@ pub struct RenderArgs {
     /// Maximum scattering depth (overrides nimbus:maxDepth).
     #[arg(long)]
     pub max_depth: Option<u32>,
-    /// Edge of a majorant cell in voxels; 0 = one global majorant for the volume
-    /// (a flat grid; ignored when --octree-depth is given).
-    #[arg(long, default_value_t = 8)]
-    pub majorant_cell: u32,
-    /// Majorant octree depth: 1 = one cell for the volume, d = 2^(d-1) leaf cells per
-    /// axis (capped at voxel resolution). Overrides --majorant-cell and nimbus:octreeDepth.
-    #[arg(long)]
-    pub octree_depth: Option<u32>,
+    #[command(flatten)]
+    pub majorants: MajorantArgs,
     /// Octree pruning: the cost of crossing a cell in density lookups. The walk stops
     /// higher in the octree wherever finer cells would cost more crossings than they
     /// save lookups (bounds stay valid, only cost changes); 0 keeps every level.
@@ -116,6 +110,19 @@ pub struct RenderArgs {
     /// that crosses the interval, so a stopped render keeps its finished passes.
     #[arg(long, value_name = "SECONDS")]
     pub checkpoint: Option<f64>,
+}
+
+/// The majorant structure flags of `render` and the benchmarks.
+#[derive(Args, Debug, Clone)]
+pub struct MajorantArgs {
+    /// Edge of a majorant cell in voxels; 0 = one global majorant for the volume
+    /// (a flat grid; ignored when --octree-depth is given).
+    #[arg(long, default_value_t = 8)]
+    pub majorant_cell: u32,
+    /// Majorant octree depth: 1 = one cell for the volume, d = 2^(d-1) leaf cells per
+    /// axis (capped at voxel resolution). Overrides --majorant-cell and nimbus:octreeDepth.
+    #[arg(long)]
+    pub octree_depth: Option<u32>,
 }
 
 /// Parses "WxH" with both sides positive.
@@ -366,7 +373,7 @@ fn render_frame(
             );
         }
     }
-    let spec = majorant_spec(args.octree_depth, settings, args.majorant_cell)?;
+    let spec = args.majorants.spec(settings)?;
     let mut medium = medium_for_scene_with(&scene, spec)?;
     let load_seconds = wall.elapsed().as_secs_f64();
 
@@ -611,30 +618,28 @@ fn render_frame(
     Ok(())
 }
 
-/// The majorant structure: `--octree-depth`, else the stage's `nimbus:octreeDepth`
-/// (0 there means the flat grid), else the flat `--majorant-cell` grid.
-pub fn majorant_spec(
-    octree_depth: Option<u32>,
-    stage: &RenderSettings,
-    majorant_cell: u32,
-) -> Result<MajorantSpec> {
-    let from_stage = match stage.octree_depth {
-        None | Some(0) => None,
-        Some(d) => Some(u32::try_from(d).map_err(|_| {
-            anyhow::anyhow!(
-                "{}: nimbus:octreeDepth = {d} must lie in 0..={MAX_DEPTH}",
-                stage.prim_path.as_deref().unwrap_or("render settings")
-            )
-        })?),
-    };
-    match octree_depth.or(from_stage) {
-        Some(depth) if !(1..=MAX_DEPTH).contains(&depth) => {
-            bail!("the octree depth must lie in 1..={MAX_DEPTH}, got {depth}")
+impl MajorantArgs {
+    /// The majorant structure: `--octree-depth`, else the stage's `nimbus:octreeDepth`
+    /// (0 there means the flat grid), else the flat `--majorant-cell` grid.
+    pub fn spec(&self, stage: &RenderSettings) -> Result<MajorantSpec> {
+        let from_stage = match stage.octree_depth {
+            None | Some(0) => None,
+            Some(d) => Some(u32::try_from(d).map_err(|_| {
+                anyhow::anyhow!(
+                    "{}: nimbus:octreeDepth = {d} must lie in 0..={MAX_DEPTH}",
+                    stage.prim_path.as_deref().unwrap_or("render settings")
+                )
+            })?),
+        };
+        match self.octree_depth.or(from_stage) {
+            Some(depth) if !(1..=MAX_DEPTH).contains(&depth) => {
+                bail!("the octree depth must lie in 1..={MAX_DEPTH}, got {depth}")
+            }
+            Some(depth) => Ok(MajorantSpec::Octree { depth }),
+            None => Ok(MajorantSpec::Uniform {
+                cell_voxels: self.majorant_cell,
+            }),
         }
-        Some(depth) => Ok(MajorantSpec::Octree { depth }),
-        None => Ok(MajorantSpec::Uniform {
-            cell_voxels: majorant_cell,
-        }),
     }
 }
 

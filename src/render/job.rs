@@ -11,7 +11,7 @@ use crate::scene::{Field, Scene, Volume};
 use crate::track::{
     self, Dispatch, FreePathSampler, TrackerKind, TrackerSettings, TransmittanceEstimator,
 };
-use crate::volume::emission::{Emission, EmissionGrid, EmissionParams};
+use crate::volume::emission::{Emission, EmissionGrid};
 use crate::volume::grid::Grid;
 use crate::volume::majorant::MajorantSpec;
 use crate::volume::medium::Medium;
@@ -165,12 +165,7 @@ fn load_grid(volume: &Volume, role: &str, field: &Field) -> anyhow::Result<Grid>
 /// `nimbus:emissionField` name (none when both are empty) and checks the parameters.
 pub fn emission_for_volume(volume: &Volume) -> anyhow::Result<Option<Emission>> {
     let e = &volume.emission;
-    let params = EmissionParams {
-        temperature_scale: e.temperature_scale,
-        blackbody_intensity: e.blackbody_intensity,
-        emission_color: e.emission_color,
-        emission_scale: e.emission_scale,
-    };
+    let params = e.params();
     // Bad numbers are reported before any grid is read.
     params.check(&volume.prim_path)?;
     let load = |attr: &str, named: &Option<(String, Field)>| -> anyhow::Result<_> {

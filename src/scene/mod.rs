@@ -9,6 +9,7 @@ pub mod schema;
 pub mod shading;
 pub mod stage;
 
+use crate::volume::emission::EmissionParams;
 use glam::DMat4;
 use std::path::PathBuf;
 
@@ -168,19 +169,31 @@ pub struct VolumeEmission {
 }
 
 impl Default for VolumeEmission {
+    /// No fields; the parameters at the schema's fallbacks ([`EmissionParams`]).
     fn default() -> Self {
+        let p = EmissionParams::default();
         VolumeEmission {
             temperature: None,
-            temperature_scale: 1.0,
-            blackbody_intensity: 1.0,
+            temperature_scale: p.temperature_scale,
+            blackbody_intensity: p.blackbody_intensity,
             emission: None,
-            emission_color: [1.0; 3],
-            emission_scale: 1.0,
+            emission_color: p.emission_color,
+            emission_scale: p.emission_scale,
         }
     }
 }
 
 impl VolumeEmission {
+    /// The emission model's parameters.
+    pub fn params(&self) -> EmissionParams {
+        EmissionParams {
+            temperature_scale: self.temperature_scale,
+            blackbody_intensity: self.blackbody_intensity,
+            emission_color: self.emission_color,
+            emission_scale: self.emission_scale,
+        }
+    }
+
     /// Whether any emission field is configured.
     pub fn is_emissive(&self) -> bool {
         self.temperature.is_some() || self.emission.is_some()

@@ -18,7 +18,7 @@
 
 use crate::render::lights::usd_blackbody_rgb;
 use crate::volume::grid::Grid;
-use crate::volume::medium::{MediumError, Tally};
+use crate::volume::medium::{world_to_index, MediumError, Tally};
 use glam::{DMat4, DVec3};
 
 /// An emission grid with its world → index transform.
@@ -37,19 +37,10 @@ impl EmissionGrid {
         grid: Grid,
         volume_to_world: DMat4,
     ) -> Result<EmissionGrid, MediumError> {
-        let index_to_world = volume_to_world * grid.index_to_world;
-        let det = index_to_world.determinant();
-        if !det.is_finite() || det.abs() < 1e-300 {
-            return Err(MediumError::Invalid {
-                prim: prim.to_string(),
-                message: format!(
-                    "{what}: the volume's transform times the grid's index-to-world transform is singular (determinant {det:e})"
-                ),
-            });
-        }
+        let world_to_index = world_to_index(prim, &format!("{what}: "), volume_to_world, &grid)?;
         Ok(EmissionGrid {
             grid,
-            world_to_index: index_to_world.inverse(),
+            world_to_index,
         })
     }
 

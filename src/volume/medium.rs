@@ -274,6 +274,28 @@ impl Sigma {
     }
 }
 
+/// The world → index transform of `grid` under a volume's `volume_to_world`: the
+/// inverse of volume_to_world · index_to_world. A singular product is an error naming
+/// the prim (and `what`, a prefix such as "nimbus:emissionField `flames`: ").
+pub fn world_to_index(
+    prim: &str,
+    what: &str,
+    volume_to_world: DMat4,
+    grid: &Grid,
+) -> Result<DMat4, MediumError> {
+    let index_to_world = volume_to_world * grid.index_to_world;
+    let det = index_to_world.determinant();
+    if !det.is_finite() || det.abs() < 1e-300 {
+        return Err(MediumError::Invalid {
+            prim: prim.to_string(),
+            message: format!(
+                "{what}the volume's transform times the grid's index-to-world transform is singular (determinant {det:e}); cannot map rays into the grid"
+            ),
+        });
+    }
+    Ok(index_to_world.inverse())
+}
+
 pub struct Medium {
     /// The prim this medium comes from (for messages).
     pub prim_path: String,
@@ -338,13 +360,7 @@ impl Medium {
             prim: prim_path.to_string(),
             message,
         };
-        let index_to_world = volume_to_world * density.index_to_world;
-        let det = index_to_world.determinant();
-        if !det.is_finite() || det.abs() < 1e-300 {
-            return Err(invalid(format!(
-                "the volume's transform times the grid's index-to-world transform is singular (determinant {det:e}); cannot map rays into the grid"
-            )));
-        }
+        let world_to_index = world_to_index(prim_path, "", volume_to_world, &density)?;
         let check = |name: &str, v: f64| -> Result<f32, MediumError> {
             if v.is_finite() && v >= 0.0 && v < f32::MAX as f64 {
                 Ok(v as f32)
@@ -381,7 +397,7 @@ impl Medium {
         Ok(Medium {
             prim_path: prim_path.to_string(),
             density,
-            world_to_index: index_to_world.inverse(),
+            world_to_index,
             sigma,
             g: anisotropy as f32,
             majorants,

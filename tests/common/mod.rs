@@ -13,7 +13,9 @@ use nimbus::track::{
     self, Dispatch, FreePathSampler, SchemeKind, TrackerKind, TrackerSettings,
     TransmittanceEstimator, TransmittanceKind,
 };
+use nimbus::volume::grid::Grid;
 use nimbus::volume::medium::{Counters, Medium};
+use nimbus::volume::procedural::grid_from_fn;
 
 /// Mean and standard error of samples.
 pub fn mean_se(v: &[f64]) -> (f64, f64) {
@@ -240,4 +242,32 @@ pub fn stress_factor() -> usize {
         .and_then(|v| v.parse().ok())
         .filter(|&n: &usize| n >= 1)
         .unwrap_or(1)
+}
+
+/// A cube of N³ = 16³ unit-density voxels, side `side`, centred at the origin. Its
+/// trilinear density is exactly 1 inside [−side/2 + h/2, side/2 − h/2]³ (h the voxel
+/// size) and ramps linearly to 0 across each face, symmetrically about the face plane,
+/// so an axis-parallel ray through it sees optical depth σt·side exactly. Flat majorant
+/// cells of 8 voxels.
+pub fn unit_cube(side: f64, sigma_a: [f64; 3], sigma_s: [f64; 3], g: f64) -> Medium {
+    let n = 16;
+    let vs = 1.0 / n as f64;
+    let raw = grid_from_fn(
+        "density",
+        [n, n, n],
+        DVec3::splat(-0.5 + 0.5 * vs),
+        vs,
+        |_| 1.0,
+    );
+    Medium::new(
+        "/Cube",
+        Grid::from_raw(&raw).unwrap(),
+        DMat4::from_scale(DVec3::splat(side)),
+        1.0,
+        sigma_a,
+        sigma_s,
+        g,
+        8,
+    )
+    .unwrap()
 }
