@@ -181,7 +181,7 @@ fn full_path(c: &mut Criterion) {
             majorant_scale: 1.0,
             count: true,
             profile: false,
-            medium: &medium,
+            media: std::slice::from_ref(&medium),
             lights: &lights,
             camera: &camera,
             width: 64,

@@ -52,7 +52,7 @@ fn setup(scene: &str) -> Setup {
 fn render(s: &Setup, tracking: TrackerSettings, spp: u32, seed: u64) -> Film {
     RenderJob {
         paths: CodePaths::default(),
-        medium: &s.medium,
+        media: std::slice::from_ref(&s.medium),
         lights: &s.lights,
         camera: &s.camera,
         width: W,

@@ -57,7 +57,7 @@ fn has_pxr() -> bool {
 #[test]
 fn renders_example_scenes_with_rgba_and_lookups() {
     let dir = tempfile::tempdir().unwrap();
-    for scene in ["cloud", "chromatic"] {
+    for scene in ["cloud", "chromatic", "overlap"] {
         let stage = root().join(format!("scenes/{scene}/{scene}.usda"));
         let out = dir.path().join(format!("{scene}.exr"));
         let stats = dir.path().join(format!("{scene}.json"));
@@ -115,6 +115,67 @@ fn renders_example_scenes_with_rgba_and_lookups() {
         assert!(
             (aov_total - total).abs() <= 1e-4 * total,
             "AOV {aov_total} vs stats {total}"
+        );
+    }
+}
+
+/// The overlap example renders both of its volumes: the stats count two, and each
+/// volume alone (the other made invisible) makes fewer density lookups than the pair.
+#[test]
+fn stage_with_two_volumes_renders_both() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(root().join("scenes/overlap/overlap.usda")).unwrap();
+    // The example's layout, so its relative asset paths resolve.
+    for scene in ["cloud", "chromatic", "overlap"] {
+        std::fs::create_dir(dir.path().join(scene)).unwrap();
+    }
+    for vdb in ["cloud/cloud.vdb", "chromatic/chromatic.vdb"] {
+        std::fs::copy(root().join("scenes").join(vdb), dir.path().join(vdb)).unwrap();
+    }
+    let run = |name: &str, text: &str| -> serde_json::Value {
+        let stage = dir.path().join(format!("overlap/{name}.usda"));
+        std::fs::write(&stage, text).unwrap();
+        let out = dir.path().join(format!("{name}.exr"));
+        let stats = dir.path().join(format!("{name}.json"));
+        let o = nimbus(&[
+            "render",
+            stage.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--res",
+            "32x24",
+            "--spp",
+            "2",
+            "--stats",
+            stats.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{name}: {}", stderr(&o));
+        assert!(
+            !stderr(&o).contains("ignored"),
+            "{name}: a volume was ignored: {}",
+            stderr(&o)
+        );
+        serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap()
+    };
+    let hide = |prim: &str| {
+        text.replace(
+            &format!("def Volume \"{prim}\" (\n        prepend apiSchemas = [\"NimbusVolumeAPI\"]\n    )\n    {{\n"),
+            &format!("def Volume \"{prim}\" (\n        prepend apiSchemas = [\"NimbusVolumeAPI\"]\n    )\n    {{\n        token visibility = \"invisible\"\n"),
+        )
+    };
+    let (no_cloud, no_puff) = (hide("Cloud"), hide("Puff"));
+    assert!(no_cloud != text && no_puff != text, "the stage changed its layout");
+    let both = run("both", &text);
+    assert_eq!(both["analysis"]["volumes"], 2);
+    let lookups = |j: &serde_json::Value| j["density_lookups"].as_f64().unwrap();
+    for (name, alone) in [("puff", no_cloud), ("cloud", no_puff)] {
+        let j = run(name, &alone);
+        assert_eq!(j["analysis"]["volumes"], 1, "{name}");
+        assert!(
+            lookups(&j) < lookups(&both),
+            "{name} alone: {} lookups, both: {}",
+            lookups(&j),
+            lookups(&both)
         );
     }
 }

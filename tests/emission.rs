@@ -711,7 +711,7 @@ def Volume "Fire" (apiSchemas = ["NimbusVolumeAPI"]) {{
     };
     for tracking in [auto, spectral] {
         let job = RenderJob {
-            medium: &medium,
+            media: std::slice::from_ref(&medium),
             lights: &lights,
             camera: &camera,
             width: w,
@@ -779,7 +779,7 @@ fn example_fire_scene_emits() {
     let (w, h) = (12, 16);
     let camera = CameraRays::new(&scene.camera, w, h);
     let job = RenderJob {
-        medium: &medium,
+        media: std::slice::from_ref(&medium),
         lights: &lights,
         camera: &camera,
         width: w,
@@ -822,7 +822,7 @@ fn grey_single_channel_trackers_collect_emission() {
         majorant_scale: 1.0,
         count: true,
         profile: false,
-        medium: &m,
+        media: std::slice::from_ref(&m),
         lights: &lights,
         camera: &cam,
         width: 9,

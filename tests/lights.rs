@@ -384,7 +384,7 @@ fn samples(
         majorant_scale: 1.0,
         count: true,
         profile: false,
-        medium,
+        media: std::slice::from_ref(medium),
         lights,
         camera: cam,
         width: 9,

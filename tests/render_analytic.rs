@@ -45,7 +45,7 @@ fn integrator<'a>(
         majorant_scale: 1.0,
         count: true,
         profile: false,
-        medium,
+        media: std::slice::from_ref(medium),
         lights,
         camera,
         width: 9,

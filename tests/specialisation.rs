@@ -50,7 +50,7 @@ fn job(
     seed: u64,
 ) -> RenderJob<'_> {
     RenderJob {
-        medium: &s.medium,
+        media: std::slice::from_ref(&s.medium),
         lights: &s.lights,
         camera: &s.camera,
         width: s.size.0,

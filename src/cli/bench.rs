@@ -14,7 +14,7 @@
 use crate::output::{check_writable, write_atomically};
 use crate::render::analysis::CodePaths;
 use crate::render::camera::CameraRays;
-use crate::render::job::{medium_for_scene_with, RenderJob};
+use crate::render::job::{media_for_scene_with, RenderJob};
 use crate::render::lights::Lights;
 use crate::track::{TrackerKind, TrackerSettings, TransmittanceKind};
 use crate::volume::majorant::{MajorantSpec, MAX_DEPTH};
@@ -94,7 +94,7 @@ fn octree(args: OctreeArgs) -> Result<()> {
         bail!("--spp must be at least 1");
     }
     let seed = args.sampling.seed.unwrap_or(s.seed);
-    let mut medium = medium_for_scene_with(
+    let mut media = media_for_scene_with(
         &scene,
         MajorantSpec::Octree {
             depth: args.depths[0],
@@ -116,13 +116,18 @@ fn octree(args: OctreeArgs) -> Result<()> {
         for tracker in [TrackerKind::Delta, TrackerKind::Decomposition] {
             // Pruning depends on the tracker, so each row gets a fresh octree.
             let residual = tracker == TrackerKind::Decomposition;
-            let pruned = pool.install(|| {
-                medium.set_majorants(spec);
-                medium.prune_majorants(args.prune, residual)
+            let pruned: usize = pool.install(|| {
+                media
+                    .iter_mut()
+                    .map(|m| {
+                        m.set_majorants(spec);
+                        m.prune_majorants(args.prune, residual)
+                    })
+                    .sum()
             });
             let job = RenderJob {
                 paths: CodePaths::default(),
-                medium: &medium,
+                media: &media,
                 lights: &lights,
                 camera: &camera,
                 width,
@@ -170,8 +175,8 @@ fn octree(args: OctreeArgs) -> Result<()> {
                 total_seconds,
                 times: calibration.split(&tc),
                 timed_seconds,
-                build_seconds: medium.majorants.build_seconds(),
-                memory_bytes: medium.majorants.memory_bytes(),
+                build_seconds: media.iter().map(|m| m.majorants.build_seconds()).sum(),
+                memory_bytes: media.iter().map(|m| m.majorants.memory_bytes()).sum(),
             };
             eprintln!(
                 "nimbus: depth {depth} {}: {:.2} s ({pruned} octree nodes pruned)",

@@ -10,7 +10,7 @@ use super::render::{MajorantArgs, SamplingArgs};
 use crate::output::{check_writable, write_atomically};
 use crate::render::analysis::{Analysis, CodePaths, Given};
 use crate::render::camera::CameraRays;
-use crate::render::job::{medium_for_scene_with, RenderJob};
+use crate::render::job::{media_for_scene_with, RenderJob};
 use crate::render::lights::Lights;
 use crate::render::progressive::{render_progressive, Budget, Clock};
 use crate::track::{SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
@@ -292,8 +292,8 @@ pub fn run(args: ErrorArgs) -> Result<()> {
         None => None,
     };
     let spec = args.majorants.spec(settings)?;
-    let medium = medium_for_scene_with(&scene, spec)?;
-    if medium.emission.is_some() {
+    let media = media_for_scene_with(&scene, spec)?;
+    if let Some(medium) = media.iter().find(|m| m.emission.is_some()) {
         if let Some(t) = trackers
             .iter()
             .find(|t| t.settings.options.no_absorption_events)
@@ -307,7 +307,7 @@ pub fn run(args: ErrorArgs) -> Result<()> {
     }
     let lights = Lights::from_scene(&scene)?;
     let camera = CameraRays::new(&scene.camera, width, height);
-    let analysis = Analysis::of(&medium, &lights, &camera, (width, height));
+    let analysis = Analysis::of_media(&media, &lights, &camera, (width, height));
     if let Some(reason) = resolve_auto(&mut trackers, &analysis) {
         println!("auto: {reason}");
     }
@@ -317,7 +317,7 @@ pub fn run(args: ErrorArgs) -> Result<()> {
         .context("cannot start worker threads")?;
     let job = RenderJob {
         paths: CodePaths::default(),
-        medium: &medium,
+        media: &media,
         lights: &lights,
         camera: &camera,
         width,

@@ -12,7 +12,7 @@ use super::render::{MajorantArgs, SamplingArgs};
 use crate::render::analysis::{Analysis, CodePaths, Given};
 use crate::render::camera::CameraRays;
 use crate::render::film::{Aov, Film};
-use crate::render::job::{medium_for_scene_with, RenderJob};
+use crate::render::job::{media_for_scene_with, RenderJob};
 use crate::render::lights::Lights;
 use crate::render::progressive::{Clock, Stopwatch};
 use crate::track::TrackerSettings;
@@ -79,17 +79,17 @@ pub fn run(args: PathsArgs) -> Result<()> {
         bail!("--spp must be at least 1");
     }
     let spec = args.majorants.spec(s)?;
-    let medium = medium_for_scene_with(&scene, spec)?;
+    let media = media_for_scene_with(&scene, spec)?;
     let lights = Lights::from_scene(&scene)?;
     let camera = CameraRays::new(&scene.camera, width, height);
-    let analysis = Analysis::of(&medium, &lights, &camera, (width, height));
+    let analysis = Analysis::of_media(&media, &lights, &camera, (width, height));
     let (tracking, reason) = analysis.choose(TrackerSettings::default(), Given::default());
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(args.sampling.threads.unwrap_or(1))
         .build()
         .context("cannot start worker threads")?;
     let job = |paths| RenderJob {
-        medium: &medium,
+        media: &media,
         lights: &lights,
         camera: &camera,
         width,

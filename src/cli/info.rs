@@ -200,19 +200,20 @@ pub fn run(args: InfoArgs) -> Result<()> {
 fn print_analysis(scene: &crate::scene::Scene, depth: u32) {
     use crate::render::analysis::Analysis;
     use crate::render::camera::CameraRays;
-    use crate::render::job::medium_for_scene_with;
+    use crate::render::job::media_for_scene_with;
     use crate::render::lights::Lights;
     use crate::track::TrackerSettings;
     let size = scene.settings.resolution;
-    let analysed = medium_for_scene_with(scene, MajorantSpec::Octree { depth }).and_then(|m| {
+    let analysed = media_for_scene_with(scene, MajorantSpec::Octree { depth }).and_then(|m| {
         let lights = Lights::from_scene(scene)?;
         let camera = CameraRays::new(&scene.camera, size.0.max(1), size.1.max(1));
-        Ok(Analysis::of(&m, &lights, &camera, size))
+        Ok(Analysis::of_media(&m, &lights, &camera, size))
     });
     match analysed {
         Ok(a) => {
             println!(
-                "analysis: grey {}, emissive {}, constant albedo {}, homogeneous {}, empty leaves {:.1}% (depth {depth}), isotropic {}, max albedo {:.3}, lights emitting {} of {}, volume visible {}",
+                "analysis: volumes {}, grey {}, emissive {}, constant albedo {}, homogeneous {}, empty leaves {:.1}% (depth {depth}), isotropic {}, max albedo {:.3}, lights emitting {} of {}, volume visible {}",
+                a.volumes,
                 a.grey,
                 a.emissive,
                 a.constant_albedo,

@@ -95,11 +95,18 @@ pub fn cache_key(scene: &Scene, job: &RenderJob, r: &ReferenceSettings) -> Resul
         }
     }
     put(&format!(
-        "job {}x{} depth {} majorants {:?}",
+        "job {}x{} depth {} majorants {}",
         job.width,
         job.height,
         job.max_depth,
-        job.medium.majorants.spec()
+        // One medium keeps the key of references cached before several volumes.
+        match job.media {
+            [m] => format!("{:?}", m.majorants.spec()),
+            media => format!(
+                "{:?}",
+                media.iter().map(|m| m.majorants.spec()).collect::<Vec<_>>()
+            ),
+        }
     ));
     put(&format!(
         "reference {:?} {:?} nimbus {}",

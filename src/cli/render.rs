@@ -7,7 +7,7 @@ use crate::render::analysis::Analysis;
 use crate::render::analysis::{CodePaths, Given};
 use crate::render::camera::CameraRays;
 use crate::render::film::Aov;
-use crate::render::job::{medium_for_scene_with, RenderJob};
+use crate::render::job::{media_for_scene_with, RenderJob};
 use crate::render::lights::Lights;
 use crate::scene::{load_stage, LoadOptions, RenderSettings};
 use crate::track::{
@@ -374,7 +374,7 @@ fn render_frame(
         }
     }
     let spec = args.majorants.spec(settings)?;
-    let mut medium = medium_for_scene_with(&scene, spec)?;
+    let mut media = media_for_scene_with(&scene, spec)?;
     let load_seconds = wall.elapsed().as_secs_f64();
 
     let lights = Lights::from_scene(&scene)?;
@@ -400,11 +400,11 @@ fn render_frame(
         );
     }
     let camera = CameraRays::new(c, width, height);
-    let analysis = Analysis::of(&medium, &lights, &camera, (width, height));
+    let analysis = Analysis::of_media(&media, &lights, &camera, (width, height));
     if analysis.emissive && tracking.options.no_absorption_events {
         bail!(
             "--no-absorption-events: volume {} emits light (nimbus:temperatureField / nimbus:emissionField), and emission is collected at absorption events; drop the flag",
-            medium.prim_path
+            media.iter().find(|m| m.emission.is_some()).map_or("", |m| &m.prim_path)
         );
     }
     let auto_reason = request.auto.then(|| {
@@ -428,14 +428,20 @@ fn render_frame(
     if !analysis.volume_visible {
         eprintln!(
             "nimbus: warning: no camera ray of a 16x16 probe grid reaches the volume {}: only light it scatters or shadows could show",
-            medium.prim_path
+            media
+                .iter()
+                .map(|m| m.prim_path.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
         );
     }
     if matches!(spec, MajorantSpec::Octree { .. }) {
-        medium.prune_majorants(args.octree_prune, tracking.pays_residual());
+        for medium in &mut media {
+            medium.prune_majorants(args.octree_prune, tracking.pays_residual());
+        }
     }
     let job = RenderJob {
-        medium: &medium,
+        media: &media,
         lights: &lights,
         camera: &camera,
         width,
@@ -527,15 +533,19 @@ fn render_frame(
             cells_visited: totals.cells_visited,
             majorant_violations: totals.majorant_violations,
             nonfinite_samples: nonfinite,
-            sanitized_voxels: medium.density.sanitized_voxels,
-            majorant_cells: medium.majorants.cell_count(),
-            octree_depth: match medium.majorants.spec() {
+            sanitized_voxels: media.iter().map(|m| m.density.sanitized_voxels).sum(),
+            majorant_cells: media.iter().map(|m| m.majorants.cell_count()).sum(),
+            octree_depth: match spec {
                 MajorantSpec::Octree { depth } => Some(depth),
                 MajorantSpec::Uniform { .. } => None,
             },
-            octree_levels: medium.majorants.levels(),
-            octree_build_seconds: medium.majorants.build_seconds(),
-            octree_memory_bytes: medium.majorants.memory_bytes(),
+            octree_levels: media
+                .iter()
+                .map(|m| m.majorants.levels())
+                .max()
+                .unwrap_or(0),
+            octree_build_seconds: media.iter().map(|m| m.majorants.build_seconds()).sum(),
+            octree_memory_bytes: media.iter().map(|m| m.majorants.memory_bytes()).sum(),
             vdb_reader: vdb::active_reader().name().into(),
             lookup_seconds: times.map(|t| t.lookup_seconds),
             traversal_seconds: times.map(|t| t.traversal_seconds),

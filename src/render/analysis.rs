@@ -12,6 +12,10 @@ use serde::Serialize;
 /// Facts about a render, for `nimbus info`, the stats JSON and `--tracker auto`.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Analysis {
+    /// The stage's volumes, one medium each (overlapping ones add; the facts below
+    /// hold for all of them: `grey` means every medium is grey, `emissive` that some
+    /// medium emits).
+    pub volumes: usize,
     /// σa and σs equal in every channel: one channel's tracking is exact.
     pub grey: bool,
     /// The medium has an emission source (temperature or emission field): emission
@@ -38,26 +42,46 @@ pub struct Analysis {
 
 impl Analysis {
     pub fn of(medium: &Medium, lights: &Lights, camera: &CameraRays, size: (u32, u32)) -> Self {
-        let s = &medium.sigma;
-        let albedo = |c: usize| {
-            if s.t[c] > 0.0 {
-                (s.s[c] / s.t[c]) as f64
-            } else {
-                0.0
-            }
+        Self::of_media(std::slice::from_ref(medium), lights, camera, size)
+    }
+
+    /// The analysis of a stage with several volumes (one medium each).
+    pub fn of_media(
+        media: &[Medium],
+        lights: &Lights,
+        camera: &CameraRays,
+        size: (u32, u32),
+    ) -> Self {
+        let albedo = |m: &Medium| {
+            let s = &m.sigma;
+            (0..3)
+                .map(|c| {
+                    if s.t[c] > 0.0 {
+                        (s.s[c] / s.t[c]) as f64
+                    } else {
+                        0.0
+                    }
+                })
+                .fold(0.0, f64::max)
         };
+        let cells: usize = media.iter().map(|m| m.majorants.cell_count()).sum();
+        let empty: f64 = media
+            .iter()
+            .map(|m| m.majorants.empty_leaf_fraction() * m.majorants.cell_count() as f64)
+            .sum();
         let (emitting, total) = count_lights(lights);
         Analysis {
-            grey: s.is_grey(),
-            emissive: medium.emission.is_some(),
+            volumes: media.len(),
+            grey: media.iter().all(|m| m.sigma.is_grey()),
+            emissive: media.iter().any(|m| m.emission.is_some()),
             constant_albedo: true,
-            homogeneous: homogeneous(medium),
-            empty_cell_fraction: medium.majorants.empty_leaf_fraction(),
-            isotropic: medium.g == 0.0,
-            max_albedo: (0..3).map(albedo).fold(0.0, f64::max),
+            homogeneous: !media.is_empty() && media.iter().all(homogeneous),
+            empty_cell_fraction: if cells > 0 { empty / cells as f64 } else { 0.0 },
+            isotropic: media.iter().all(|m| m.g == 0.0),
+            max_albedo: media.iter().map(albedo).fold(0.0, f64::max),
             lights_emitting: emitting,
             lights_total: total,
-            volume_visible: visible(medium, camera, size),
+            volume_visible: media.iter().any(|m| visible(m, camera, size)),
         }
     }
 

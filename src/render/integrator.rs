@@ -10,8 +10,9 @@ use crate::render::lights::LightSample;
 use crate::render::lights::Lights;
 use crate::render::phase::{hg, sample_hg};
 use crate::render::sampler::{pixel_sampler, Sampler};
-use crate::track::{self, FreePath, FreePathSampler, Query, TransmittanceEstimator};
-use crate::volume::medium::{Counters, Medium, NoCounts, Sigma, Tally};
+use crate::track::race::MAX_MEDIA;
+use crate::track::{self, FreePath, FreePathSampler, Query, Spectrum, TransmittanceEstimator};
+use crate::volume::medium::{Counters, IndexRay, Medium, NoCounts, Sigma, Tally};
 use glam::DVec3;
 use rand::Rng;
 use rayon::prelude::*;
@@ -32,7 +33,9 @@ pub struct Integrator<'a, F: FreePathSampler, E: TransmittanceEstimator> {
     /// Time lookups, traversal and tracker queries into the counters (`--profile`;
     /// implies `count`).
     pub profile: bool,
-    pub medium: &'a Medium,
+    /// The stage's volumes (at least one, at most [`MAX_MEDIA`]); where they overlap
+    /// their coefficients add ([`track::race`]).
+    pub media: &'a [Medium],
     pub lights: &'a Lights,
     pub camera: &'a CameraRays,
     pub width: u32,
@@ -114,17 +117,22 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         counters: &mut C,
     ) -> SampleResult {
         let ray = self.camera.ray(fx, fy);
-        let medium = self.medium;
-        let g = medium.g as f64;
         let mut origin = ray.origin;
         let mut dir = ray.dir;
         let (mut tmin, mut tmax) = (ray.tmin as f32, ray.tmax as f32);
         // Start the camera ray just before it enters the majorant region: trackers add
         // free-path steps to `t` in f32, and far from the origin (f32 spacing 6e-5 at
         // t = 1e3) the steps of a dense medium would round away and stall the walk.
-        let entry = medium.index_ray(origin, dir);
-        if let Some(seg) = medium.majorants.walk(entry.o, entry.d, tmin, tmax).next() {
-            let shift = seg.t0 as f64 * (1.0 - 1e-6);
+        let entry = self
+            .media
+            .iter()
+            .filter_map(|m| {
+                let r = m.index_ray(origin, dir);
+                m.majorants.walk(r.o, r.d, tmin, tmax).next().map(|s| s.t0)
+            })
+            .fold(f32::INFINITY, f32::min);
+        if entry.is_finite() {
+            let shift = entry as f64 * (1.0 - 1e-6);
             if shift > 0.0 {
                 origin += dir * shift;
                 tmin = (tmin as f64 - shift).max(0.0) as f32;
@@ -132,32 +140,33 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             }
         }
         // Naive delta: track one channel's grey medium, and carry 3× in that channel only.
-        let (sigma, mut throughput) = if self.single_channel {
+        let (channel, mut throughput) = if self.single_channel {
             let ch = ((rng.gen::<u32>() as u64 * 3) >> 32) as usize;
             let mut w = [0f32; 3];
             w[ch] = 3.0;
-            (medium.sigma.channel(ch), w)
+            (Some(ch), w)
         } else {
-            (medium.sigma, [1f32; 3])
+            (None, [1f32; 3])
         };
         let mut radiance = [0f64; 3];
         let mut alpha = 0.0;
         let mut depth = 0u32;
         // Cosine of the last phase-sampled turn, for the MIS weight of an escaping ray.
         let mut last_cos = 1.0f64;
+        // The medium of the last scattering vertex (its phase function, for MIS).
+        let mut g = 0.0f64;
         loop {
-            let iray = medium.index_ray(origin, dir);
-            let q = Query {
-                medium,
-                sigma: &sigma,
-                ray: &iray,
-                tmin,
-                tmax,
-                majorant_scale: self.majorant_scale,
-            };
             let t0 = counters.tracker_start();
-            let event = self.free_path.sample(&q, &mut throughput, rng, counters);
+            let (event, lane) = self.with_queries(origin, dir, tmin, tmax, channel, |qs| {
+                if let [q] = qs {
+                    (self.free_path.sample(q, &mut throughput, rng, counters), 0)
+                } else {
+                    self.free_path
+                        .sample_race(qs, &mut throughput, rng, counters)
+                }
+            });
             counters.tracker_stop(t0);
+            let medium = &self.media[lane];
             match event {
                 FreePath::Escape => {
                     if depth == 0 {
@@ -195,7 +204,8 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                     }
                     depth += 1;
                     let p = origin + dir * t as f64;
-                    self.next_event(p, dir, &sigma, throughput, &mut radiance, rng, counters);
+                    g = medium.g as f64;
+                    self.next_event(p, dir, g, channel, throughput, &mut radiance, rng, counters);
                     if depth >= self.max_depth {
                         break;
                     }
@@ -228,22 +238,23 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         }
     }
 
-    /// Next-event estimation from scattering vertex `p` (arrived along `dir`).
+    /// Next-event estimation from scattering vertex `p` (arrived along `dir`, phase
+    /// function asymmetry `g`).
+    #[allow(clippy::too_many_arguments)]
     fn next_event<C: Tally>(
         &self,
         p: DVec3,
         dir: DVec3,
-        sigma: &Sigma,
+        g: f64,
+        channel: Option<usize>,
         throughput: [f32; 3],
         radiance: &mut [f64; 3],
         rng: &mut Sampler,
         counters: &mut C,
     ) {
-        let medium = self.medium;
-        let g = medium.g as f64;
         for sun in &self.lights.suns {
             let wi = sun.sample_direction(rng.gen(), rng.gen());
-            let tr = self.shadow(p, wi, f32::INFINITY, sigma, rng, counters);
+            let tr = self.shadow(p, wi, f32::INFINITY, channel, rng, counters);
             let f = hg(g, dir.dot(wi));
             for c in 0..3 {
                 radiance[c] += (throughput[c] * tr[c]) as f64 * sun.irradiance[c] * f;
@@ -251,18 +262,18 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         }
         for sphere in &self.lights.spheres {
             let s = sphere.sample(p, rng.gen(), rng.gen());
-            self.add_light_sample(s, p, dir, sigma, throughput, radiance, rng, counters);
+            self.add_light_sample(s, p, dir, g, channel, throughput, radiance, rng, counters);
         }
         for rect in &self.lights.rects {
             let s = rect.sample(p, rng.gen(), rng.gen());
-            self.add_light_sample(s, p, dir, sigma, throughput, radiance, rng, counters);
+            self.add_light_sample(s, p, dir, g, channel, throughput, radiance, rng, counters);
         }
         if self.lights.has_environment() {
             let (wi, le, pdf) = self.lights.sample_environment(rng.gen(), rng.gen());
             if pdf > 0.0 {
                 let f = hg(g, dir.dot(wi));
                 let w = power_heuristic(pdf, f);
-                let tr = self.shadow(p, wi, f32::INFINITY, sigma, rng, counters);
+                let tr = self.shadow(p, wi, f32::INFINITY, channel, rng, counters);
                 for c in 0..3 {
                     radiance[c] += (throughput[c] * tr[c]) as f64 * le[c] * f / pdf * w;
                 }
@@ -278,7 +289,8 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         sample: Option<LightSample>,
         p: DVec3,
         dir: DVec3,
-        sigma: &Sigma,
+        g: f64,
+        channel: Option<usize>,
         throughput: [f32; 3],
         radiance: &mut [f64; 3],
         rng: &mut Sampler,
@@ -287,8 +299,8 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         let Some(s) = sample else {
             return;
         };
-        let f = hg(self.medium.g as f64, dir.dot(s.wi));
-        let tr = self.shadow(p, s.wi, s.distance as f32, sigma, rng, counters);
+        let f = hg(g, dir.dot(s.wi));
+        let tr = self.shadow(p, s.wi, s.distance as f32, channel, rng, counters);
         for c in 0..3 {
             radiance[c] += (throughput[c] * tr[c]) as f64 * s.weight[c] * f;
         }
@@ -299,23 +311,62 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         p: DVec3,
         wi: DVec3,
         tmax: f32,
-        sigma: &Sigma,
+        channel: Option<usize>,
         rng: &mut Sampler,
         counters: &mut C,
-    ) -> [f32; 3] {
-        let iray = self.medium.index_ray(p, wi);
-        let q = Query {
-            medium: self.medium,
+    ) -> Spectrum {
+        let t0 = counters.tracker_start();
+        let tr = self.with_queries(p, wi, 0.0, tmax, channel, |qs| {
+            if let [q] = qs {
+                self.transmittance.transmittance(q, rng, counters)
+            } else {
+                self.transmittance.transmittance_race(qs, rng, counters)
+            }
+        });
+        counters.tracker_stop(t0);
+        tr
+    }
+
+    /// Calls `f` with one tracker query per medium for the world-space ray
+    /// `origin + t·dir`, `t` in [`tmin`, `tmax`]: each medium's index-space ray and
+    /// cross-sections (one channel's, for naive delta). Built on the stack.
+    #[inline(always)]
+    fn with_queries<T>(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        tmin: f32,
+        tmax: f32,
+        channel: Option<usize>,
+        f: impl FnOnce(&[Query]) -> T,
+    ) -> T {
+        let sigma = |m: &Medium| match channel {
+            Some(ch) => m.sigma.channel(ch),
+            None => m.sigma,
+        };
+        let query = |medium, sigma, ray| Query {
+            medium,
             sigma,
-            ray: &iray,
-            tmin: 0.0,
+            ray,
+            tmin,
             tmax,
             majorant_scale: self.majorant_scale,
         };
-        let t0 = counters.tracker_start();
-        let tr = self.transmittance.transmittance(&q, rng, counters);
-        counters.tracker_stop(t0);
-        tr
+        if let [m] = self.media {
+            let (ray, sg) = (m.index_ray(origin, dir), sigma(m));
+            return f(&[query(m, &sg, &ray)]);
+        }
+        let k = self.media.len().min(MAX_MEDIA);
+        let media = &self.media[..k];
+        let rays: [IndexRay; MAX_MEDIA] = std::array::from_fn(|i| match media.get(i) {
+            Some(m) => m.index_ray(origin, dir),
+            None => media[0].index_ray(origin, dir),
+        });
+        let sigmas: [Sigma; MAX_MEDIA] =
+            std::array::from_fn(|i| sigma(media.get(i).unwrap_or(&media[0])));
+        let qs: [Query; MAX_MEDIA] =
+            std::array::from_fn(|i| query(media.get(i).unwrap_or(&media[0]), &sigmas[i], &rays[i]));
+        f(&qs[..k])
     }
 }
 

@@ -8,6 +8,7 @@ use crate::render::integrator::Integrator;
 use crate::render::lights::Lights;
 use crate::scene::schema::tokens;
 use crate::scene::{Field, Scene, Volume};
+use crate::track::race::MAX_MEDIA;
 use crate::track::{
     self, Dispatch, FreePathSampler, TrackerKind, TrackerSettings, TransmittanceEstimator,
 };
@@ -19,7 +20,8 @@ use crate::volume::vdb;
 use anyhow::{bail, Context};
 
 pub struct RenderJob<'a> {
-    pub medium: &'a Medium,
+    /// The stage's volumes, one medium each (at least one).
+    pub media: &'a [Medium],
     pub lights: &'a Lights,
     pub camera: &'a CameraRays,
     pub width: u32,
@@ -41,9 +43,10 @@ impl RenderJob<'_> {
         film
     }
 
-    /// Whether the medium is tracked as grey (the analysis' test, on the cross-sections).
+    /// Whether the media are tracked as grey (the analysis' test, on the
+    /// cross-sections of every medium).
     fn grey(&self) -> bool {
-        self.paths.specialise && self.medium.sigma.is_grey()
+        self.paths.specialise && self.media.iter().all(|m| m.sigma.is_grey())
     }
 
     /// Whether the render runs the single-channel trackers of grey media.
@@ -79,7 +82,7 @@ impl RenderJob<'_> {
                     majorant_scale: j.tracking.majorant_scale,
                     count: j.paths.count,
                     profile: j.tracking.profile,
-                    medium: j.medium,
+                    media: j.media,
                     lights: j.lights,
                     camera: j.camera,
                     width: j.width,
@@ -104,28 +107,48 @@ impl RenderJob<'_> {
     }
 }
 
-/// Loads the density grid of the scene's volume and builds its medium with a flat
-/// majorant grid of `cell_voxels` cells.
+/// Loads the density grid of the scene's only volume and builds its medium with a
+/// flat majorant grid of `cell_voxels` cells (an error when the stage has several:
+/// see [`media_for_scene_with`]).
 pub fn medium_for_scene(scene: &Scene, cell_voxels: u32) -> anyhow::Result<Medium> {
-    medium_for_scene_with(scene, MajorantSpec::Uniform { cell_voxels })
+    let mut media = media_for_scene_with(scene, MajorantSpec::Uniform { cell_voxels })?;
+    if media.len() > 1 {
+        bail!(
+            "{}: the stage has {} volumes, expected one",
+            scene.stage_path.display(),
+            media.len()
+        );
+    }
+    Ok(media.remove(0))
 }
 
-/// Loads the density grid of the scene's volume and builds its medium with the
-/// majorant structure `spec`.
-pub fn medium_for_scene_with(scene: &Scene, spec: MajorantSpec) -> anyhow::Result<Medium> {
-    let Some(volume) = scene.volumes.first() else {
+/// Loads the density grid (and emission grids) of every volume of the scene and
+/// builds one medium per volume, each with its own majorant structure `spec`. Where
+/// volumes overlap their coefficients add: the trackers race the media's collision
+/// processes ([`track::race`]).
+pub fn media_for_scene_with(scene: &Scene, spec: MajorantSpec) -> anyhow::Result<Vec<Medium>> {
+    if scene.volumes.is_empty() {
         bail!(
             "{}: the stage has no visible UsdVolVolume prim to render",
             scene.stage_path.display()
         );
-    };
-    if scene.volumes.len() > 1 {
-        eprintln!(
-            "nimbus: warning: the stage has {} volumes; this version renders only the first ({}), the others are ignored",
-            scene.volumes.len(),
-            volume.prim_path
+    }
+    if scene.volumes.len() > MAX_MEDIA {
+        bail!(
+            "{}: the stage has {} visible volumes; nimbus renders at most {MAX_MEDIA} per stage (merge volumes or hide some with visibility = invisible)",
+            scene.stage_path.display(),
+            scene.volumes.len()
         );
     }
+    scene
+        .volumes
+        .iter()
+        .map(|volume| medium_for_volume(volume, spec))
+        .collect()
+}
+
+/// Loads one volume's grids and builds its medium.
+fn medium_for_volume(volume: &Volume, spec: MajorantSpec) -> anyhow::Result<Medium> {
     let grid = load_grid(volume, "density", &volume.density)?;
     let mut medium = Medium::with_majorants(
         &volume.prim_path,

@@ -15,11 +15,14 @@
 //! - with a spectral scheme, both processes choose events by it, with the same albedo
 //!   in both (density-driven media): spectral decomposition.
 
+use super::race::race;
 use super::scheme::{choose, probabilities, Coefficients, Event, Scheme, SchemeOptions};
 use super::{mul, FreePath, FreePathSampler, OpticalDepth, Query, Spectrum};
+use crate::volume::majorant::Segment;
 use crate::volume::medium::Tally;
 use rand::Rng;
 use std::marker::PhantomData;
+use std::ops::ControlFlow;
 
 #[derive(Clone, Copy, Debug)]
 pub struct Decomposition<S: Scheme> {
@@ -39,6 +42,94 @@ impl<S: Scheme> Decomposition<S> {
     }
 }
 
+/// A majorant cell split into control and residual.
+#[derive(Clone, Copy)]
+struct Cell {
+    /// Control density d_c and residual bound r ≥ |d − d_c|.
+    dc: f32,
+    r: f32,
+    /// The processes' rates μ̄c = d_c·max σt and μ̄r = r·max σt.
+    mu_c: f32,
+    mu_r: f32,
+    /// The control's coefficients, constant over the cell.
+    kc: Coefficients,
+}
+
+impl<S: Scheme> Decomposition<S> {
+    #[inline(always)]
+    fn cell(&self, q: &Query, seg: &Segment) -> Cell {
+        let sg = q.sigma;
+        let dc = seg.dmin + self.control * (seg.dmax - seg.dmin);
+        let r = (seg.dmax - dc).max(dc - seg.dmin) * q.majorant_scale;
+        let mu_c = dc * sg.t_max;
+        Cell {
+            dc,
+            r,
+            mu_c,
+            mu_r: r * sg.t_max,
+            kc: Coefficients {
+                mu_a: sg.a.map(|s| dc * s),
+                mu_s: sg.s.map(|s| dc * s),
+                mu_n: sg.t.map(|s| mu_c - dc * s),
+            },
+        }
+    }
+
+    /// One tentative collision at `t` of the control (`control_first`) or the
+    /// residual process of `cell`.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn decide<R: Rng, C: Tally>(
+        &self,
+        q: &Query,
+        cell: &Cell,
+        control_first: bool,
+        t: f32,
+        throughput: &mut Spectrum,
+        rng: &mut R,
+        c: &mut C,
+    ) -> Option<FreePath> {
+        let sg = q.sigma;
+        let (mu_bar, k);
+        if control_first {
+            c.control_collision();
+            k = cell.kc;
+            mu_bar = cell.mu_c;
+        } else {
+            let d = q.medium.density(q.ray.at(t), c);
+            c.residual_lookup();
+            let dr = d - cell.dc;
+            k = Coefficients {
+                mu_a: sg.a.map(|s| dr * s),
+                mu_s: sg.s.map(|s| dr * s),
+                mu_n: sg.t.map(|s| cell.mu_r - dr * s),
+            };
+            if dr > cell.r || (self.control == 0.0 && dr < 0.0) {
+                c.majorant_violation();
+            }
+            mu_bar = cell.mu_r;
+        }
+        let p = probabilities::<S>(&k, mu_bar, *throughput, self.options);
+        let (event, w) = choose(&k, mu_bar, p, rng.gen());
+        mul(throughput, w);
+        c.observe_throughput(*throughput);
+        match event {
+            Event::Absorb => {
+                c.real_collision();
+                Some(FreePath::Absorb { t })
+            }
+            Event::Scatter => {
+                c.real_collision();
+                Some(FreePath::Scatter { t })
+            }
+            Event::Null => {
+                c.null_collision();
+                None
+            }
+        }
+    }
+}
+
 impl<S: Scheme> FreePathSampler for Decomposition<S> {
     #[inline]
     fn sample<R: Rng, C: Tally>(
@@ -48,23 +139,14 @@ impl<S: Scheme> FreePathSampler for Decomposition<S> {
         rng: &mut R,
         c: &mut C,
     ) -> FreePath {
-        let sg = q.sigma;
         let mut walk = q.medium.majorants.walk(q.ray.o, q.ray.d, q.tmin, q.tmax);
         let (mut tau_c, mut tau_r) = (OpticalDepth::sample(rng), OpticalDepth::sample(rng));
         while let Some(seg) = c.next_segment(&mut walk) {
-            let dc = seg.dmin + self.control * (seg.dmax - seg.dmin);
-            let r = (seg.dmax - dc).max(dc - seg.dmin) * q.majorant_scale;
-            let mu_c = dc * sg.t_max;
-            let mu_r = r * sg.t_max;
+            let cell = self.cell(q, &seg);
+            let (mu_c, mu_r) = (cell.mu_c, cell.mu_r);
             if !(mu_c > 0.0) && !(mu_r > 0.0) {
                 continue;
             }
-            // The control's coefficients are constant over the cell.
-            let kc = Coefficients {
-                mu_a: sg.a.map(|s| dc * s),
-                mu_s: sg.s.map(|s| dc * s),
-                mu_n: sg.t.map(|s| mu_c - dc * s),
-            };
             // Each process spends its own optical depth across cells.
             let mut tc = tau_c.time(seg.t0, mu_c);
             let mut tr = tau_r.time(seg.t0, mu_r);
@@ -76,51 +158,46 @@ impl<S: Scheme> FreePathSampler for Decomposition<S> {
                     tau_r = tau_r.left(tr, seg.t1, mu_r);
                     break;
                 }
-                let (event, mu_bar, k);
-                if control_first {
-                    c.control_collision();
-                    k = kc;
-                    mu_bar = mu_c;
-                } else {
-                    let d = q.medium.density(q.ray.at(t), c);
-                    c.residual_lookup();
-                    let dr = d - dc;
-                    k = Coefficients {
-                        mu_a: sg.a.map(|s| dr * s),
-                        mu_s: sg.s.map(|s| dr * s),
-                        mu_n: sg.t.map(|s| mu_r - dr * s),
-                    };
-                    if dr > r || (self.control == 0.0 && dr < 0.0) {
-                        c.majorant_violation();
-                    }
-                    mu_bar = mu_r;
+                if let Some(event) = self.decide(q, &cell, control_first, t, throughput, rng, c) {
+                    return event;
                 }
-                let p = probabilities::<S>(&k, mu_bar, *throughput, self.options);
-                let w;
-                (event, w) = choose(&k, mu_bar, p, rng.gen());
-                mul(throughput, w);
-                c.observe_throughput(*throughput);
-                match event {
-                    Event::Absorb => {
-                        c.real_collision();
-                        return FreePath::Absorb { t };
-                    }
-                    Event::Scatter => {
-                        c.real_collision();
-                        return FreePath::Scatter { t };
-                    }
-                    Event::Null => {
-                        c.null_collision();
-                        // Memoryless: only the process that fired draws its next time.
-                        if control_first {
-                            tc = OpticalDepth::sample(rng).time(t, mu_c);
-                        } else {
-                            tr = OpticalDepth::sample(rng).time(t, mu_r);
-                        }
-                    }
+                // Memoryless: only the process that fired draws its next time.
+                if control_first {
+                    tc = OpticalDepth::sample(rng).time(t, mu_c);
+                } else {
+                    tr = OpticalDepth::sample(rng).time(t, mu_r);
                 }
             }
         }
         FreePath::Escape
+    }
+
+    /// Every medium runs its control and residual processes; the race merges the 2k
+    /// processes in `t` order.
+    fn sample_race<R: Rng, C: Tally>(
+        &self,
+        qs: &[Query],
+        throughput: &mut Spectrum,
+        rng: &mut R,
+        c: &mut C,
+    ) -> (FreePath, usize) {
+        race(
+            qs,
+            rng,
+            c,
+            |i, seg| {
+                let cell = self.cell(&qs[i], seg);
+                [cell.mu_c, cell.mu_r]
+            },
+            |e, rng, c| {
+                let q = &qs[e.lane];
+                let cell = self.cell(q, e.seg);
+                match self.decide(q, &cell, e.process == 0, e.t, throughput, rng, c) {
+                    Some(event) => ControlFlow::Break(event),
+                    None => ControlFlow::Continue(()),
+                }
+            },
+        )
+        .unwrap_or((FreePath::Escape, 0))
     }
 }

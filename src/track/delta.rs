@@ -12,7 +12,8 @@
 //! with unit weight (biased, and reported, never silent). `weighted-delta` is the
 //! estimator that stays unbiased there.
 
-use super::{walk_collisions, FreePath, FreePathSampler, Query, Spectrum};
+use super::race::race;
+use super::{majorant, walk_collisions, FreePath, FreePathSampler, Query, Spectrum};
 use crate::volume::medium::Tally;
 use rand::Rng;
 use std::ops::ControlFlow;
@@ -29,41 +30,78 @@ impl FreePathSampler for Delta {
         rng: &mut R,
         c: &mut C,
     ) -> FreePath {
-        let sg = q.sigma;
-        let avg_a = super::avg(sg.a);
-        let avg_s = super::avg(sg.s);
+        let avg_a = super::avg(q.sigma.a);
+        let avg_s = super::avg(q.sigma.s);
         walk_collisions(q, rng, c, |t, mu_bar, rng, c| {
-            let Collision { d, pa, ps, u } = collide(q, t, mu_bar, avg_a, avg_s, rng, c);
-            let pn = 1.0 - pa - ps;
-            if u < pa {
-                c.real_collision();
-                // Absorption weight w_a(λ) = μa(λ)/(μ̄·Pa) = σa(λ)/avg σa (1 for grey
-                // media), for the emission collected at absorption events.
-                for ch in 0..3 {
-                    throughput[ch] *= sg.a[ch] / avg_a;
-                }
-                c.observe_throughput(*throughput);
-                return ControlFlow::Break(FreePath::Absorb { t });
-            }
-            if u < pa + ps {
-                c.real_collision();
-                for ch in 0..3 {
-                    throughput[ch] *= d * sg.s[ch] / (mu_bar * ps);
-                }
-                c.observe_throughput(*throughput);
-                return ControlFlow::Break(FreePath::Scatter { t });
-            }
-            c.null_collision();
-            if pn > 0.0 {
-                for ch in 0..3 {
-                    throughput[ch] *= (mu_bar - d * sg.t[ch]) / (mu_bar * pn);
-                }
-                c.observe_throughput(*throughput);
-            }
-            ControlFlow::Continue(())
+            decide(q, t, mu_bar, avg_a, avg_s, throughput, rng, c)
         })
         .unwrap_or(FreePath::Escape)
     }
+
+    fn sample_race<R: Rng, C: Tally>(
+        &self,
+        qs: &[Query],
+        throughput: &mut Spectrum,
+        rng: &mut R,
+        c: &mut C,
+    ) -> (FreePath, usize) {
+        race(
+            qs,
+            rng,
+            c,
+            |i, seg| [majorant(&qs[i], seg), 0.0],
+            |e, rng, c| {
+                let q = &qs[e.lane];
+                let (avg_a, avg_s) = (super::avg(q.sigma.a), super::avg(q.sigma.s));
+                decide(q, e.t, e.rate, avg_a, avg_s, throughput, rng, c)
+            },
+        )
+        .unwrap_or((FreePath::Escape, 0))
+    }
+}
+
+/// One tentative collision of delta tracking at `t` under majorant `mu_bar`.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn decide<R: Rng, C: Tally>(
+    q: &Query,
+    t: f32,
+    mu_bar: f32,
+    avg_a: f32,
+    avg_s: f32,
+    throughput: &mut Spectrum,
+    rng: &mut R,
+    c: &mut C,
+) -> ControlFlow<FreePath> {
+    let sg = q.sigma;
+    let Collision { d, pa, ps, u } = collide(q, t, mu_bar, avg_a, avg_s, rng, c);
+    let pn = 1.0 - pa - ps;
+    if u < pa {
+        c.real_collision();
+        // Absorption weight w_a(λ) = μa(λ)/(μ̄·Pa) = σa(λ)/avg σa (1 for grey
+        // media), for the emission collected at absorption events.
+        for ch in 0..3 {
+            throughput[ch] *= sg.a[ch] / avg_a;
+        }
+        c.observe_throughput(*throughput);
+        return ControlFlow::Break(FreePath::Absorb { t });
+    }
+    if u < pa + ps {
+        c.real_collision();
+        for ch in 0..3 {
+            throughput[ch] *= d * sg.s[ch] / (mu_bar * ps);
+        }
+        c.observe_throughput(*throughput);
+        return ControlFlow::Break(FreePath::Scatter { t });
+    }
+    c.null_collision();
+    if pn > 0.0 {
+        for ch in 0..3 {
+            throughput[ch] *= (mu_bar - d * sg.t[ch]) / (mu_bar * pn);
+        }
+        c.observe_throughput(*throughput);
+    }
+    ControlFlow::Continue(())
 }
 
 /// A tentative collision of delta tracking: the density there, the event

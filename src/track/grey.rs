@@ -9,9 +9,11 @@
 //! picks them only for grey media.
 
 use super::delta::{collide, Collision};
+use super::race::race;
 use super::ratio::{RR_SURVIVAL, RR_THRESHOLD};
 use super::{
-    avg, walk_collisions, FreePath, FreePathSampler, Query, Spectrum, TransmittanceEstimator,
+    avg, majorant, walk_collisions, FreePath, FreePathSampler, Query, Spectrum,
+    TransmittanceEstimator,
 };
 use crate::volume::medium::Tally;
 use rand::Rng;
@@ -34,25 +36,58 @@ impl FreePathSampler for GreyDelta {
         rng: &mut R,
         c: &mut C,
     ) -> FreePath {
-        let sg = q.sigma;
         // The same expressions as `Delta`, so the same events from the same numbers.
-        let avg_a = avg(sg.a);
-        let avg_s = avg(sg.s);
+        let avg_a = avg(q.sigma.a);
+        let avg_s = avg(q.sigma.s);
         walk_collisions(q, rng, c, |t, mu_bar, rng, c| {
-            let Collision { pa, ps, u, .. } = collide(q, t, mu_bar, avg_a, avg_s, rng, c);
-            if u < pa {
-                c.real_collision();
-                return ControlFlow::Break(FreePath::Absorb { t });
-            }
-            if u < pa + ps {
-                c.real_collision();
-                return ControlFlow::Break(FreePath::Scatter { t });
-            }
-            c.null_collision();
-            ControlFlow::Continue(())
+            decide(q, t, mu_bar, avg_a, avg_s, rng, c)
         })
         .unwrap_or(FreePath::Escape)
     }
+
+    fn sample_race<R: Rng, C: Tally>(
+        &self,
+        qs: &[Query],
+        _throughput: &mut Spectrum,
+        rng: &mut R,
+        c: &mut C,
+    ) -> (FreePath, usize) {
+        race(
+            qs,
+            rng,
+            c,
+            |i, seg| [majorant(&qs[i], seg), 0.0],
+            |e, rng, c| {
+                let q = &qs[e.lane];
+                decide(q, e.t, e.rate, avg(q.sigma.a), avg(q.sigma.s), rng, c)
+            },
+        )
+        .unwrap_or((FreePath::Escape, 0))
+    }
+}
+
+/// One tentative collision of analog delta tracking in a grey medium.
+#[inline(always)]
+fn decide<R: Rng, C: Tally>(
+    q: &Query,
+    t: f32,
+    mu_bar: f32,
+    avg_a: f32,
+    avg_s: f32,
+    rng: &mut R,
+    c: &mut C,
+) -> ControlFlow<FreePath> {
+    let Collision { pa, ps, u, .. } = collide(q, t, mu_bar, avg_a, avg_s, rng, c);
+    if u < pa {
+        c.real_collision();
+        return ControlFlow::Break(FreePath::Absorb { t });
+    }
+    if u < pa + ps {
+        c.real_collision();
+        return ControlFlow::Break(FreePath::Scatter { t });
+    }
+    c.null_collision();
+    ControlFlow::Continue(())
 }
 
 impl TransmittanceEstimator for GreyRatio {

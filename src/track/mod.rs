@@ -11,10 +11,12 @@
 pub mod decomposition;
 pub mod delta;
 pub mod grey;
+pub mod race;
 pub mod ratio;
 pub mod scheme;
 pub mod spectral;
 
+use crate::volume::majorant::Segment;
 use crate::volume::medium::{IndexRay, Medium, Sigma, Tally};
 use rand::Rng;
 use std::ops::ControlFlow;
@@ -55,11 +57,41 @@ pub trait FreePathSampler: Sync {
         rng: &mut R,
         c: &mut C,
     ) -> FreePath;
+
+    /// Samples the first real collision in the sum of several media overlapping along
+    /// the ray (one query per medium, same ray and range; [`race`]), and returns the
+    /// medium whose collision it was (0 on escape).
+    fn sample_race<R: Rng, C: Tally>(
+        &self,
+        qs: &[Query],
+        throughput: &mut Spectrum,
+        rng: &mut R,
+        c: &mut C,
+    ) -> (FreePath, usize);
 }
 
 /// Estimates transmittance along a shadow ray.
 pub trait TransmittanceEstimator: Sync {
     fn transmittance<R: Rng, C: Tally>(&self, q: &Query, rng: &mut R, c: &mut C) -> Spectrum;
+
+    /// The transmittance of several media along one ray: the product of independent
+    /// estimates of each medium's transmittance, which is unbiased for the product
+    /// (the sum medium's transmittance). Stops once the product is 0.
+    fn transmittance_race<R: Rng, C: Tally>(
+        &self,
+        qs: &[Query],
+        rng: &mut R,
+        c: &mut C,
+    ) -> Spectrum {
+        let mut tr = [1f32; 3];
+        for q in qs {
+            mul(&mut tr, self.transmittance(q, rng, c));
+            if tr == [0.0; 3] {
+                break;
+            }
+        }
+        tr
+    }
 }
 
 /// Walks the tentative collisions of the null-collision process whose majorant is
@@ -77,7 +109,7 @@ pub fn walk_collisions<R: Rng, C: Tally, T>(
     let mut walk = q.medium.majorants.walk(q.ray.o, q.ray.d, q.tmin, q.tmax);
     let mut tau = OpticalDepth::sample(rng);
     while let Some(seg) = c.next_segment(&mut walk) {
-        let mu_bar = seg.dmax * q.sigma.t_max * q.majorant_scale;
+        let mu_bar = majorant(q, &seg);
         if !(mu_bar > 0.0) {
             continue; // empty cell: skipped without a lookup
         }
@@ -94,6 +126,13 @@ pub fn walk_collisions<R: Rng, C: Tally, T>(
         }
     }
     None
+}
+
+/// The achromatic majorant μ̄ = d_max·max σt (times the query's majorant scale) of a
+/// majorant segment.
+#[inline(always)]
+pub fn majorant(q: &Query, seg: &Segment) -> f32 {
+    seg.dmax * q.sigma.t_max * q.majorant_scale
 }
 
 /// The optical depth left to the next tentative collision of a null-collision process

@@ -5,8 +5,9 @@
 //! non-bounding majorants (negative null coefficients) with signed weights: with the avg
 //! scheme it is `weighted-delta`.
 
+use super::race::race;
 use super::scheme::{choose, probabilities, Coefficients, Event, Scheme, SchemeOptions};
-use super::{mul, walk_collisions, FreePath, FreePathSampler, Query, Spectrum};
+use super::{majorant, mul, walk_collisions, FreePath, FreePathSampler, Query, Spectrum};
 use crate::volume::medium::Tally;
 use rand::Rng;
 use std::marker::PhantomData;
@@ -36,36 +37,69 @@ impl<S: Scheme> FreePathSampler for Spectral<S> {
         rng: &mut R,
         c: &mut C,
     ) -> FreePath {
-        let sg = q.sigma;
         walk_collisions(q, rng, c, |t, mu_bar, rng, c| {
-            let d = q.medium.density(q.ray.at(t), c);
-            let k = Coefficients {
-                mu_a: sg.a.map(|s| d * s),
-                mu_s: sg.s.map(|s| d * s),
-                mu_n: sg.t.map(|s| mu_bar - d * s),
-            };
-            if k.mu_n.iter().any(|&m| m < 0.0) {
-                c.majorant_violation();
-            }
-            let p = probabilities::<S>(&k, mu_bar, *throughput, self.options);
-            let (event, w) = choose(&k, mu_bar, p, rng.gen());
-            mul(throughput, w);
-            c.observe_throughput(*throughput);
-            match event {
-                Event::Absorb => {
-                    c.real_collision();
-                    ControlFlow::Break(FreePath::Absorb { t })
-                }
-                Event::Scatter => {
-                    c.real_collision();
-                    ControlFlow::Break(FreePath::Scatter { t })
-                }
-                Event::Null => {
-                    c.null_collision();
-                    ControlFlow::Continue(())
-                }
-            }
+            self.decide(q, t, mu_bar, throughput, rng, c)
         })
         .unwrap_or(FreePath::Escape)
+    }
+
+    fn sample_race<R: Rng, C: Tally>(
+        &self,
+        qs: &[Query],
+        throughput: &mut Spectrum,
+        rng: &mut R,
+        c: &mut C,
+    ) -> (FreePath, usize) {
+        race(
+            qs,
+            rng,
+            c,
+            |i, seg| [majorant(&qs[i], seg), 0.0],
+            |e, rng, c| self.decide(&qs[e.lane], e.t, e.rate, throughput, rng, c),
+        )
+        .unwrap_or((FreePath::Escape, 0))
+    }
+}
+
+impl<S: Scheme> Spectral<S> {
+    /// One tentative collision at `t` under majorant `mu_bar`.
+    #[inline(always)]
+    fn decide<R: Rng, C: Tally>(
+        &self,
+        q: &Query,
+        t: f32,
+        mu_bar: f32,
+        throughput: &mut Spectrum,
+        rng: &mut R,
+        c: &mut C,
+    ) -> ControlFlow<FreePath> {
+        let sg = q.sigma;
+        let d = q.medium.density(q.ray.at(t), c);
+        let k = Coefficients {
+            mu_a: sg.a.map(|s| d * s),
+            mu_s: sg.s.map(|s| d * s),
+            mu_n: sg.t.map(|s| mu_bar - d * s),
+        };
+        if k.mu_n.iter().any(|&m| m < 0.0) {
+            c.majorant_violation();
+        }
+        let p = probabilities::<S>(&k, mu_bar, *throughput, self.options);
+        let (event, w) = choose(&k, mu_bar, p, rng.gen());
+        mul(throughput, w);
+        c.observe_throughput(*throughput);
+        match event {
+            Event::Absorb => {
+                c.real_collision();
+                ControlFlow::Break(FreePath::Absorb { t })
+            }
+            Event::Scatter => {
+                c.real_collision();
+                ControlFlow::Break(FreePath::Scatter { t })
+            }
+            Event::Null => {
+                c.null_collision();
+                ControlFlow::Continue(())
+            }
+        }
     }
 }

@@ -156,7 +156,7 @@ impl Dispatch<Output> for Run<'_, '_> {
             majorant_scale: self.settings.majorant_scale,
             count: true,
             profile: false,
-            medium: s.medium,
+            media: std::slice::from_ref(s.medium),
             lights: s.lights,
             camera: s.camera,
             width: s.width,
