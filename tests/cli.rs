@@ -164,7 +164,10 @@ fn stage_with_two_volumes_renders_both() {
         )
     };
     let (no_cloud, no_puff) = (hide("Cloud"), hide("Puff"));
-    assert!(no_cloud != text && no_puff != text, "the stage changed its layout");
+    assert!(
+        no_cloud != text && no_puff != text,
+        "the stage changed its layout"
+    );
     let both = run("both", &text);
     assert_eq!(both["analysis"]["volumes"], 2);
     let lookups = |j: &serde_json::Value| j["density_lookups"].as_f64().unwrap();
