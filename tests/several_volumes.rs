@@ -98,6 +98,30 @@ fn medium(p: &Part, cell: u32) -> Medium {
     .unwrap()
 }
 
+/// Each medium's index-space ray for the world ray from (X0, 16, 16) along +x.
+fn rays(media: &[Medium]) -> Vec<IndexRay> {
+    media
+        .iter()
+        .map(|m| m.index_ray(DVec3::new(X0, 16.0, 16.0), DVec3::X))
+        .collect()
+}
+
+/// One query per medium over [X0, X1] with bounding majorants.
+fn queries<'a>(media: &'a [Medium], rays: &'a [IndexRay]) -> Vec<Query<'a>> {
+    media
+        .iter()
+        .zip(rays)
+        .map(|(m, r)| Query {
+            medium: m,
+            sigma: &m.sigma,
+            ray: r,
+            tmin: 0.0,
+            tmax: (X1 - X0) as f32,
+            majorant_scale: 1.0,
+        })
+        .collect()
+}
+
 /// The density of part `p` at world x along the ray (the piecewise-linear interpolant
 /// of its samples; 0 outside the grid's samples).
 fn density(p: &Part, x: f64) -> f64 {
@@ -182,22 +206,8 @@ impl Dispatch<()> for &RaceRun {
     fn run<F: FreePathSampler, E: TransmittanceEstimator>(self, tracker: F, _e: E) {
         let ps = parts();
         let media: Vec<Medium> = ps.iter().map(|p| medium(p, self.cell)).collect();
-        let rays: Vec<IndexRay> = media
-            .iter()
-            .map(|m| m.index_ray(DVec3::new(X0, 16.0, 16.0), DVec3::X))
-            .collect();
-        let qs: Vec<Query> = media
-            .iter()
-            .zip(&rays)
-            .map(|(m, r)| Query {
-                medium: m,
-                sigma: &m.sigma,
-                ray: r,
-                tmin: 0.0,
-                tmax: (X1 - X0) as f32,
-                majorant_scale: 1.0,
-            })
-            .collect();
+        let rays = rays(&media);
+        let qs = queries(&media, &rays);
         let mut rng = Pcg32::seed_from_u64(self.seed);
         let mut c = Counters::default();
         let k = ps.len();
@@ -268,22 +278,8 @@ fn transmittance_of_overlapping_media_is_the_product() {
         fn run<F: FreePathSampler, E: TransmittanceEstimator>(self, _f: F, e: E) {
             let ps = parts();
             let media: Vec<Medium> = ps.iter().map(|p| medium(p, 8)).collect();
-            let rays: Vec<IndexRay> = media
-                .iter()
-                .map(|m| m.index_ray(DVec3::new(X0, 16.0, 16.0), DVec3::X))
-                .collect();
-            let qs: Vec<Query> = media
-                .iter()
-                .zip(&rays)
-                .map(|(m, r)| Query {
-                    medium: m,
-                    sigma: &m.sigma,
-                    ray: r,
-                    tmin: 0.0,
-                    tmax: (X1 - X0) as f32,
-                    majorant_scale: 1.0,
-                })
-                .collect();
+            let rays = rays(&media);
+            let qs = queries(&media, &rays);
             let mut rng = Pcg32::seed_from_u64(12);
             let mut c = Counters::default();
             let mut s: [Vec<f64>; 3] = Default::default();

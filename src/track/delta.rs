@@ -12,8 +12,8 @@
 //! with unit weight (biased, and reported, never silent). `weighted-delta` is the
 //! estimator that stays unbiased there.
 
-use super::race::race;
-use super::{majorant, walk_collisions, FreePath, FreePathSampler, Query, Spectrum};
+use super::race::race_collisions;
+use super::{walk_collisions, FreePath, FreePathSampler, Query, Spectrum};
 use crate::volume::medium::Tally;
 use rand::Rng;
 use std::ops::ControlFlow;
@@ -45,17 +45,10 @@ impl FreePathSampler for Delta {
         rng: &mut R,
         c: &mut C,
     ) -> (FreePath, usize) {
-        race(
-            qs,
-            rng,
-            c,
-            |i, seg| [majorant(&qs[i], seg), 0.0],
-            |e, rng, c| {
-                let q = &qs[e.lane];
-                let (avg_a, avg_s) = (super::avg(q.sigma.a), super::avg(q.sigma.s));
-                decide(q, e.t, e.rate, avg_a, avg_s, throughput, rng, c)
-            },
-        )
+        race_collisions(qs, rng, c, |q, t, mu_bar, rng, c| {
+            let (avg_a, avg_s) = (super::avg(q.sigma.a), super::avg(q.sigma.s));
+            decide(q, t, mu_bar, avg_a, avg_s, throughput, rng, c)
+        })
         .unwrap_or((FreePath::Escape, 0))
     }
 }

@@ -9,11 +9,10 @@
 //! picks them only for grey media.
 
 use super::delta::{collide, Collision};
-use super::race::race;
+use super::race::race_collisions;
 use super::ratio::{RR_SURVIVAL, RR_THRESHOLD};
 use super::{
-    avg, majorant, walk_collisions, FreePath, FreePathSampler, Query, Spectrum,
-    TransmittanceEstimator,
+    avg, walk_collisions, FreePath, FreePathSampler, Query, Spectrum, TransmittanceEstimator,
 };
 use crate::volume::medium::Tally;
 use rand::Rng;
@@ -52,16 +51,9 @@ impl FreePathSampler for GreyDelta {
         rng: &mut R,
         c: &mut C,
     ) -> (FreePath, usize) {
-        race(
-            qs,
-            rng,
-            c,
-            |i, seg| [majorant(&qs[i], seg), 0.0],
-            |e, rng, c| {
-                let q = &qs[e.lane];
-                decide(q, e.t, e.rate, avg(q.sigma.a), avg(q.sigma.s), rng, c)
-            },
-        )
+        race_collisions(qs, rng, c, |q, t, mu_bar, rng, c| {
+            decide(q, t, mu_bar, avg(q.sigma.a), avg(q.sigma.s), rng, c)
+        })
         .unwrap_or((FreePath::Escape, 0))
     }
 }

@@ -17,7 +17,7 @@
 //!
 //! The lanes live on the stack (at most [`MAX_MEDIA`]): the hot path allocates nothing.
 
-use super::{OpticalDepth, Query};
+use super::{majorant, OpticalDepth, Query};
 use crate::volume::majorant::{Segment, TreeWalk};
 use crate::volume::medium::Tally;
 use rand::Rng;
@@ -147,4 +147,23 @@ fn settle<C: Tally>(
             lane.next[p] = lane.tau[p].time(seg.t0, lane.rate[p]);
         }
     }
+}
+
+/// [`race`] for trackers with one process per medium at the achromatic majorant
+/// (delta, spectral): `at(query, t, μ̄, rng, counters)` decides each collision of the
+/// medium `query` describes, as in [`walk_collisions`](super::walk_collisions).
+#[inline]
+pub fn race_collisions<R: Rng, C: Tally, T>(
+    qs: &[Query],
+    rng: &mut R,
+    c: &mut C,
+    mut at: impl FnMut(&Query, f32, f32, &mut R, &mut C) -> ControlFlow<T>,
+) -> Option<(T, usize)> {
+    race(
+        qs,
+        rng,
+        c,
+        |i, seg| [majorant(&qs[i], seg), 0.0],
+        |e, rng, c| at(&qs[e.lane], e.t, e.rate, rng, c),
+    )
 }

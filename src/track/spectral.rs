@@ -5,9 +5,9 @@
 //! non-bounding majorants (negative null coefficients) with signed weights: with the avg
 //! scheme it is `weighted-delta`.
 
-use super::race::race;
+use super::race::race_collisions;
 use super::scheme::{choose, probabilities, Coefficients, Event, Scheme, SchemeOptions};
-use super::{majorant, mul, walk_collisions, FreePath, FreePathSampler, Query, Spectrum};
+use super::{mul, walk_collisions, FreePath, FreePathSampler, Query, Spectrum};
 use crate::volume::medium::Tally;
 use rand::Rng;
 use std::marker::PhantomData;
@@ -50,13 +50,9 @@ impl<S: Scheme> FreePathSampler for Spectral<S> {
         rng: &mut R,
         c: &mut C,
     ) -> (FreePath, usize) {
-        race(
-            qs,
-            rng,
-            c,
-            |i, seg| [majorant(&qs[i], seg), 0.0],
-            |e, rng, c| self.decide(&qs[e.lane], e.t, e.rate, throughput, rng, c),
-        )
+        race_collisions(qs, rng, c, |q, t, mu_bar, rng, c| {
+            self.decide(q, t, mu_bar, throughput, rng, c)
+        })
         .unwrap_or((FreePath::Escape, 0))
     }
 }
