@@ -128,6 +128,13 @@ pub fn run(args: InfoArgs) -> Result<()> {
         if e.is_emissive() {
             println!("  emission source term: absorption * density * Le (nothing emits where density is 0)");
         }
+        match &v.albedo {
+            Some((name, f)) => println!(
+                "  albedo: albedoField {name} ({}): multiplier c(x) in [0,1]^3, scattering * c, absorption + (1 - c) * scattering (extinction unchanged)",
+                f.prim_path
+            ),
+            None => println!("  albedo: constant (no albedoField)"),
+        }
         if let Some(shader) = &v.material_shader {
             println!("  parameters from the bound material's volume shader {shader}");
         }
@@ -212,10 +219,14 @@ fn print_analysis(scene: &crate::scene::Scene, depth: u32) {
     match analysed {
         Ok(a) => {
             println!(
-                "analysis: grey {}, emissive {}, constant albedo {}, homogeneous {}, empty leaves {:.1}% (depth {depth}), isotropic {}, max albedo {:.3}, lights emitting {} of {}, volume visible {}",
+                "analysis: grey {}, emissive {}, constant albedo {}{}, homogeneous {}, empty leaves {:.1}% (depth {depth}), isotropic {}, max albedo {:.3}, lights emitting {} of {}, volume visible {}",
                 a.grey,
                 a.emissive,
                 a.constant_albedo,
+                a.albedo_field
+                    .as_ref()
+                    .map(|f| format!(" (albedo field {f})"))
+                    .unwrap_or_default(),
                 a.homogeneous,
                 100.0 * a.empty_cell_fraction,
                 a.isotropic,
