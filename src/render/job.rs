@@ -159,14 +159,8 @@ pub fn albedo_for_volume(volume: &Volume) -> anyhow::Result<Option<AlbedoGrid>> 
             )
         })?;
     let grid_name = raw[0].name.clone();
-    let albedo = AlbedoGrid::new(
-        &volume.prim_path,
-        &role,
-        name,
-        raw,
-        volume.volume_to_world,
-    )
-    .with_context(|| format!("{}: {}", field.file, field.prim_path))?;
+    let albedo = AlbedoGrid::new(&volume.prim_path, &role, name, raw, volume.volume_to_world)
+        .with_context(|| format!("{}: {}", field.file, field.prim_path))?;
     if albedo.clamped_values > 0 {
         eprintln!(
             "nimbus: warning: {}: albedo grid '{}' has {} component values outside [0, 1] or not finite; they are clamped to [0, 1]",
