@@ -519,3 +519,67 @@ fn albedo_grid_missing_from_file() {
         ],
     );
 }
+
+/// End to end: `nimbus render --stats` with a `Cd` albedo field reports albedo lookups,
+/// the clamped values and the analysis' albedo field; `nimbus info` prints the field.
+/// Without the attribute the same stage makes no albedo lookup.
+#[test]
+fn render_stats_and_info_report_the_albedo_field() {
+    if !Reader::OpenVdb.available() {
+        println!("SKIP: OpenVDB bridge not built");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    stage_grids(dir.path(), true);
+    let run = |attrs: &str| {
+        let stage = albedo_stage(dir.path(), attrs);
+        let out = dir.path().join("out.exr");
+        let stats = dir.path().join("stats.json");
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_nimbus"))
+            .args([
+                "render",
+                stage.to_str().unwrap(),
+                "-o",
+                out.to_str().unwrap(),
+                "--res",
+                "16x16",
+                "--spp",
+                "4",
+                "--stats",
+                stats.to_str().unwrap(),
+            ])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "{err}");
+        let s: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+        let info = std::process::Command::new(env!("CARGO_BIN_EXE_nimbus"))
+            .args(["info", stage.to_str().unwrap()])
+            .output()
+            .unwrap();
+        (s, err, String::from_utf8_lossy(&info.stdout).into_owned())
+    };
+    let (s, err, info) = run("    token nimbus:albedoField = \"Cd\"");
+    eprintln!("{info}");
+    assert!(s["albedo_lookups"].as_u64().unwrap() > 0, "{s}");
+    assert_eq!(s["clamped_albedo_values"], 3);
+    assert_eq!(s["analysis"]["albedo_field"], "Cd");
+    assert_eq!(s["analysis"]["constant_albedo"], false);
+    assert_mentions(
+        &err,
+        &["albedo grid 'Cd' has 3 component values outside [0, 1]"],
+    );
+    assert_mentions(
+        &info,
+        &[
+            "albedo: albedoField Cd (/V/Cd)",
+            "constant albedo false (albedo field Cd)",
+        ],
+    );
+    let (s, err, info) = run("");
+    assert_eq!(s["albedo_lookups"], 0);
+    assert_eq!(s["analysis"]["albedo_field"], serde_json::Value::Null);
+    assert!(!err.contains("albedo grid"), "{err}");
+    assert_mentions(&info, &["albedo: constant (no albedoField)"]);
+}

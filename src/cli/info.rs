@@ -158,6 +158,21 @@ pub fn run(args: InfoArgs) -> Result<()> {
                 }
                 Err(e) => println!("    cannot list grids: {e}"),
             }
+            if v.albedo.as_ref().is_some_and(|(n, _)| n == name) {
+                // The albedo field: a Vec3s (or float, grey) grid, read as three channels.
+                match vdb::read_color_grid(&f.file, &f.field_name, f.field_index) {
+                    Ok(raw) => println!(
+                        "    loaded '{}' as the albedo grid: {} active voxels, {} leaves, {} tiles, background {:?}",
+                        raw[0].name,
+                        raw[0].active_voxel_count(),
+                        raw[0].leaves.len(),
+                        raw[0].tiles.len(),
+                        raw.each_ref().map(|g| g.background)
+                    ),
+                    Err(e) => println!("    cannot load: {e:#}"),
+                }
+                continue;
+            }
             match vdb::read_float_grid(&f.file, &f.field_name, f.field_index)
                 .map_err(anyhow::Error::from)
                 .and_then(|raw| {
