@@ -1,5 +1,5 @@
 // OpenVDB → plain buffers. The only C++ in Nimbus: it opens a file with OpenVDB and
-// copies a float grid's leaves, tiles and transform into Rust-owned vectors. All
+// copies a float or Vec3s grid's leaves, tiles and transform into Rust-owned vectors. All
 // validation and all interpretation happen on the Rust side.
 #pragma once
 
@@ -9,6 +9,7 @@ namespace nimbus_vdb {
 
 struct GridListEntry;
 struct FloatGridData;
+struct Vec3sGridData;
 
 // Grids of a file, in OpenVDB's order, from metadata only (no trees are read).
 rust::Vec<GridListEntry> list_grids(rust::Str path);
@@ -17,5 +18,9 @@ rust::Vec<GridListEntry> list_grids(rust::Str path);
 // OpenVDB's File::readGrid understands it) and copies it out. Throws (→ Rust Err)
 // unless it is a float grid with a linear transform.
 FloatGridData read_float_grid(rust::Str path, rust::Str lookup_name);
+
+// As read_float_grid, for a Vec3s grid (three floats per value, also when the file
+// stores halves).
+Vec3sGridData read_vec3s_grid(rust::Str path, rust::Str lookup_name);
 
 } // namespace nimbus_vdb

@@ -195,6 +195,14 @@ fn assert_volumes(scene: &Scene, expected: &Value) {
         assert_vec("scattering", &v.scattering, &e["scattering"], tol);
         assert_num("anisotropy", v.anisotropy, &e["anisotropy"], tol);
         assert_emission(what, &v.emission, &e["emission"]);
+        match (&v.albedo, e["albedo"].as_array()) {
+            (None, None) => {}
+            (Some((name, f)), Some(pair)) => {
+                assert_eq!(name, pair[0].as_str().unwrap(), "{what} albedoField");
+                assert_field(&format!("{what} albedoField"), f, &pair[1]);
+            }
+            (a, _) => panic!("{what} albedoField: got {a:?}, pxr says {}", e["albedo"]),
+        }
     }
 }
 

@@ -128,6 +128,13 @@ pub fn run(args: InfoArgs) -> Result<()> {
         if e.is_emissive() {
             println!("  emission source term: absorption * density * Le (nothing emits where density is 0)");
         }
+        match &v.albedo {
+            Some((name, f)) => println!(
+                "  albedo: albedoField {name} ({}): multiplier c(x) in [0,1]^3, scattering * c, absorption + (1 - c) * scattering (extinction unchanged)",
+                f.prim_path
+            ),
+            None => println!("  albedo: constant (no albedoField)"),
+        }
         if let Some(shader) = &v.material_shader {
             println!("  parameters from the bound material's volume shader {shader}");
         }
@@ -150,6 +157,21 @@ pub fn run(args: InfoArgs) -> Result<()> {
                     }
                 }
                 Err(e) => println!("    cannot list grids: {e}"),
+            }
+            if v.albedo.as_ref().is_some_and(|(n, _)| n == name) {
+                // The albedo field: a Vec3s (or float, grey) grid, read as three channels.
+                match vdb::read_color_grid(&f.file, &f.field_name, f.field_index) {
+                    Ok(raw) => println!(
+                        "    loaded '{}' as the albedo grid: {} active voxels, {} leaves, {} tiles, background {:?}",
+                        raw[0].name,
+                        raw[0].active_voxel_count(),
+                        raw[0].leaves.len(),
+                        raw[0].tiles.len(),
+                        raw.each_ref().map(|g| g.background)
+                    ),
+                    Err(e) => println!("    cannot load: {e:#}"),
+                }
+                continue;
             }
             match vdb::read_float_grid(&f.file, &f.field_name, f.field_index)
                 .map_err(anyhow::Error::from)
@@ -212,11 +234,15 @@ fn print_analysis(scene: &crate::scene::Scene, depth: u32) {
     match analysed {
         Ok(a) => {
             println!(
-                "analysis: volumes {}, grey {}, emissive {}, constant albedo {}, homogeneous {}, empty leaves {:.1}% (depth {depth}), isotropic {}, max albedo {:.3}, lights emitting {} of {}, volume visible {}",
+                "analysis: volumes {}, grey {}, emissive {}, constant albedo {}{}, homogeneous {}, empty leaves {:.1}% (depth {depth}), isotropic {}, max albedo {:.3}, lights emitting {} of {}, volume visible {}",
                 a.volumes,
                 a.grey,
                 a.emissive,
                 a.constant_albedo,
+                a.albedo_field
+                    .as_ref()
+                    .map(|f| format!(" (albedo field {f})"))
+                    .unwrap_or_default(),
                 a.homogeneous,
                 100.0 * a.empty_cell_fraction,
                 a.isotropic,

@@ -528,6 +528,11 @@ fn render_frame(
             max_throughput_peak: totals.peak_throughput,
             density_lookups: totals.density_lookups,
             emission_lookups: totals.emission_lookups,
+            albedo_lookups: totals.albedo_lookups,
+            clamped_albedo_values: media
+                .iter()
+                .map(|m| m.albedo.as_ref().map_or(0, |a| a.clamped_values))
+                .sum(),
             real_collisions: totals.real_collisions,
             null_collisions: totals.null_collisions,
             cells_visited: totals.cells_visited,

@@ -34,6 +34,10 @@ pub struct RenderStats {
     pub density_lookups: u64,
     /// Emission grid lookups (at absorption events of an emissive medium).
     pub emission_lookups: u64,
+    /// Albedo grid lookups (one per scatter event when `nimbus:albedoField` is set).
+    pub albedo_lookups: u64,
+    /// Albedo grid component values clamped into [0,1] (0 without an albedo grid).
+    pub clamped_albedo_values: u64,
     pub real_collisions: u64,
     pub null_collisions: u64,
     pub cells_visited: u64,

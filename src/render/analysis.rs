@@ -22,16 +22,19 @@ pub struct Analysis {
     /// is collected at absorption events, so they must stay (no
     /// `no_absorption_events`).
     pub emissive: bool,
-    /// σs/σt is the same everywhere (density-driven media with constant coefficients):
-    /// collisions need no albedo lookup.
+    /// σs/σt is the same everywhere (density-driven media with constant coefficients
+    /// and no albedo grid): collisions need no albedo lookup.
     pub constant_albedo: bool,
+    /// The albedo field (`nimbus:albedoField`) scatter events look up, if any.
+    pub albedo_field: Option<String>,
     /// Every voxel of the active bounding box has the same, non-zero value.
     pub homogeneous: bool,
     /// Fraction of majorant leaf cells with maximum 0, crossed without lookups.
     pub empty_cell_fraction: f64,
     /// Henyey–Greenstein g = 0.
     pub isotropic: bool,
-    /// Largest single-scattering albedo over the channels.
+    /// Largest single-scattering albedo σs/σt over the channels (before an albedo
+    /// grid's multiplier, which is at most 1).
     pub max_albedo: f64,
     /// Lights with non-zero emission, of all lights (suns, sphere, rect, dome).
     pub lights_emitting: usize,
@@ -74,7 +77,10 @@ impl Analysis {
             volumes: media.len(),
             grey: media.iter().all(|m| m.sigma.is_grey()),
             emissive: media.iter().any(|m| m.emission.is_some()),
-            constant_albedo: true,
+            constant_albedo: media.iter().all(|m| m.albedo.is_none()),
+            albedo_field: media
+                .iter()
+                .find_map(|m| m.albedo.as_ref().map(|a| a.field.clone())),
             homogeneous: !media.is_empty() && media.iter().all(homogeneous),
             empty_cell_fraction: if cells > 0 { empty / cells as f64 } else { 0.0 },
             isotropic: media.iter().all(|m| m.g == 0.0),

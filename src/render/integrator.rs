@@ -2,7 +2,7 @@
 //! scattering up to a maximum depth, next-event estimation to suns, sphere and rect
 //! lights and the environment (domes, constant or textured) with ratio-tracking
 //! transmittance, MIS between environment NEE and phase sampling, and volume emission
-//! collected at absorption events.
+//! collected at absorption events; an albedo grid weights each scatter event by c(x).
 
 use crate::render::camera::CameraRays;
 use crate::render::film::{Film, Pixel};
@@ -204,6 +204,16 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                     }
                     depth += 1;
                     let p = origin + dir * t as f64;
+                    // Albedo multiplier c(x) (nimbus:albedoField): the trackers ran
+                    // with c = 1 (μt is unchanged); weighting the scatter event by
+                    // c(x) turns its estimate of ∫T·μs·Ls into ∫T·c·μs·Ls, and the
+                    // (1 − c) part is absorbed (see volume::albedo).
+                    if let Some(albedo) = &medium.albedo {
+                        let c = albedo.sample(p, counters);
+                        for (w, c) in throughput.iter_mut().zip(c) {
+                            *w *= c;
+                        }
+                    }
                     g = medium.g as f64;
                     self.next_event(p, dir, g, channel, throughput, &mut radiance, rng, counters);
                     if depth >= self.max_depth {

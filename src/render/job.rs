@@ -12,6 +12,7 @@ use crate::track::race::MAX_MEDIA;
 use crate::track::{
     self, Dispatch, FreePathSampler, TrackerKind, TrackerSettings, TransmittanceEstimator,
 };
+use crate::volume::albedo::AlbedoGrid;
 use crate::volume::emission::{Emission, EmissionGrid};
 use crate::volume::grid::Grid;
 use crate::volume::majorant::MajorantSpec;
@@ -161,7 +162,35 @@ fn medium_for_volume(volume: &Volume, spec: MajorantSpec) -> anyhow::Result<Medi
         spec,
     )?;
     medium.set_emission(emission_for_volume(volume)?);
+    medium.set_albedo(albedo_for_volume(volume)?);
     Ok(medium)
+}
+
+/// The albedo multiplier grid of a volume: loaded only when `nimbus:albedoField` names
+/// a field (a Vec3s grid, or a float grid as grey). Values outside [0,1] are clamped,
+/// with one warning naming the file, the grid and the count.
+pub fn albedo_for_volume(volume: &Volume) -> anyhow::Result<Option<AlbedoGrid>> {
+    let Some((name, field)) = &volume.albedo else {
+        return Ok(None);
+    };
+    let role = format!("{} `{name}`", tokens::ALBEDO_FIELD);
+    let raw = vdb::read_color_grid(&field.file, &field.field_name, field.field_index)
+        .with_context(|| {
+            format!(
+                "volume {}: {role} field {}",
+                volume.prim_path, field.prim_path
+            )
+        })?;
+    let grid_name = raw[0].name.clone();
+    let albedo = AlbedoGrid::new(&volume.prim_path, &role, name, raw, volume.volume_to_world)
+        .with_context(|| format!("{}: {}", field.file, field.prim_path))?;
+    if albedo.clamped_values > 0 {
+        eprintln!(
+            "nimbus: warning: {}: albedo grid '{}' has {} component values outside [0, 1] or not finite; they are clamped to [0, 1]",
+            field.file, grid_name, albedo.clamped_values
+        );
+    }
+    Ok(Some(albedo))
 }
 
 /// Loads one float grid of a volume's field; `role` names what it is for in errors.

@@ -139,6 +139,10 @@ pub struct Volume {
     /// Emission (`nimbus:temperatureField`, `nimbus:emissionField` and their
     /// parameters); `VolumeEmission::default()` (no fields) when the volume emits nothing.
     pub emission: VolumeEmission,
+    /// `nimbus:albedoField`: the relationship name and its field, if set (a Vec3s or
+    /// float grid, an albedo multiplier c ∈ [0,1]³: σs → c·σs, σa → σa + (1 − c)·σs).
+    /// `None` = constant albedo; a `Cd` field is not used unless named.
+    pub albedo: Option<(String, Field)>,
     /// When the parameters come from a bound material (no `NimbusVolumeAPI`): the
     /// volume shader read, as "prim path (info:id)".
     pub material_shader: Option<String>,

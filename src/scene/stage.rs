@@ -334,6 +334,7 @@ impl Loader<'_> {
                 anisotropy: m.anisotropy,
                 fields,
                 emission: VolumeEmission::default(),
+                albedo: None,
                 material_shader: Some(format!("{} ({})", m.shader, m.shader_id)),
             });
         }
@@ -341,6 +342,7 @@ impl Loader<'_> {
             .unwrap_or_else(|| DEFAULT_DENSITY_FIELD.to_string());
         let density = self.density_field(prim, &density_name, &fields)?;
         let emission = self.emission(prim, &fields)?;
+        let albedo = self.named_field(prim, tokens::ALBEDO_FIELD, &fields)?;
         Ok(Volume {
             prim_path: prim.path().to_string(),
             volume_to_world: self.world_transform(prim)?,
@@ -351,6 +353,7 @@ impl Loader<'_> {
             anisotropy: read_f64(prim, tokens::ANISOTROPY, t)?.unwrap_or(0.0),
             fields,
             emission,
+            albedo,
             material_shader: None,
         })
     }

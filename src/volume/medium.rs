@@ -5,7 +5,13 @@
 //! `t` along a world-space ray and index-space positions `o + t·d` (the index-space
 //! direction is *not* normalised, so `t` keeps world units and the coefficients stay
 //! per world unit length, whatever the grid's voxel size or the volume's transform).
+//!
+//! An optional albedo grid c(x) ∈ [0,1]³ (`nimbus:albedoField`, [`AlbedoGrid`]) turns
+//! μs into c·μs and μa into μa + (1 − c)·μs, leaving μt (hence majorants and trackers)
+//! unchanged; the integrator applies it as a weight c(x) at scatter events (the model and
+//! the unbiasedness argument are in [`crate::volume::albedo`]).
 
+use crate::volume::albedo::AlbedoGrid;
 use crate::volume::emission::Emission;
 use crate::volume::grid::Grid;
 use crate::volume::majorant::{MajorantSpec, MajorantTree, PruneCost, Segment, TreeWalk};
@@ -34,6 +40,9 @@ pub struct Counters {
     /// Evaluations of emission grids (temperature and emission field, one each), made
     /// only at absorption events; not counted in `density_lookups`.
     pub emission_lookups: u64,
+    /// Evaluations of the albedo grid (`nimbus:albedoField`), one per real scatter
+    /// event; not counted in `density_lookups`.
+    pub albedo_lookups: u64,
     /// Largest channel throughput seen along the path (per sample a maximum; summed
     /// over samples in a pixel, so the pixel's AOV is its mean).
     pub max_throughput: f64,
@@ -63,6 +72,7 @@ impl Counters {
         self.residual_lookups += o.residual_lookups;
         self.control_collisions += o.control_collisions;
         self.emission_lookups += o.emission_lookups;
+        self.albedo_lookups += o.albedo_lookups;
         self.max_throughput += o.max_throughput;
         self.timing |= o.timing;
         self.lookup_ticks += o.lookup_ticks;
@@ -91,6 +101,8 @@ pub trait Tally {
     fn control_collision(&mut self);
     /// One evaluation of an emission grid (at an absorption event).
     fn emission_lookup(&mut self);
+    /// One evaluation of the albedo grid (at a scatter event).
+    fn albedo_lookup(&mut self);
     /// Records a path throughput for the `max_throughput` statistic.
     fn observe_throughput(&mut self, w: Spectrum);
     /// The next segment of a majorant walk, counted as a visited cell (and timed as
@@ -142,6 +154,11 @@ impl Tally for Counters {
     #[inline(always)]
     fn emission_lookup(&mut self) {
         self.emission_lookups += 1;
+    }
+
+    #[inline(always)]
+    fn albedo_lookup(&mut self) {
+        self.albedo_lookups += 1;
     }
 
     #[inline(always)]
@@ -209,6 +226,8 @@ impl Tally for NoCounts {
     fn control_collision(&mut self) {}
     #[inline(always)]
     fn emission_lookup(&mut self) {}
+    #[inline(always)]
+    fn albedo_lookup(&mut self) {}
     #[inline(always)]
     fn observe_throughput(&mut self, _w: Spectrum) {}
     #[inline(always)]
@@ -310,6 +329,9 @@ pub struct Medium {
     /// Emission (temperature and/or emission grids), collected at absorption events;
     /// `None` for a non-emissive medium. Set with [`Medium::set_emission`].
     pub emission: Option<Emission>,
+    /// Albedo multiplier c(x) (`nimbus:albedoField`), looked up at scatter events;
+    /// `None` = constant albedo σs/σt. Set with [`Medium::set_albedo`].
+    pub albedo: Option<AlbedoGrid>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -402,6 +424,7 @@ impl Medium {
             g: anisotropy as f32,
             majorants,
             emission: None,
+            albedo: None,
         })
     }
 
@@ -434,6 +457,12 @@ impl Medium {
     /// it is looked up only at absorption events.
     pub fn set_emission(&mut self, emission: Option<Emission>) {
         self.emission = emission;
+    }
+
+    /// Sets (or with `None` removes) the albedo multiplier grid. It changes no majorant:
+    /// extinction is unchanged, and the grid is looked up only at scatter events.
+    pub fn set_albedo(&mut self, albedo: Option<AlbedoGrid>) {
+        self.albedo = albedo;
     }
 
     /// Maps a world-space ray (any direction length; `t` is measured in units of it).

@@ -1,6 +1,7 @@
 //! Volume data: sparse grids read from OpenVDB files, the media built on them,
 //! and the majorant structure the trackers walk.
 
+pub mod albedo;
 pub mod emission;
 pub mod grid;
 pub mod majorant;

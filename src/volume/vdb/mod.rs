@@ -14,6 +14,7 @@ mod writer;
 
 pub use writer::{
     write_float_grid, write_float_grid_bytes, write_float_grids, write_float_grids_bytes,
+    write_grids, write_grids_bytes, write_vec3s_grid, WriteGrid,
 };
 
 use crate::scene::AssetLocation;
@@ -72,12 +73,13 @@ pub enum VdbError {
         wanted: String,
         available: Vec<String>,
     },
-    /// The grid exists but does not hold floats.
-    #[error("{file}: grid {grid:?} is {found}, expected float")]
+    /// The grid exists but does not hold the expected values ("float", "Vec3s", ...).
+    #[error("{file}: grid {grid:?} is {found}, expected {expected}")]
     WrongType {
         file: String,
         grid: String,
         found: String,
+        expected: &'static str,
     },
     /// The chosen reader cannot read this (valid) file; the message says what to do.
     #[error("{file}: {message}")]
@@ -172,25 +174,10 @@ pub fn read_float_grid_with(
             file,
             grid: desc.name.clone(),
             found: desc.value_type_label(),
+            expected: "float",
         });
     }
-    // Only grids whose transform and tree validation understood reach a reader: a
-    // frustum (or unknown) map would leave the tree unchecked, and Nimbus cannot use
-    // non-linear maps anyway.
-    if desc.index_to_world.is_none() {
-        let message = if desc.map_type.is_empty() {
-            format!(
-                "grid {:?}: file format version {} predates the transform layout Nimbus reads (219)",
-                desc.name, info.file_version
-            )
-        } else {
-            format!(
-                "grid {:?} has a {} transform; only linear (affine) index-to-world transforms are supported",
-                desc.name, desc.map_type
-            )
-        };
-        return Err(VdbError::Unsupported { file, message });
-    }
+    check_linear(&info, desc, &file)?;
     match reader {
         Reader::VdbRs => {
             if let Some(message) = vdbrs::unsupported_reason(&info, desc) {
@@ -216,6 +203,132 @@ pub fn read_float_grid_with(
         }
         Reader::OpenVdb => openvdb_read(loc, desc),
     }
+}
+
+/// Reads one Vec3s grid (selected as in [`read_float_grid`]) as three float grids of
+/// one topology: component x, y, z (for a colour grid such as Houdini's `Cd`: r, g, b).
+/// Needs the OpenVDB bridge: vdb-rs 0.6 returns empty trees for Vec3s grids, so the
+/// pure-Rust reader refuses them rather than returning wrong data.
+pub fn read_vec3s_grid(
+    loc: &AssetLocation,
+    name: &str,
+    index: Option<i32>,
+) -> Result<[RawGrid; 3], VdbError> {
+    read_vec3s_grid_with(active_reader(), loc, name, index)
+}
+
+/// As [`read_vec3s_grid`], with a chosen reader.
+pub fn read_vec3s_grid_with(
+    reader: Reader,
+    loc: &AssetLocation,
+    name: &str,
+    index: Option<i32>,
+) -> Result<[RawGrid; 3], VdbError> {
+    let file = loc.to_string();
+    let info = validate_location(loc)?;
+    let desc = select(&info, &file, name, index)?;
+    vec3s_from(reader, loc, &info, desc)
+}
+
+/// A colour grid: a Vec3s grid as [`read_vec3s_grid`] reads it, or a float grid as a
+/// grey one (the same grid in all three channels).
+pub fn read_color_grid(
+    loc: &AssetLocation,
+    name: &str,
+    index: Option<i32>,
+) -> Result<[RawGrid; 3], VdbError> {
+    read_color_grid_with(active_reader(), loc, name, index)
+}
+
+/// As [`read_color_grid`], with a chosen reader.
+pub fn read_color_grid_with(
+    reader: Reader,
+    loc: &AssetLocation,
+    name: &str,
+    index: Option<i32>,
+) -> Result<[RawGrid; 3], VdbError> {
+    let file = loc.to_string();
+    let info = validate_location(loc)?;
+    let desc = select(&info, &file, name, index)?;
+    if desc.is_float() {
+        let g = read_float_grid_with(reader, loc, name, index)?;
+        return Ok([g.clone(), g.clone(), g]);
+    }
+    if !desc.is_vec3s() {
+        return Err(VdbError::WrongType {
+            file,
+            grid: desc.name.clone(),
+            found: desc.value_type_label(),
+            expected: "float or Vec3s",
+        });
+    }
+    vec3s_from(reader, loc, &info, desc)
+}
+
+fn vec3s_from(
+    reader: Reader,
+    loc: &AssetLocation,
+    info: &FileInfo,
+    desc: &GridDesc,
+) -> Result<[RawGrid; 3], VdbError> {
+    let file = loc.to_string();
+    if !desc.is_vec3s() {
+        return Err(VdbError::WrongType {
+            file,
+            grid: desc.name.clone(),
+            found: desc.value_type_label(),
+            expected: "Vec3s",
+        });
+    }
+    check_linear(info, desc, &file)?;
+    if let Some(message) = &desc.tree_error {
+        return Err(VdbError::Invalid {
+            file,
+            message: message.clone(),
+        });
+    }
+    if !desc.instance_parent.is_empty() {
+        return Err(VdbError::Unsupported {
+            file,
+            message: format!(
+                "grid {:?} is an instance of grid {:?}; Nimbus does not read instanced Vec3s grids",
+                desc.name, desc.instance_parent
+            ),
+        });
+    }
+    match reader {
+        Reader::VdbRs => Err(VdbError::Unsupported {
+            file,
+            message: format!(
+                "grid {:?}: Vec3s grids need the OpenVDB bridge (the vdb-rs reader returns empty \
+                 trees for them); install OpenVDB (libopenvdb-dev) and rebuild Nimbus to read this file",
+                desc.name
+            ),
+        }),
+        Reader::OpenVdb => openvdb_read_vec3s(loc, desc),
+    }
+}
+
+/// Only grids whose transform and tree validation understood reach a reader: a
+/// frustum (or unknown) map would leave the tree unchecked, and Nimbus cannot use
+/// non-linear maps anyway.
+fn check_linear(info: &FileInfo, desc: &GridDesc, file: &str) -> Result<(), VdbError> {
+    let file = file.to_string();
+    if desc.index_to_world.is_none() {
+        let message = if desc.map_type.is_empty() {
+            format!(
+                "grid {:?}: file format version {} predates the transform layout Nimbus reads (219)",
+                desc.name, info.file_version
+            )
+        } else {
+            format!(
+                "grid {:?} has a {} transform; only linear (affine) index-to-world transforms are supported",
+                desc.name, desc.map_type
+            )
+        };
+        return Err(VdbError::Unsupported { file, message });
+    }
+    Ok(())
 }
 
 /// Validates the file or package member behind `loc`.
@@ -348,6 +461,25 @@ fn openvdb_read(loc: &AssetLocation, desc: &GridDesc) -> Result<RawGrid, VdbErro
 }
 
 #[cfg(nimbus_openvdb)]
+fn openvdb_read_vec3s(loc: &AssetLocation, desc: &GridDesc) -> Result<[RawGrid; 3], VdbError> {
+    let file = loc.to_string();
+    let err = |message: String| VdbError::Reader {
+        file: file.clone(),
+        reader: "openvdb",
+        message,
+    };
+    let data = with_openvdb_path(loc, |p| {
+        bridge::ffi::read_vec3s_grid(p, &desc.openvdb_lookup_name())
+            .map_err(|e| err(e.what().to_string()))
+    })?;
+    let mut grids = bridge::to_raw_vec3_grid(data).map_err(err)?;
+    for g in &mut grids {
+        g.name = desc.name.clone();
+    }
+    Ok(grids)
+}
+
+#[cfg(nimbus_openvdb)]
 fn openvdb_list(loc: &AssetLocation) -> Result<Vec<GridInfo>, VdbError> {
     let file = loc.to_string();
     let list = with_openvdb_path(loc, |p| {
@@ -379,6 +511,11 @@ fn openvdb_unavailable(loc: &AssetLocation) -> VdbError {
 
 #[cfg(not(nimbus_openvdb))]
 fn openvdb_read(loc: &AssetLocation, _desc: &GridDesc) -> Result<RawGrid, VdbError> {
+    Err(openvdb_unavailable(loc))
+}
+
+#[cfg(not(nimbus_openvdb))]
+fn openvdb_read_vec3s(loc: &AssetLocation, _desc: &GridDesc) -> Result<[RawGrid; 3], VdbError> {
     Err(openvdb_unavailable(loc))
 }
 

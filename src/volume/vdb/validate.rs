@@ -67,14 +67,20 @@ pub(crate) struct GridDesc {
     pub map_type: String,
     /// Index → world, column-vector convention, for linear maps.
     pub index_to_world: Option<DMat4>,
-    /// Root-node facts, parsed for float grids with a known, linear transform.
+    /// Root-node facts, parsed for float and Vec3s grids with a known, linear transform.
     pub root: Option<RootInfo>,
+    /// Why a Vec3s grid's tree failed validation. Unlike a float tree's, this does not
+    /// fail the whole file: only reading this grid as Vec3s is refused (so the float
+    /// grids of a file with an odd colour grid stay readable).
+    pub tree_error: Option<String>,
 }
 
 #[derive(Clone, Debug)]
 pub(crate) struct RootInfo {
+    /// The background (of a Vec3s grid: its first component).
     pub background: f32,
-    /// Root tiles (dim 4096), active or holding a non-background value.
+    /// Root tiles (dim 4096), active or holding a non-background value (float grids
+    /// only; empty for Vec3s grids, whose values only the OpenVDB bridge reads).
     pub tiles: Vec<RawTile>,
     pub child_count: u32,
 }
@@ -82,6 +88,9 @@ pub(crate) struct RootInfo {
 impl GridDesc {
     pub fn is_float(&self) -> bool {
         self.grid_type == "Tree_float_5_4_3"
+    }
+    pub fn is_vec3s(&self) -> bool {
+        self.grid_type == "Tree_vec3s_5_4_3"
     }
     /// A short human name of the value type for error messages.
     pub fn value_type_label(&self) -> String {
@@ -429,14 +438,27 @@ pub(crate) fn validate<R: Read + Seek>(r: &mut R, len: u64) -> Result<FileInfo, 
             map_type,
             index_to_world,
             root: None,
+            tree_error: None,
         };
-        if desc.is_float() && desc.instance_parent.is_empty() && desc.index_to_world.is_some() {
-            let root = read_root(&mut g).map_err(|e| format!("grid {label:?}: {e}"))?;
+        let parse_tree = desc.instance_parent.is_empty() && desc.index_to_world.is_some();
+        if desc.is_float() && parse_tree {
+            let root = read_root(&mut g, 1).map_err(|e| format!("grid {label:?}: {e}"))?;
             if let Some(flags) = desc.compression {
-                walk_tree(&mut g, flags, desc.half_float, &root, block_pos, end_pos)
+                walk_tree(&mut g, flags, desc.half_float, 1, &root, block_pos, end_pos)
                     .map_err(|e| format!("grid {label:?}: {e}"))?;
             }
             desc.root = Some(root);
+        } else if desc.is_vec3s() && parse_tree {
+            let tree = read_root(&mut g, 3).and_then(|root| {
+                if let Some(flags) = desc.compression {
+                    walk_tree(&mut g, flags, desc.half_float, 3, &root, block_pos, end_pos)?;
+                }
+                Ok(root)
+            });
+            match tree {
+                Ok(root) => desc.root = Some(root),
+                Err(e) => desc.tree_error = Some(format!("grid {label:?}: {e}")),
+            }
         }
         grids.push(desc);
         s.seek(end_pos, "next grid descriptor")?;
@@ -447,23 +469,39 @@ pub(crate) fn validate<R: Read + Seek>(r: &mut R, len: u64) -> Result<FileInfo, 
     })
 }
 
-/// The root node's topology header: background, tiles, child count (float trees).
-fn read_root<R: Read + Seek>(g: &mut Src<R>) -> Result<RootInfo, String> {
+/// The root node's topology header: background, tiles, child count, for values of
+/// `words` 32-bit floats (1: float trees, 3: Vec3s trees, whose tiles are skipped).
+fn read_root<R: Read + Seek>(g: &mut Src<R>, words: u64) -> Result<RootInfo, String> {
     let buffers = g.i32("tree buffer count")?;
     if buffers != 1 {
         return Err(format!("corrupt: tree buffer count {buffers}, expected 1"));
     }
     let background = g.f32("background")?;
+    g.skip(4 * (words - 1), "background")?;
     let tile_count = g.u32("root tile count")? as u64;
     let child_count = g.u32("root child count")?;
-    // A tile is 12 + 4 + 1 bytes; a child is at least its origin and two 4 KB masks.
-    g.checked_count(tile_count, u32::MAX as u64, 17, "root tile")?;
+    // A tile is 12 + 4·words + 1 bytes; a child is at least its origin and two 4 KB masks.
+    let tile_bytes = 13 + 4 * words;
+    g.checked_count(tile_count, u32::MAX as u64, tile_bytes, "root tile")?;
     g.checked_count(
         child_count as u64 + tile_count,
         u32::MAX as u64,
         17,
         "root child",
     )?;
+    if words != 1 {
+        g.skip(tile_count * tile_bytes, "root tiles")?;
+        if (child_count as u64).saturating_mul(12 + 2 * 4096) > g.remaining() {
+            return Err(format!(
+                "corrupt: root child count {child_count} does not fit in the grid's data"
+            ));
+        }
+        return Ok(RootInfo {
+            background,
+            tiles: Vec::new(),
+            child_count,
+        });
+    }
     if (child_count as u64).saturating_mul(12 + 2 * 4096) > g.remaining() {
         return Err(format!(
             "corrupt: root child count {child_count} does not fit in the grid's data"
@@ -506,6 +544,7 @@ fn walk_tree<R: Read + Seek>(
     g: &mut Src<R>,
     flags: u32,
     half: bool,
+    words: u64,
     root: &RootInfo,
     block_pos: u64,
     end_pos: u64,
@@ -516,10 +555,10 @@ fn walk_tree<R: Read + Seek>(
     for _ in 0..root.child_count {
         g.skip(12, "internal node origin")?;
         let (children5, active5) = read_masks(g, 32768, "internal node (level 2)")?;
-        skip_values(g, flags, half, 32768, active5)?;
+        skip_values(g, flags, half, words, 32768, active5)?;
         for _ in 0..children5 {
             let (children4, active4) = read_masks(g, 4096, "internal node (level 1)")?;
-            skip_values(g, flags, half, 4096, active4)?;
+            skip_values(g, flags, half, words, 4096, active4)?;
             // Leaf topology: just the value mask.
             g.skip(children4 * 64, "leaf masks")?;
             leaves += children4;
@@ -535,7 +574,7 @@ fn walk_tree<R: Read + Seek>(
     for _ in 0..leaves {
         let mask = g.bytes(64, "leaf value mask")?;
         let active: u64 = mask.iter().map(|b| b.count_ones() as u64).sum();
-        skip_values(g, flags, half, 512, active)?;
+        skip_values(g, flags, half, words, 512, active)?;
     }
     Ok(())
 }
@@ -549,11 +588,12 @@ fn read_masks<R: Read + Seek>(g: &mut Src<R>, bits: u64, what: &str) -> Result<(
 }
 
 /// Skips one `io::writeCompressedValues` record of `num` values (`active` of them
-/// active), checking its sizes.
+/// active) of `words` floats each, checking its sizes.
 fn skip_values<R: Read + Seek>(
     g: &mut Src<R>,
     flags: u32,
     half: bool,
+    words: u64,
     num: u64,
     active: u64,
 ) -> Result<(), String> {
@@ -566,8 +606,8 @@ fn skip_values<R: Read + Seek>(
     }
     // Inactive values are stored at full precision.
     match metadata {
-        2 | 4 => g.skip(4, "inactive value")?,
-        5 => g.skip(8, "inactive values")?,
+        2 | 4 => g.skip(4 * words, "inactive value")?,
+        5 => g.skip(8 * words, "inactive values")?,
         _ => {}
     }
     if matches!(metadata, 3..=5) {
@@ -584,7 +624,7 @@ fn skip_values<R: Read + Seek>(
     if half && count == 0 {
         return Ok(());
     }
-    let bytes = count * if half { 2 } else { 4 };
+    let bytes = count * words * if half { 2 } else { 4 };
     if flags & (COMPRESS_BLOSC | COMPRESS_ZIP) != 0 {
         let stored = g.i64("compressed size")?;
         if stored <= 0 {

@@ -1,4 +1,4 @@
-//! A minimal OpenVDB writer: one float grid, uncompressed, file format 224.
+//! A minimal OpenVDB writer: float (and Vec3s) grids, uncompressed, file format 224.
 //!
 //! Nimbus generates its example scenes' volumes with this so they can be read
 //! without OpenVDB installed. The layout is what OpenVDB 10's `io::File` writes with
@@ -6,6 +6,10 @@
 //! full 32-bit values, every node value written (`NO_MASK_AND_ALL_VALS`), and a
 //! (Uniform)ScaleTranslateMap transform (vdb-rs panics on affine maps, so a matrix
 //! that is not scale + translation is an error).
+//!
+//! Vec3s grids (`Tree_vec3s_5_4_3`, e.g. a colour `Cd`) are written the same way with
+//! three floats per value, from three float grids of one topology ([`WriteGrid::Vec3s`]);
+//! only OpenVDB reads them back (vdb-rs does not read Vec3s trees).
 
 use super::VdbError;
 use crate::volume::grid::{RawGrid, BRICK_VOXELS};
@@ -31,6 +35,33 @@ pub fn write_float_grid_bytes(grid: &RawGrid) -> Result<Vec<u8>, VdbError> {
 /// Writes several float grids (in this order) to one VDB file at `path`. Grids may
 /// share a name; readers tell them apart by index (USD `fieldIndex`).
 pub fn write_float_grids(path: &Path, grids: &[RawGrid]) -> Result<(), VdbError> {
+    let grids: Vec<WriteGrid> = grids.iter().map(WriteGrid::Float).collect();
+    write_grids(path, &grids)
+}
+
+/// The bytes of a VDB file holding `grids`, as [`write_float_grids`] writes them.
+pub fn write_float_grids_bytes(grids: &[RawGrid]) -> Result<Vec<u8>, VdbError> {
+    let grids: Vec<WriteGrid> = grids.iter().map(WriteGrid::Float).collect();
+    write_grids_bytes(&grids)
+}
+
+/// A grid to write.
+#[derive(Clone, Copy, Debug)]
+pub enum WriteGrid<'a> {
+    Float(&'a RawGrid),
+    /// A Vec3s grid given as its x, y and z components: three float grids with the same
+    /// leaves (origins and active masks), tiles (origins, sizes, active flags) and
+    /// transform. Name and class come from the first.
+    Vec3s(&'a [RawGrid; 3]),
+}
+
+/// Writes a single Vec3s grid (components `grid[0..3]`) to `path`.
+pub fn write_vec3s_grid(path: &Path, grid: &[RawGrid; 3]) -> Result<(), VdbError> {
+    write_grids(path, &[WriteGrid::Vec3s(grid)])
+}
+
+/// Writes float and Vec3s grids (in this order) to one VDB file at `path`.
+pub fn write_grids(path: &Path, grids: &[WriteGrid]) -> Result<(), VdbError> {
     let bytes = encode(grids).map_err(|message| VdbError::Write {
         file: path.display().to_string(),
         message,
@@ -41,18 +72,28 @@ pub fn write_float_grids(path: &Path, grids: &[RawGrid]) -> Result<(), VdbError>
     })
 }
 
-/// The bytes of a VDB file holding `grids`, as [`write_float_grids`] writes them.
-pub fn write_float_grids_bytes(grids: &[RawGrid]) -> Result<Vec<u8>, VdbError> {
+/// The bytes of a VDB file holding `grids`, as [`write_grids`] writes them.
+pub fn write_grids_bytes(grids: &[WriteGrid]) -> Result<Vec<u8>, VdbError> {
     encode(grids).map_err(|message| VdbError::Write {
         file: "<in-memory VDB>".into(),
         message,
     })
 }
 
-/// An internal node's entry that is not a child: a tile.
+impl<'a> WriteGrid<'a> {
+    /// The components: one grid, or three.
+    fn channels(&self) -> &'a [RawGrid] {
+        match *self {
+            WriteGrid::Float(g) => std::slice::from_ref(g),
+            WriteGrid::Vec3s(g) => g.as_slice(),
+        }
+    }
+}
+
+/// An internal node's entry that is not a child: a tile (`index` into `grid.tiles`).
 #[derive(Clone, Copy)]
 struct Tile {
-    value: f32,
+    index: usize,
     active: bool,
 }
 
@@ -115,7 +156,7 @@ fn build_tree(grid: &RawGrid) -> Result<Root, String> {
             return Err(format!("two leaves at {:?}", leaf.origin));
         }
     }
-    for t in &grid.tiles {
+    for (index, t) in grid.tiles.iter().enumerate() {
         let bad_origin = || {
             format!(
                 "tile at {:?} is not aligned to its size {}",
@@ -132,7 +173,7 @@ fn build_tree(grid: &RawGrid) -> Result<Root, String> {
             return Err(bad_origin());
         }
         let tile = Tile {
-            value: t.value,
+            index,
             active: t.active,
         };
         let clash = || {
@@ -267,13 +308,14 @@ impl Out {
 }
 
 /// One internal node's masks and values (`InternalNode::writeTopology`): child mask,
-/// value mask, then the metadata byte and every value (zero under children).
+/// value mask, then the metadata byte and every value (zero under children), each
+/// value one float per channel.
 fn write_internal(
     out: &mut Out,
     size: usize,
     child: impl Fn(u32) -> bool,
     tile: impl Fn(u32) -> Option<Tile>,
-    bg: f32,
+    chans: &[RawGrid],
 ) {
     let child_bits: Vec<bool> = (0..size as u32).map(&child).collect();
     let value_bits: Vec<bool> = (0..size as u32)
@@ -283,16 +325,40 @@ fn write_internal(
     out.mask(&value_bits);
     out.u8(NO_MASK_AND_ALL_VALS);
     for i in 0..size as u32 {
-        let v = if child_bits[i as usize] {
-            0.0
-        } else {
-            tile(i).map_or(bg, |t| t.value)
-        };
-        out.f32(v);
+        for ch in chans {
+            let v = if child_bits[i as usize] {
+                0.0
+            } else {
+                tile(i).map_or(ch.background, |t| ch.tiles[t.index].value)
+            };
+            out.f32(v);
+        }
     }
 }
 
-fn encode(grids: &[RawGrid]) -> Result<Vec<u8>, String> {
+/// Checks that the components of a Vec3s grid share the first one's topology.
+fn same_topology(chans: &[RawGrid]) -> Result<(), String> {
+    let g = &chans[0];
+    for (c, o) in chans.iter().enumerate().skip(1) {
+        let leaves_match = o.leaves.len() == g.leaves.len()
+            && o.leaves.iter().zip(&g.leaves).all(|(a, b)| {
+                a.origin == b.origin && a.active == b.active && a.values.len() == b.values.len()
+            });
+        let tiles_match = o.tiles.len() == g.tiles.len()
+            && o.tiles
+                .iter()
+                .zip(&g.tiles)
+                .all(|(a, b)| a.origin == b.origin && a.dim == b.dim && a.active == b.active);
+        if !leaves_match || !tiles_match || o.index_to_world != g.index_to_world {
+            return Err(format!(
+                "component {c} of a Vec3s grid does not have the topology and transform of component 0"
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn encode(grids: &[WriteGrid]) -> Result<Vec<u8>, String> {
     if grids.is_empty() {
         return Err("no grids to write".into());
     }
@@ -307,8 +373,12 @@ fn encode(grids: &[RawGrid]) -> Result<Vec<u8>, String> {
                // A UUID derived from the content, so identical grids give identical files.
     let sum = grids
         .iter()
+        .flat_map(|g| g.channels())
         .fold(0u64, |a, g| a.rotate_left(7) ^ g.checksum());
-    let count = grids.iter().map(|g| g.leaves.len() as u64).sum::<u64>();
+    let count = grids
+        .iter()
+        .map(|g| g.channels()[0].leaves.len() as u64)
+        .sum::<u64>();
     let h = format!("{sum:016x}{:016x}", count ^ 0x4e49_4d42_5553_0000);
     let uuid = format!(
         "{}-{}-4{}-8{}-{}",
@@ -323,7 +393,8 @@ fn encode(grids: &[RawGrid]) -> Result<Vec<u8>, String> {
     out.i32(i32::try_from(grids.len()).map_err(|_| "too many grids")?);
 
     let mut seen: Vec<&str> = Vec::new();
-    for (i, grid) in grids.iter().enumerate() {
+    for (i, write) in grids.iter().enumerate() {
+        let grid = &write.channels()[0];
         // Duplicate names get OpenVDB's "name\x1eN" suffix (N = 1, 2, ... in file
         // order), which is how OpenVDB itself keeps descriptor names unique.
         let dup = seen.iter().filter(|n| **n == grid.name).count();
@@ -333,21 +404,26 @@ fn encode(grids: &[RawGrid]) -> Result<Vec<u8>, String> {
         } else {
             format!("{}\u{1e}{dup}", grid.name)
         };
-        encode_grid(&mut out, grid, &unique)
+        encode_grid(&mut out, *write, &unique)
             .map_err(|e| format!("grid {i} ({:?}): {e}", grid.name))?;
     }
     Ok(out.0)
 }
 
 /// Appends one grid: descriptor, then metadata, transform, topology and buffers.
-fn encode_grid(out: &mut Out, grid: &RawGrid, unique_name: &str) -> Result<(), String> {
+fn encode_grid(out: &mut Out, write: WriteGrid, unique_name: &str) -> Result<(), String> {
+    let chans = write.channels();
+    let grid = &chans[0];
+    same_topology(chans)?;
     let root = build_tree(grid)?;
     let (scale, translation) = scale_translate(&grid.index_to_world)?;
-    let bg = grid.background;
 
     // Grid descriptor; the three offsets are patched once known.
     out.string(unique_name);
-    out.string("Tree_float_5_4_3");
+    out.string(match write {
+        WriteGrid::Float(_) => "Tree_float_5_4_3",
+        WriteGrid::Vec3s(_) => "Tree_vec3s_5_4_3",
+    });
     out.string(""); // instance parent
     let offsets_at = out.0.len();
     out.i64(0);
@@ -392,12 +468,12 @@ fn encode_grid(out: &mut Out, grid: &RawGrid, unique_name: &str) -> Result<(), S
 
     // Topology.
     out.i32(1); // buffer count
-    out.f32(bg);
+    chans.iter().for_each(|c| out.f32(c.background));
     out.u32(root.tiles.len() as u32);
     out.u32(root.children.len() as u32);
     for (k, t) in &root.tiles {
         out.coord([k.0, k.1, k.2]);
-        out.f32(t.value);
+        chans.iter().for_each(|c| out.f32(c.tiles[t.index].value));
         out.u8(t.active as u8);
     }
     for (k, n5) in &root.children {
@@ -407,7 +483,7 @@ fn encode_grid(out: &mut Out, grid: &RawGrid, unique_name: &str) -> Result<(), S
             32768,
             |i| n5.children.contains_key(&i),
             |i| n5.tiles.get(&i).copied(),
-            bg,
+            chans,
         );
         for n4 in n5.children.values() {
             write_internal(
@@ -415,7 +491,7 @@ fn encode_grid(out: &mut Out, grid: &RawGrid, unique_name: &str) -> Result<(), S
                 4096,
                 |i| n4.leaves.contains_key(&i),
                 |i| n4.tiles.get(&i).copied(),
-                bg,
+                chans,
             );
             for &l in n4.leaves.values() {
                 out.0
@@ -433,7 +509,9 @@ fn encode_grid(out: &mut Out, grid: &RawGrid, unique_name: &str) -> Result<(), S
                 out.0
                     .extend(leaf.active.iter().flat_map(|w| w.to_le_bytes()));
                 out.u8(NO_MASK_AND_ALL_VALS);
-                leaf.values.iter().for_each(|&v| out.f32(v));
+                for v in 0..BRICK_VOXELS {
+                    chans.iter().for_each(|c| out.f32(c.leaves[l].values[v]));
+                }
             }
         }
     }
