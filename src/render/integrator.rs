@@ -362,20 +362,47 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             tmax,
             majorant_scale: self.majorant_scale,
         };
-        if let [m] = self.media {
-            let (ray, sg) = (m.index_ray(origin, dir), sigma(m));
-            return f(&[query(m, &sg, &ray)]);
+        match self.media {
+            [m] => {
+                let (ray, sg) = (m.index_ray(origin, dir), sigma(m));
+                f(&[query(m, &sg, &ray)])
+            }
+            // Arrays just large enough (their unused tail repeats the first medium), so
+            // a stage of two or three volumes does not build sixteen queries per ray.
+            [_, _] => self.queries::<2, T>(origin, dir, tmin, tmax, channel, f),
+            [_, _, _] | [_, _, _, _] => self.queries::<4, T>(origin, dir, tmin, tmax, channel, f),
+            m if m.len() <= 8 => self.queries::<8, T>(origin, dir, tmin, tmax, channel, f),
+            _ => self.queries::<MAX_MEDIA, T>(origin, dir, tmin, tmax, channel, f),
         }
-        let k = self.media.len().min(MAX_MEDIA);
+    }
+
+    /// [`Self::with_queries`] for 2 ≤ k ≤ `N` media, with stack arrays of `N`.
+    #[inline(always)]
+    fn queries<const N: usize, T>(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        tmin: f32,
+        tmax: f32,
+        channel: Option<usize>,
+        f: impl FnOnce(&[Query]) -> T,
+    ) -> T {
+        let k = self.media.len().min(N);
         let media = &self.media[..k];
-        let rays: [IndexRay; MAX_MEDIA] = std::array::from_fn(|i| match media.get(i) {
-            Some(m) => m.index_ray(origin, dir),
-            None => media[0].index_ray(origin, dir),
+        let medium = |i: usize| &media[if i < k { i } else { 0 }];
+        let rays: [IndexRay; N] = std::array::from_fn(|i| medium(i).index_ray(origin, dir));
+        let sigmas: [Sigma; N] = std::array::from_fn(|i| match channel {
+            Some(ch) => medium(i).sigma.channel(ch),
+            None => medium(i).sigma,
         });
-        let sigmas: [Sigma; MAX_MEDIA] =
-            std::array::from_fn(|i| sigma(media.get(i).unwrap_or(&media[0])));
-        let qs: [Query; MAX_MEDIA] =
-            std::array::from_fn(|i| query(media.get(i).unwrap_or(&media[0]), &sigmas[i], &rays[i]));
+        let qs: [Query; N] = std::array::from_fn(|i| Query {
+            medium: medium(i),
+            sigma: &sigmas[i],
+            ray: &rays[i],
+            tmin,
+            tmax,
+            majorant_scale: self.majorant_scale,
+        });
         f(&qs[..k])
     }
 }

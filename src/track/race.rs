@@ -64,24 +64,24 @@ pub fn race<R: Rng, C: Tally, T>(
 ) -> Option<(T, usize)> {
     debug_assert!(qs.len() <= MAX_MEDIA);
     let k = qs.len().min(MAX_MEDIA);
-    let mut lanes: [Option<Lane>; MAX_MEDIA] = std::array::from_fn(|i| {
-        (i < k).then(|| {
-            let q = &qs[i];
-            Lane {
-                walk: q.medium.majorants.walk(q.ray.o, q.ray.d, q.tmin, q.tmax),
-                seg: Segment {
-                    t0: q.tmin,
-                    t1: q.tmin,
-                    dmin: 0.0,
-                    dmax: 0.0,
-                },
-                rate: [0.0; 2],
-                tau: [OpticalDepth::sample(rng), OpticalDepth::sample(rng)],
-                next: [f32::INFINITY; 2],
-                done: false,
-            }
-        })
-    });
+    // Only the k lanes in use are written (a `None` costs one word): the lanes are
+    // built in place, not moved.
+    let mut lanes: [Option<Lane>; MAX_MEDIA] = [const { None }; MAX_MEDIA];
+    for (lane, q) in lanes.iter_mut().zip(&qs[..k]) {
+        *lane = Some(Lane {
+            walk: q.medium.majorants.walk(q.ray.o, q.ray.d, q.tmin, q.tmax),
+            seg: Segment {
+                t0: q.tmin,
+                t1: q.tmin,
+                dmin: 0.0,
+                dmax: 0.0,
+            },
+            rate: [0.0; 2],
+            tau: [OpticalDepth::sample(rng), OpticalDepth::sample(rng)],
+            next: [f32::INFINITY; 2],
+            done: false,
+        });
+    }
     let mut pending = [f32::INFINITY; MAX_MEDIA];
     for i in 0..k {
         if let Some(lane) = lanes[i].as_mut() {
