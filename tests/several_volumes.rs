@@ -326,9 +326,9 @@ fn the_attribution_check_can_fail() {
     }
 }
 
-/// Two overlapping cubes of densities 0.4 and 0.6 render like one cube of density 1
-/// (same σ, same g): the integrator's race, its shadow-ray product and its choice of
-/// phase function per collision. Estimator: the image mean of each render (8×6
+/// Two overlapping cubes of densities 0.4 and 0.6, and twenty of density 0.05, render
+/// like one cube of density 1 (same σ, same g): the integrator's race, its shadow-ray
+/// product and its choice of phase function per collision. Estimator: the image mean of each render (8×6
 /// pixels, 64 spp, seeds 21 and 22); the difference of the two means is tested with
 /// the pixels' standard errors combined, |z| < 4 per channel, for delta and
 /// spectral-decomposition.
@@ -339,22 +339,26 @@ fn overlapping_cubes_render_like_their_sum() {
     let cube = |d: f64| common::unit_cube(1.0, [0.3 * d; 3], [0.9 * d; 3], 0.4);
     let one = [cube(1.0)];
     let two = [cube(0.4), cube(0.6)];
+    // More volumes than the largest per-ray array below 64 (16), all on every ray.
+    let twenty: Vec<Medium> = (0..20).map(|_| cube(0.05)).collect();
     for tracker in [TrackerKind::Delta, TrackerKind::SpectralDecomposition] {
         let settings = TrackerSettings {
             tracker,
             ..TrackerSettings::default()
         };
         let a = render(&one, &sun_lights, &cam, &settings, 21);
-        let b = render(&two, &sun_lights, &cam, &settings, 22);
-        for ch in 0..3 {
-            let (ma, sa) = mean_se(&a[ch]);
-            let (mb, sb) = mean_se(&b[ch]);
-            let z = (ma - mb) / (sa * sa + sb * sb).sqrt();
-            assert!(
-                z.abs() < 4.0,
-                "{}: ch {ch}: one cube {ma} ± {sa}, two cubes {mb} ± {sb}, z {z}",
-                tracker.name()
-            );
+        for (name, split, seed) in [("two", &two[..], 22), ("twenty", &twenty[..], 23)] {
+            let b = render(split, &sun_lights, &cam, &settings, seed);
+            for ch in 0..3 {
+                let (ma, sa) = mean_se(&a[ch]);
+                let (mb, sb) = mean_se(&b[ch]);
+                let z = (ma - mb) / (sa * sa + sb * sb).sqrt();
+                assert!(
+                    z.abs() < 4.0,
+                    "{}: ch {ch}: one cube {ma} ± {sa}, {name} cubes {mb} ± {sb}, z {z}",
+                    tracker.name()
+                );
+            }
         }
     }
 }
@@ -434,4 +438,66 @@ fn render(
             seed,
         },
     )
+}
+
+/// Culling is conservative and culls: over 20,000 random rays (seed 31) against a
+/// rotated, translated, scaled cube, every ray whose majorant walk meets a cell is
+/// kept by `may_meet`, and rays that miss the cube's box by far are culled.
+#[test]
+fn culling_keeps_every_ray_that_meets_the_volume() {
+    use rand::Rng;
+    let raw = grid_from_fn("density", [12, 12, 12], DVec3::ZERO, 1.0, |_| 1.0);
+    let xf = DMat4::from_scale_rotation_translation(
+        DVec3::new(0.1, 0.2, 0.15),
+        glam::DQuat::from_euler(glam::EulerRot::XYZ, 0.3, 0.7, -0.2),
+        DVec3::new(0.5, -0.3, 0.2),
+    );
+    let m = Medium::new(
+        "/c",
+        Grid::from_raw(&raw).unwrap(),
+        xf,
+        1.0,
+        [1.0; 3],
+        [1.0; 3],
+        0.0,
+        4,
+    )
+    .unwrap();
+    let mut rng = Pcg32::seed_from_u64(31);
+    let (mut met, mut culled) = (0, 0);
+    for _ in 0..20_000 {
+        let o = DVec3::new(rng.gen(), rng.gen(), rng.gen()) * 8.0 - 4.0;
+        let d = DVec3::new(rng.gen(), rng.gen(), rng.gen()) * 2.0 - 1.0;
+        let tmax: f64 = if rng.gen() {
+            f64::INFINITY
+        } else {
+            rng.gen::<f64>() * 6.0
+        };
+        let r = m.index_ray(o, d);
+        let meets = m
+            .majorants
+            .walk(r.o, r.d, 0.0, tmax as f32)
+            .next()
+            .is_some();
+        let kept = m.may_meet(o, d, 0.0, tmax);
+        assert!(
+            !meets || kept,
+            "ray {o} + t·{d} (t < {tmax}) meets the cube but was culled"
+        );
+        met += meets as u32;
+        culled += !kept as u32;
+    }
+    assert!(met > 100 && culled > 10_000, "met {met}, culled {culled}");
+    // Axis-parallel rays (zero direction components).
+    let c = xf.transform_point3(DVec3::splat(6.0));
+    for a in 0..3 {
+        let mut d = DVec3::ZERO;
+        d[a] = 1.0;
+        let mut o = c;
+        o[a] -= 10.0;
+        assert!(m.may_meet(o, d, 0.0, f64::INFINITY), "axis {a}");
+        assert!(!m.may_meet(o, d, 0.0, 1.0), "axis {a}, stopping short");
+        o[(a + 1) % 3] += 10.0;
+        assert!(!m.may_meet(o, d, 0.0, f64::INFINITY), "axis {a}, beside");
+    }
 }

@@ -157,16 +157,23 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         let mut g = 0.0f64;
         loop {
             let t0 = counters.tracker_start();
-            let (event, lane) = self.with_queries(origin, dir, tmin, tmax, channel, |qs| {
-                if let [q] = qs {
-                    (self.free_path.sample(q, &mut throughput, rng, counters), 0)
-                } else {
-                    self.free_path
-                        .sample_race(qs, &mut throughput, rng, counters)
-                }
-            });
+            let (event, id) =
+                self.with_queries(origin, dir, tmin, tmax, channel, |qs, ids| match qs {
+                    [] => (FreePath::Escape, 0),
+                    [q] => (
+                        self.free_path.sample(q, &mut throughput, rng, counters),
+                        ids[0],
+                    ),
+                    _ => {
+                        let (event, lane) =
+                            self.free_path
+                                .sample_race(qs, &mut throughput, rng, counters);
+                        (event, ids[lane])
+                    }
+                });
             counters.tracker_stop(t0);
-            let medium = &self.media[lane];
+            // The medium whose collision it was (its phase function, emission, albedo).
+            let medium = &self.media[id];
             match event {
                 FreePath::Escape => {
                     if depth == 0 {
@@ -326,7 +333,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         counters: &mut C,
     ) -> Spectrum {
         let t0 = counters.tracker_start();
-        let tr = self.with_queries(p, wi, 0.0, tmax, channel, |qs| {
+        let tr = self.with_queries(p, wi, 0.0, tmax, channel, |qs, _| {
             if let [q] = qs {
                 self.transmittance.transmittance(q, rng, counters)
             } else {
@@ -337,9 +344,11 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         tr
     }
 
-    /// Calls `f` with one tracker query per medium for the world-space ray
-    /// `origin + t·dir`, `t` in [`tmin`, `tmax`]: each medium's index-space ray and
-    /// cross-sections (one channel's, for naive delta). Built on the stack.
+    /// Calls `f` with one tracker query per medium the world-space ray
+    /// `origin + t·dir`, `t` in [`tmin`, `tmax`], may meet (each medium's index-space
+    /// ray and cross-sections: one channel's, for naive delta), and with each query's
+    /// index in `self.media`. Built on the stack; a stage with one volume skips the
+    /// culling, which its majorant walk does anyway.
     #[inline(always)]
     fn with_queries<T>(
         &self,
@@ -348,35 +357,48 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         tmin: f32,
         tmax: f32,
         channel: Option<usize>,
-        f: impl FnOnce(&[Query]) -> T,
+        f: impl FnOnce(&[Query], &[usize]) -> T,
     ) -> T {
-        let sigma = |m: &Medium| match channel {
-            Some(ch) => m.sigma.channel(ch),
-            None => m.sigma,
-        };
-        let query = |medium, sigma, ray| Query {
-            medium,
-            sigma,
-            ray,
-            tmin,
-            tmax,
-            majorant_scale: self.majorant_scale,
-        };
-        match self.media {
-            [m] => {
-                let (ray, sg) = (m.index_ray(origin, dir), sigma(m));
-                f(&[query(m, &sg, &ray)])
+        if let [m] = self.media {
+            let ray = m.index_ray(origin, dir);
+            let sg = match channel {
+                Some(ch) => m.sigma.channel(ch),
+                None => m.sigma,
+            };
+            let q = Query {
+                medium: m,
+                sigma: &sg,
+                ray: &ray,
+                tmin,
+                tmax,
+                majorant_scale: self.majorant_scale,
+            };
+            return f(&[q], &[0]);
+        }
+        let mut ids = [0usize; MAX_MEDIA];
+        let mut k = 0;
+        for (i, m) in self.media.iter().enumerate().take(MAX_MEDIA) {
+            if m.may_meet(origin, dir, tmin as f64, tmax as f64) {
+                ids[k] = i;
+                k += 1;
             }
-            // Arrays just large enough (their unused tail repeats the first medium), so
-            // a stage of two or three volumes does not build sixteen queries per ray.
-            [_, _] => self.queries::<2, T>(origin, dir, tmin, tmax, channel, f),
-            [_, _, _] | [_, _, _, _] => self.queries::<4, T>(origin, dir, tmin, tmax, channel, f),
-            m if m.len() <= 8 => self.queries::<8, T>(origin, dir, tmin, tmax, channel, f),
-            _ => self.queries::<MAX_MEDIA, T>(origin, dir, tmin, tmax, channel, f),
+        }
+        let ids = &ids[..k];
+        // Arrays just large enough for the media this ray meets (the unused tail
+        // repeats one of them), so a ray through two volumes of a large stage does not
+        // build sixty-four queries.
+        match k {
+            0..=2 => self.queries::<2, T>(origin, dir, tmin, tmax, channel, ids, f),
+            3..=4 => self.queries::<4, T>(origin, dir, tmin, tmax, channel, ids, f),
+            5..=8 => self.queries::<8, T>(origin, dir, tmin, tmax, channel, ids, f),
+            9..=16 => self.queries::<16, T>(origin, dir, tmin, tmax, channel, ids, f),
+            _ => self.queries::<MAX_MEDIA, T>(origin, dir, tmin, tmax, channel, ids, f),
         }
     }
 
-    /// [`Self::with_queries`] for 2 ≤ k ≤ `N` media, with stack arrays of `N`.
+    /// [`Self::with_queries`] for the media `ids` (at most `N`), with stack arrays of
+    /// `N`.
+    #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn queries<const N: usize, T>(
         &self,
@@ -385,11 +407,11 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         tmin: f32,
         tmax: f32,
         channel: Option<usize>,
-        f: impl FnOnce(&[Query]) -> T,
+        ids: &[usize],
+        f: impl FnOnce(&[Query], &[usize]) -> T,
     ) -> T {
-        let k = self.media.len().min(N);
-        let media = &self.media[..k];
-        let medium = |i: usize| &media[if i < k { i } else { 0 }];
+        let k = ids.len().min(N);
+        let medium = |i: usize| &self.media[if i < k { ids[i] } else { 0 }];
         let rays: [IndexRay; N] = std::array::from_fn(|i| medium(i).index_ray(origin, dir));
         let sigmas: [Sigma; N] = std::array::from_fn(|i| match channel {
             Some(ch) => medium(i).sigma.channel(ch),
@@ -403,7 +425,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             tmax,
             majorant_scale: self.majorant_scale,
         });
-        f(&qs[..k])
+        f(&qs[..k], &ids[..k])
     }
 }
 

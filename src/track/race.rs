@@ -24,7 +24,7 @@ use rand::Rng;
 use std::ops::ControlFlow;
 
 /// The most volumes a render tracks together (a stage with more is a clear error).
-pub const MAX_MEDIA: usize = 16;
+pub const MAX_MEDIA: usize = 64;
 
 /// One medium's process (or pair of processes, for decomposition tracking's control
 /// and residual) along the ray.

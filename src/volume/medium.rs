@@ -293,6 +293,26 @@ impl Sigma {
     }
 }
 
+/// The world-space box around the majorant region's index box (its eight corners
+/// mapped to world space), padded by 1e-4 of its diagonal against rounding.
+fn world_box(majorants: &MajorantTree, world_to_index: DMat4) -> Option<(DVec3, DVec3)> {
+    let (lo, hi) = majorants.index_region()?;
+    let index_to_world = world_to_index.inverse();
+    let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
+    let mut b = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+    for i in 0..8 {
+        let c = DVec3::new(
+            if i & 1 == 0 { lo.x } else { hi.x },
+            if i & 2 == 0 { lo.y } else { hi.y },
+            if i & 4 == 0 { lo.z } else { hi.z },
+        );
+        let w = index_to_world.transform_point3(c);
+        b = (b.0.min(w), b.1.max(w));
+    }
+    let pad = DVec3::splat(1e-4 * (b.1 - b.0).length());
+    Some((b.0 - pad, b.1 + pad))
+}
+
 /// The world → index transform of `grid` under a volume's `volume_to_world`: the
 /// inverse of volume_to_world · index_to_world. A singular product is an error naming
 /// the prim (and `what`, a prefix such as "nimbus:emissionField `flames`: ").
@@ -326,6 +346,9 @@ pub struct Medium {
     /// Henyey–Greenstein asymmetry.
     pub g: f32,
     pub majorants: MajorantTree,
+    /// World-space box around the majorant region (padded), for culling the media a
+    /// ray cannot meet; `None` for an empty grid.
+    world_box: Option<(DVec3, DVec3)>,
     /// Emission (temperature and/or emission grids), collected at absorption events;
     /// `None` for a non-emissive medium. Set with [`Medium::set_emission`].
     pub emission: Option<Emission>,
@@ -422,6 +445,7 @@ impl Medium {
             world_to_index,
             sigma,
             g: anisotropy as f32,
+            world_box: world_box(&majorants, world_to_index),
             majorants,
             emission: None,
             albedo: None,
@@ -451,6 +475,34 @@ impl Medium {
     /// Rebuilds the majorant structure (e.g. to compare octree depths on one grid).
     pub fn set_majorants(&mut self, spec: MajorantSpec) {
         self.majorants = MajorantTree::build(&self.density, spec);
+        self.world_box = world_box(&self.majorants, self.world_to_index);
+    }
+
+    /// Whether the world-space ray `origin + t·dir`, `t` in [`tmin`, `tmax`], may meet
+    /// the medium (conservative: a box around its majorant region). Lets a ray race
+    /// only the volumes it crosses.
+    #[inline]
+    pub fn may_meet(&self, origin: DVec3, dir: DVec3, tmin: f64, tmax: f64) -> bool {
+        let Some((lo, hi)) = self.world_box else {
+            return false;
+        };
+        let (mut t0, mut t1) = (tmin, tmax);
+        for a in 0..3 {
+            let inv = 1.0 / dir[a];
+            let (mut ta, mut tb) = ((lo[a] - origin[a]) * inv, (hi[a] - origin[a]) * inv);
+            if ta > tb {
+                std::mem::swap(&mut ta, &mut tb);
+            }
+            // A zero direction component gives ±∞ (or NaN exactly on a face, which
+            // the comparisons below ignore, keeping the medium: conservative).
+            if ta > t0 {
+                t0 = ta;
+            }
+            if tb < t1 {
+                t1 = tb;
+            }
+        }
+        t0 <= t1
     }
 
     /// Makes the medium emissive (or not, with `None`). Emission changes no majorant:
