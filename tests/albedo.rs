@@ -411,32 +411,7 @@ fn albedo_values_are_clamped() {
 /// A stage with a volume `/V` whose fields `density`, `Cd` and `grey` are the grids of one
 /// file `grids.vdb`; `attrs` go on the volume.
 fn albedo_stage(dir: &Path, attrs: &str) -> PathBuf {
-    let text = format!(
-        r#"#usda 1.0
-def Camera "Cam" {{
-    double3 xformOp:translate = (0, 0, 10)
-    uniform token[] xformOpOrder = ["xformOp:translate"]
-    float focalLength = 1000
-    float horizontalAperture = 10
-    float verticalAperture = 10
-}}
-def Volume "V" (apiSchemas = ["NimbusVolumeAPI"]) {{
-{attrs}
-    rel field:density = </V/density>
-    rel field:Cd = </V/Cd>
-    rel field:grey = </V/grey>
-    def OpenVDBAsset "density" {{ asset filePath = @./grids.vdb@
-        token fieldName = "density" }}
-    def OpenVDBAsset "Cd" {{ asset filePath = @./grids.vdb@
-        token fieldName = "Cd" }}
-    def OpenVDBAsset "grey" {{ asset filePath = @./grids.vdb@
-        token fieldName = "grey" }}
-}}
-"#
-    );
-    let path = dir.join("albedo.usda");
-    std::fs::write(&path, text).unwrap();
-    path
+    common::grids_stage(dir, "albedo", &["density", "Cd", "grey"], attrs)
 }
 
 /// density (16³ over the unit cube), Cd = (0.3, 0.6, 0.9) with one voxel of each

@@ -346,32 +346,7 @@ fn write_vdb(path: &Path, grids: &[RawGrid]) {
 /// A stage with a volume `/V` whose fields `density`, `temperature` and `flames` are the
 /// grids of one file `grids.vdb`; `attrs` go on the volume.
 fn fire_stage(dir: &Path, attrs: &str) -> PathBuf {
-    let text = format!(
-        r#"#usda 1.0
-def Camera "Cam" {{
-    double3 xformOp:translate = (0, 0, 10)
-    uniform token[] xformOpOrder = ["xformOp:translate"]
-    float focalLength = 1000
-    float horizontalAperture = 10
-    float verticalAperture = 10
-}}
-def Volume "V" (apiSchemas = ["NimbusVolumeAPI"]) {{
-{attrs}
-    rel field:density = </V/density>
-    rel field:temperature = </V/temperature>
-    rel field:flames = </V/flames>
-    def OpenVDBAsset "density" {{ asset filePath = @./grids.vdb@
-        token fieldName = "density" }}
-    def OpenVDBAsset "temperature" {{ asset filePath = @./grids.vdb@
-        token fieldName = "temperature" }}
-    def OpenVDBAsset "flames" {{ asset filePath = @./grids.vdb@
-        token fieldName = "flames" }}
-}}
-"#
-    );
-    let path = dir.join("fire.usda");
-    std::fs::write(&path, text).unwrap();
-    path
+    common::grids_stage(dir, "fire", &["density", "temperature", "flames"], attrs)
 }
 
 fn cube_grids() -> Vec<RawGrid> {

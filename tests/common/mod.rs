@@ -271,3 +271,40 @@ pub fn unit_cube(side: f64, sigma_a: [f64; 3], sigma_s: [f64; 3], g: f64) -> Med
     )
     .unwrap()
 }
+
+/// A stage `NAME.usda` in `dir` with a camera and a volume `/V` (NimbusVolumeAPI) whose
+/// fields `fields` are the same-named grids of one file `grids.vdb`; `attrs` go on the
+/// volume.
+pub fn grids_stage(
+    dir: &std::path::Path,
+    name: &str,
+    fields: &[&str],
+    attrs: &str,
+) -> std::path::PathBuf {
+    let mut text = String::from(
+        r#"#usda 1.0
+def Camera "Cam" {
+    double3 xformOp:translate = (0, 0, 10)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+    float focalLength = 1000
+    float horizontalAperture = 10
+    float verticalAperture = 10
+}
+def Volume "V" (apiSchemas = ["NimbusVolumeAPI"]) {
+"#,
+    );
+    text.push_str(attrs);
+    text.push('\n');
+    for f in fields {
+        text.push_str(&format!("    rel field:{f} = </V/{f}>\n"));
+    }
+    for f in fields {
+        text.push_str(&format!(
+            "    def OpenVDBAsset \"{f}\" {{ asset filePath = @./grids.vdb@\n        token fieldName = \"{f}\" }}\n"
+        ));
+    }
+    text.push_str("}\n");
+    let path = dir.join(format!("{name}.usda"));
+    std::fs::write(&path, text).unwrap();
+    path
+}
