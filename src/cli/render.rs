@@ -658,8 +658,6 @@ impl MajorantArgs {
     }
 }
 
-/// Tracker settings: flags override the stage's render settings, which override the
-/// defaults.
 /// `auto` and every tracker name.
 fn tracker_values() -> clap::builder::PossibleValuesParser {
     let mut v = vec![clap::builder::PossibleValue::new("auto")];
@@ -679,6 +677,8 @@ struct TrackerRequest {
     given: Given,
 }
 
+/// Tracker settings: flags override the stage's render settings, which override the
+/// defaults.
 fn tracker_settings(args: &RenderArgs, stage: &RenderSettings) -> Result<TrackerRequest> {
     fn from_stage<T: ValueEnum>(
         stage: &RenderSettings,
