@@ -183,6 +183,29 @@ fn stage_with_two_volumes_renders_both() {
     }
 }
 
+/// `nimbus info FILE.vdb` lists the grids with their types, counts and active value
+/// ranges (the example cloud: one float grid, 0 < density ≤ 1), and a missing file is a
+/// clean error naming it.
+#[test]
+fn info_describes_a_vdb_file() {
+    let vdb = root().join("scenes/cloud/cloud.vdb");
+    let o = nimbus(&["info", vdb.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let s = String::from_utf8_lossy(&o.stdout);
+    assert!(s.contains("(1 grids)"), "{s}");
+    assert!(s.contains("grid 'density' type Tree_float_5_4_3"), "{s}");
+    let range = s
+        .split("active values ")
+        .nth(1)
+        .and_then(|r| r.split(',').next())
+        .expect("a value range");
+    let (lo, hi) = range.split_once(" .. ").expect("lo .. hi");
+    let (lo, hi): (f32, f32) = (lo.parse().unwrap(), hi.parse().unwrap());
+    assert!(lo > 0.0 && hi <= 1.0 && lo < hi, "range {lo} .. {hi}");
+    let missing = root().join("scenes/cloud/missing.vdb");
+    assert_clean_error(&nimbus(&["info", missing.to_str().unwrap()]), "missing.vdb");
+}
+
 #[test]
 fn info_describes_the_stage() {
     let o = Command::new(env!("CARGO_BIN_EXE_nimbus"))

@@ -11,7 +11,7 @@ use std::path::PathBuf;
 
 #[derive(Args, Debug)]
 pub struct InfoArgs {
-    /// The USD stage.
+    /// The USD stage, or a .vdb file (lists its grids).
     pub stage: PathBuf,
     /// Time code to evaluate the stage at.
     #[arg(long)]
@@ -22,6 +22,13 @@ pub struct InfoArgs {
 }
 
 pub fn run(args: InfoArgs) -> Result<()> {
+    if args
+        .stage
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("vdb"))
+    {
+        return vdb_info(&args);
+    }
     let scene = load_stage(
         &args.stage,
         &LoadOptions {
@@ -32,7 +39,11 @@ pub fn run(args: InfoArgs) -> Result<()> {
     println!(
         "stage: {} (time {})",
         scene.stage_path.display(),
-        scene.time
+        if scene.time.is_nan() {
+            "default".to_string()
+        } else {
+            scene.time.to_string()
+        }
     );
     println!("vdb reader: {}", vdb::active_reader().name());
     let c = &scene.camera;
@@ -266,4 +277,69 @@ fn print_analysis(scene: &crate::scene::Scene, depth: u32) {
         }
         Err(e) => println!("analysis: unavailable ({e:#})"),
     }
+}
+
+/// `nimbus info FILE.vdb`: the file's grids (name, type, active voxels) and, for float
+/// and Vec3s grids, what loading them gives: voxel counts, value range, world bounds.
+fn vdb_info(args: &InfoArgs) -> Result<()> {
+    use crate::scene::AssetLocation;
+    let loc = AssetLocation::File(args.stage.clone());
+    let grids = vdb::list_grids(&loc)?;
+    println!("vdb: {} ({} grids)", args.stage.display(), grids.len());
+    println!("vdb reader: {}", vdb::active_reader().name());
+    for g in grids {
+        println!(
+            "grid '{}' type {} active voxels {}",
+            g.name,
+            g.value_type,
+            g.active_voxels
+                .map(|n| n.to_string())
+                .unwrap_or_else(|| "?".into())
+        );
+        let loaded = if g.value_type.contains("float") {
+            vdb::read_float_grid(&loc, &g.name, None).map(|r| vec![r])
+        } else if g.value_type.contains("vec3s") {
+            vdb::read_vec3s_grid(&loc, &g.name, None).map(Vec::from)
+        } else {
+            continue;
+        };
+        match loaded {
+            Ok(channels) => {
+                let vector = channels.len() == 3;
+                for (c, raw) in channels.iter().enumerate() {
+                    let (lo, hi) = active_value_range(raw);
+                    println!(
+                        "  '{}'{}: {} active voxels, {} leaves, {} tiles, background {}, active values {lo} .. {hi}, world bounds {:?}",
+                        raw.name,
+                        if vector { [".x", ".y", ".z"][c] } else { "" },
+                        raw.active_voxel_count(),
+                        raw.leaves.len(),
+                        raw.tiles.len(),
+                        raw.background,
+                        raw.world_bounds(glam::DMat4::IDENTITY)
+                    );
+                }
+            }
+            Err(e) => println!("  cannot load: {e}"),
+        }
+    }
+    Ok(())
+}
+
+/// Smallest and largest active value (voxels and tiles) as stored; NaNs are skipped
+/// (`f32::min`/`max`); (inf, -inf) for a grid with no active value.
+fn active_value_range(raw: &crate::volume::grid::RawGrid) -> (f32, f32) {
+    let mut r = (f32::INFINITY, f32::NEG_INFINITY);
+    let mut add = |v: f32| r = (r.0.min(v), r.1.max(v));
+    for l in &raw.leaves {
+        for (i, &v) in l.values.iter().enumerate() {
+            if l.active[i / 64] >> (i % 64) & 1 == 1 {
+                add(v);
+            }
+        }
+    }
+    for t in raw.tiles.iter().filter(|t| t.active) {
+        add(t.value);
+    }
+    r
 }

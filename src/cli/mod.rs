@@ -54,6 +54,15 @@ pub fn main() -> ExitCode {
             };
         }
     };
+    if matches!(cli.command, Command::Info(_) | Command::Compare(_)) {
+        // These only print: like other Unix tools they end quietly when their reader
+        // goes away (`nimbus info … | head`) instead of panicking on a broken pipe.
+        // Renders and benches keep the default, so a closed pipe cannot kill them.
+        // SAFETY: setting a signal disposition to the default before any thread runs.
+        unsafe {
+            libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+        }
+    }
     let result = match cli.command {
         Command::Render(a) => render::run(a),
         Command::Compare(a) => compare::run(a),
