@@ -58,8 +58,8 @@ void push3(Vec& v, const T& c) {
 void push_value(rust::Vec<float>& v, float x) { v.push_back(x); }
 void push_value(rust::Vec<float>& v, const openvdb::Vec3s& x) { push3(v, x); }
 
-template <typename Out, typename Value>
-void push_tile(Out& out, const Value& background, const openvdb::Coord& origin, int32_t dim,
+template <typename Value>
+void push_tile(GridData& out, const Value& background, const openvdb::Coord& origin, int32_t dim,
                const Value& value, bool active) {
     // Inactive tiles that hold the background carry no information; Rust readers
     // apply the same rule so both produce the same tile lists.
@@ -98,10 +98,10 @@ typename GridT::Ptr read_grid(rust::Str path, const std::string& name, const cha
     return grid;
 }
 
-// Copies name, class, transform, tiles and leaves of `grid` into `out` (a
-// FloatGridData or Vec3sGridData: one or three floats per value).
-template <typename GridT, typename Out>
-void copy_grid(const GridT& grid, Out& out) {
+// Copies name, class, transform, tiles and leaves of `grid` into `out`: one float
+// per value for a float grid, three for a Vec3s grid.
+template <typename GridT>
+void copy_grid(const GridT& grid, GridData& out) {
     out.name = grid.getName();
     out.class_name = openvdb::GridBase::gridClassToString(grid.getGridClass());
     const auto background = grid.background();
@@ -175,20 +175,20 @@ rust::Vec<GridListEntry> list_grids(rust::Str path) {
     });
 }
 
-FloatGridData read_float_grid(rust::Str path, rust::Str lookup_name) {
+GridData read_float_grid(rust::Str path, rust::Str lookup_name) {
     return guarded([&] {
         auto grid = read_grid<openvdb::FloatGrid>(path, std::string(lookup_name), "float");
-        FloatGridData out;
+        GridData out;
         copy_grid(*grid, out);
         return out;
     });
 }
 
-Vec3sGridData read_vec3s_grid(rust::Str path, rust::Str lookup_name) {
+GridData read_vec3s_grid(rust::Str path, rust::Str lookup_name) {
     return guarded([&] {
         // Half-float storage is converted to Vec3s by OpenVDB on read.
         auto grid = read_grid<openvdb::Vec3SGrid>(path, std::string(lookup_name), "Vec3s");
-        Vec3sGridData out;
+        GridData out;
         copy_grid(*grid, out);
         return out;
     });

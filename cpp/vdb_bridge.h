@@ -8,8 +8,7 @@
 namespace nimbus_vdb {
 
 struct GridListEntry;
-struct FloatGridData;
-struct Vec3sGridData;
+struct GridData;
 
 // Grids of a file, in OpenVDB's order, from metadata only (no trees are read).
 rust::Vec<GridListEntry> list_grids(rust::Str path);
@@ -17,10 +16,10 @@ rust::Vec<GridListEntry> list_grids(rust::Str path);
 // Reads the grid `lookup_name` ("name" or "name[N]" for the N-th duplicate, as
 // OpenVDB's File::readGrid understands it) and copies it out. Throws (→ Rust Err)
 // unless it is a float grid with a linear transform.
-FloatGridData read_float_grid(rust::Str path, rust::Str lookup_name);
+GridData read_float_grid(rust::Str path, rust::Str lookup_name);
 
 // As read_float_grid, for a Vec3s grid (three floats per value, also when the file
 // stores halves).
-Vec3sGridData read_vec3s_grid(rust::Str path, rust::Str lookup_name);
+GridData read_vec3s_grid(rust::Str path, rust::Str lookup_name);
 
 } // namespace nimbus_vdb

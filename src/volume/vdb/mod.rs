@@ -169,6 +169,17 @@ pub fn read_float_grid_with(
     let file = loc.to_string();
     let info = validate_location(loc)?;
     let desc = select(&info, &file, name, index)?;
+    float_from(reader, loc, &info, desc)
+}
+
+/// Reads the float grid `desc` of the validated file `info`.
+fn float_from(
+    reader: Reader,
+    loc: &AssetLocation,
+    info: &FileInfo,
+    desc: &GridDesc,
+) -> Result<RawGrid, VdbError> {
+    let file = loc.to_string();
     if !desc.is_float() {
         return Err(VdbError::WrongType {
             file,
@@ -177,10 +188,10 @@ pub fn read_float_grid_with(
             expected: "float",
         });
     }
-    check_linear(&info, desc, &file)?;
+    check_linear(info, desc, &file)?;
     match reader {
         Reader::VdbRs => {
-            if let Some(message) = vdbrs::unsupported_reason(&info, desc) {
+            if let Some(message) = vdbrs::unsupported_reason(info, desc) {
                 return Err(VdbError::Unsupported { file, message });
             }
             let result = match loc {
@@ -189,10 +200,10 @@ pub fn read_float_grid_with(
                         file: file.clone(),
                         message: e.to_string(),
                     })?;
-                    vdbrs::read_float_grid(std::io::BufReader::new(f), &info, desc)
+                    vdbrs::read_float_grid(std::io::BufReader::new(f), info, desc)
                 }
                 AssetLocation::Packaged { bytes, .. } => {
-                    vdbrs::read_float_grid(Cursor::new(bytes.as_slice()), &info, desc)
+                    vdbrs::read_float_grid(Cursor::new(bytes.as_slice()), info, desc)
                 }
             };
             result.map_err(|message| VdbError::Reader {
@@ -251,7 +262,7 @@ pub fn read_color_grid_with(
     let info = validate_location(loc)?;
     let desc = select(&info, &file, name, index)?;
     if desc.is_float() {
-        let g = read_float_grid_with(reader, loc, name, index)?;
+        let g = float_from(reader, loc, &info, desc)?;
         return Ok([g.clone(), g.clone(), g]);
     }
     if !desc.is_vec3s() {
@@ -445,23 +456,23 @@ fn with_openvdb_path<T>(
 
 #[cfg(nimbus_openvdb)]
 fn openvdb_read(loc: &AssetLocation, desc: &GridDesc) -> Result<RawGrid, VdbError> {
-    let file = loc.to_string();
-    let err = |message: String| VdbError::Reader {
-        file: file.clone(),
-        reader: "openvdb",
-        message,
-    };
-    let data = with_openvdb_path(loc, |p| {
-        bridge::ffi::read_float_grid(p, &desc.openvdb_lookup_name())
-            .map_err(|e| err(e.what().to_string()))
-    })?;
-    let mut grid = bridge::to_raw_grid(data).map_err(err)?;
-    grid.name = desc.name.clone();
+    let [grid] = openvdb_read_n(loc, desc, bridge::ffi::read_float_grid)?;
     Ok(grid)
 }
 
 #[cfg(nimbus_openvdb)]
 fn openvdb_read_vec3s(loc: &AssetLocation, desc: &GridDesc) -> Result<[RawGrid; 3], VdbError> {
+    openvdb_read_n(loc, desc, bridge::ffi::read_vec3s_grid)
+}
+
+/// Reads `desc` with the bridge function `read` (N floats per value) into N grids
+/// named as the file names the grid.
+#[cfg(nimbus_openvdb)]
+fn openvdb_read_n<const N: usize>(
+    loc: &AssetLocation,
+    desc: &GridDesc,
+    read: fn(&str, &str) -> Result<bridge::ffi::GridData, cxx::Exception>,
+) -> Result<[RawGrid; N], VdbError> {
     let file = loc.to_string();
     let err = |message: String| VdbError::Reader {
         file: file.clone(),
@@ -469,10 +480,9 @@ fn openvdb_read_vec3s(loc: &AssetLocation, desc: &GridDesc) -> Result<[RawGrid; 
         message,
     };
     let data = with_openvdb_path(loc, |p| {
-        bridge::ffi::read_vec3s_grid(p, &desc.openvdb_lookup_name())
-            .map_err(|e| err(e.what().to_string()))
+        read(p, &desc.openvdb_lookup_name()).map_err(|e| err(e.what().to_string()))
     })?;
-    let mut grids = bridge::to_raw_vec3_grid(data).map_err(err)?;
+    let mut grids = bridge::to_raw_grids::<N>(data).map_err(err)?;
     for g in &mut grids {
         g.name = desc.name.clone();
     }
