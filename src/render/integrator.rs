@@ -359,21 +359,8 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         channel: Option<usize>,
         f: impl FnOnce(&[Query], &[usize]) -> T,
     ) -> T {
-        if let [m] = self.media {
-            let ray = m.index_ray(origin, dir);
-            let sg = match channel {
-                Some(ch) => m.sigma.channel(ch),
-                None => m.sigma,
-            };
-            let q = Query {
-                medium: m,
-                sigma: &sg,
-                ray: &ray,
-                tmin,
-                tmax,
-                majorant_scale: self.majorant_scale,
-            };
-            return f(&[q], &[0]);
+        if self.media.len() == 1 {
+            return self.queries::<1, T>(origin, dir, tmin, tmax, channel, &[0], f);
         }
         let mut ids = [0usize; MAX_MEDIA];
         let mut k = 0;

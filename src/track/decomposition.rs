@@ -16,8 +16,8 @@
 //!   in both (density-driven media): spectral decomposition.
 
 use super::race::race;
-use super::scheme::{choose, probabilities, Coefficients, Event, Scheme, SchemeOptions};
-use super::{mul, FreePath, FreePathSampler, OpticalDepth, Query, Spectrum};
+use super::scheme::{collide, Coefficients, Scheme, SchemeOptions};
+use super::{FreePath, FreePathSampler, OpticalDepth, Query, Spectrum};
 use crate::volume::majorant::Segment;
 use crate::volume::medium::Tally;
 use rand::Rng;
@@ -67,11 +67,7 @@ impl<S: Scheme> Decomposition<S> {
             r,
             mu_c,
             mu_r: r * sg.t_max,
-            kc: Coefficients {
-                mu_a: sg.a.map(|s| dc * s),
-                mu_s: sg.s.map(|s| dc * s),
-                mu_n: sg.t.map(|s| mu_c - dc * s),
-            },
+            kc: Coefficients::of(sg, dc, mu_c),
         }
     }
 
@@ -99,34 +95,13 @@ impl<S: Scheme> Decomposition<S> {
             let d = q.medium.density(q.ray.at(t), c);
             c.residual_lookup();
             let dr = d - cell.dc;
-            k = Coefficients {
-                mu_a: sg.a.map(|s| dr * s),
-                mu_s: sg.s.map(|s| dr * s),
-                mu_n: sg.t.map(|s| cell.mu_r - dr * s),
-            };
+            k = Coefficients::of(sg, dr, cell.mu_r);
             if dr > cell.r || (self.control == 0.0 && dr < 0.0) {
                 c.majorant_violation();
             }
             mu_bar = cell.mu_r;
         }
-        let p = probabilities::<S>(&k, mu_bar, *throughput, self.options);
-        let (event, w) = choose(&k, mu_bar, p, rng.gen());
-        mul(throughput, w);
-        c.observe_throughput(*throughput);
-        match event {
-            Event::Absorb => {
-                c.real_collision();
-                Some(FreePath::Absorb { t })
-            }
-            Event::Scatter => {
-                c.real_collision();
-                Some(FreePath::Scatter { t })
-            }
-            Event::Null => {
-                c.null_collision();
-                None
-            }
-        }
+        collide::<S, C>(&k, mu_bar, t, self.options, rng.gen(), throughput, c)
     }
 }
 

@@ -5,7 +5,8 @@
 //! Schemes are zero-sized types so each tracker is monomorphised per scheme: no dynamic
 //! dispatch per collision.
 
-use super::Spectrum;
+use super::{mul, FreePath, Spectrum};
+use crate::volume::medium::{Sigma, Tally};
 
 /// Which event a collision turned into.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -21,6 +22,19 @@ pub struct Coefficients {
     pub mu_a: Spectrum,
     pub mu_s: Spectrum,
     pub mu_n: Spectrum,
+}
+
+impl Coefficients {
+    /// The coefficients of density `d` with cross-sections `sigma` under majorant
+    /// `mu_bar`: μ★ = d·σ★, μn = μ̄ − d·σt.
+    #[inline(always)]
+    pub fn of(sigma: &Sigma, d: f32, mu_bar: f32) -> Coefficients {
+        Coefficients {
+            mu_a: sigma.a.map(|s| d * s),
+            mu_s: sigma.s.map(|s| d * s),
+            mu_n: sigma.t.map(|s| mu_bar - d * s),
+        }
+    }
 }
 
 /// Options that change how probabilities are assigned, independent of the scheme.
@@ -152,4 +166,39 @@ pub fn choose(k: &Coefficients, mu_bar: f32, p: [f32; 3], u: f32) -> (Event, Spe
     };
     let inv = 1.0 / (mu_bar * p[e]);
     (event, [mu[0] * inv, mu[1] * inv, mu[2] * inv])
+}
+
+/// One tentative collision with coefficients `k` under majorant `mu_bar`, decided by
+/// scheme `S` from the uniform `u`: the throughput takes the event's weights and the
+/// event is counted. Returns the free path's end at `t` for a real collision, `None`
+/// for a null collision (shared by spectral and decomposition tracking).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+pub fn collide<S: Scheme, C: Tally>(
+    k: &Coefficients,
+    mu_bar: f32,
+    t: f32,
+    options: SchemeOptions,
+    u: f32,
+    throughput: &mut Spectrum,
+    c: &mut C,
+) -> Option<FreePath> {
+    let p = probabilities::<S>(k, mu_bar, *throughput, options);
+    let (event, w) = choose(k, mu_bar, p, u);
+    mul(throughput, w);
+    c.observe_throughput(*throughput);
+    match event {
+        Event::Absorb => {
+            c.real_collision();
+            Some(FreePath::Absorb { t })
+        }
+        Event::Scatter => {
+            c.real_collision();
+            Some(FreePath::Scatter { t })
+        }
+        Event::Null => {
+            c.null_collision();
+            None
+        }
+    }
 }

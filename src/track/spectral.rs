@@ -6,8 +6,8 @@
 //! scheme it is `weighted-delta`.
 
 use super::race::race_collisions;
-use super::scheme::{choose, probabilities, Coefficients, Event, Scheme, SchemeOptions};
-use super::{mul, walk_collisions, FreePath, FreePathSampler, Query, Spectrum};
+use super::scheme::{collide, Coefficients, Scheme, SchemeOptions};
+use super::{walk_collisions, FreePath, FreePathSampler, Query, Spectrum};
 use crate::volume::medium::Tally;
 use rand::Rng;
 use std::marker::PhantomData;
@@ -69,33 +69,14 @@ impl<S: Scheme> Spectral<S> {
         rng: &mut R,
         c: &mut C,
     ) -> ControlFlow<FreePath> {
-        let sg = q.sigma;
         let d = q.medium.density(q.ray.at(t), c);
-        let k = Coefficients {
-            mu_a: sg.a.map(|s| d * s),
-            mu_s: sg.s.map(|s| d * s),
-            mu_n: sg.t.map(|s| mu_bar - d * s),
-        };
+        let k = Coefficients::of(q.sigma, d, mu_bar);
         if k.mu_n.iter().any(|&m| m < 0.0) {
             c.majorant_violation();
         }
-        let p = probabilities::<S>(&k, mu_bar, *throughput, self.options);
-        let (event, w) = choose(&k, mu_bar, p, rng.gen());
-        mul(throughput, w);
-        c.observe_throughput(*throughput);
-        match event {
-            Event::Absorb => {
-                c.real_collision();
-                ControlFlow::Break(FreePath::Absorb { t })
-            }
-            Event::Scatter => {
-                c.real_collision();
-                ControlFlow::Break(FreePath::Scatter { t })
-            }
-            Event::Null => {
-                c.null_collision();
-                ControlFlow::Continue(())
-            }
+        match collide::<S, C>(&k, mu_bar, t, self.options, rng.gen(), throughput, c) {
+            Some(end) => ControlFlow::Break(end),
+            None => ControlFlow::Continue(()),
         }
     }
 }
