@@ -439,18 +439,6 @@ fn stage_grids(dir: &Path, with_cd: bool) {
     write_grids(&dir.join("grids.vdb"), &grids).unwrap();
 }
 
-fn load_message(stage: &Path) -> String {
-    let msg = match load_stage(stage, &LoadOptions::default()) {
-        Err(e) => e.to_string(),
-        Ok(scene) => match medium_for_scene(&scene, 8) {
-            Err(e) => format!("{e:#}"),
-            Ok(_) => panic!("{} loaded", stage.display()),
-        },
-    };
-    eprintln!("{msg}");
-    msg
-}
-
 /// `nimbus:albedoField` reaches the medium: a Vec3s `Cd` is looked up per channel (out of
 /// range voxels clamped), a float grid is a grey albedo, and without the attribute the
 /// `Cd` field is not used (no grid loaded, constant albedo in the analysis).
@@ -482,7 +470,7 @@ fn stage_albedo_reaches_the_medium() {
 
     if !Reader::OpenVdb.available() {
         let stage = albedo_stage(dir.path(), "    token nimbus:albedoField = \"Cd\"");
-        let msg = load_message(&stage);
+        let msg = common::load_message(&stage);
         assert_mentions(
             &msg,
             &[
@@ -518,7 +506,7 @@ fn missing_albedo_field_lists_the_fields() {
     let dir = tempfile::tempdir().unwrap();
     stage_grids(dir.path(), true);
     let stage = albedo_stage(dir.path(), "    token nimbus:albedoField = \"colour\"");
-    let msg = load_message(&stage);
+    let msg = common::load_message(&stage);
     assert_mentions(
         &msg,
         &[
@@ -537,7 +525,7 @@ fn albedo_grid_missing_from_file() {
     let dir = tempfile::tempdir().unwrap();
     stage_grids(dir.path(), false);
     let stage = albedo_stage(dir.path(), "    token nimbus:albedoField = \"Cd\"");
-    let msg = load_message(&stage);
+    let msg = common::load_message(&stage);
     assert_mentions(
         &msg,
         &[

@@ -406,18 +406,6 @@ fn stage_emission_reaches_the_medium() {
     assert!(medium_for_scene(&scene, 8).unwrap().emission.is_none());
 }
 
-fn load_message(stage: &Path) -> String {
-    let msg = match load_stage(stage, &LoadOptions::default()) {
-        Err(e) => e.to_string(),
-        Ok(scene) => match medium_for_scene(&scene, 8) {
-            Err(e) => format!("{e:#}"),
-            Ok(_) => panic!("{} loaded", stage.display()),
-        },
-    };
-    eprintln!("{msg}");
-    msg
-}
-
 /// A field name with no relationship: the error names the prim, the attribute and the
 /// missing relationship, and lists the volume's fields.
 #[test]
@@ -426,7 +414,7 @@ fn missing_emission_field_lists_the_fields() {
     write_vdb(&dir.path().join("grids.vdb"), &cube_grids());
     for attr in ["nimbus:emissionField", "nimbus:temperatureField"] {
         let stage = fire_stage(dir.path(), &format!("    token {attr} = \"heat\""));
-        let msg = load_message(&stage);
+        let msg = common::load_message(&stage);
         assert_mentions(
             &msg,
             &[
@@ -448,7 +436,7 @@ fn emission_grid_missing_from_file() {
     grids.truncate(2); // no flames grid
     write_vdb(&dir.path().join("grids.vdb"), &grids);
     let stage = fire_stage(dir.path(), "    token nimbus:emissionField = \"flames\"");
-    let msg = load_message(&stage);
+    let msg = common::load_message(&stage);
     assert_mentions(
         &msg,
         &[
@@ -479,7 +467,7 @@ fn non_float_emission_grid_is_an_error() {
     bytes[at[2]..at[2] + 16].copy_from_slice(b"Tree_vec3s_5_4_3");
     std::fs::write(&path, &bytes).unwrap();
     let stage = fire_stage(dir.path(), "    token nimbus:emissionField = \"flames\"");
-    let msg = load_message(&stage);
+    let msg = common::load_message(&stage);
     assert_mentions(
         &msg,
         &[
@@ -513,7 +501,7 @@ fn bad_scale_on_stage_is_an_error() {
                 "    token nimbus:emissionField = \"flames\"\n    token nimbus:temperatureField = \"temperature\"\n    {line}"
             ),
         );
-        let msg = load_message(&stage);
+        let msg = common::load_message(&stage);
         assert!(
             msg.contains("/V") && msg.contains(attr) && msg.contains("non-negative"),
             "{msg}"

@@ -308,3 +308,18 @@ def Volume "V" (apiSchemas = ["NimbusVolumeAPI"]) {
     std::fs::write(&path, text).unwrap();
     path
 }
+
+/// The error of loading `stage` and building its medium (which must fail), as printed.
+pub fn load_message(stage: &std::path::Path) -> String {
+    use nimbus::render::job::medium_for_scene;
+    use nimbus::scene::{load_stage, LoadOptions};
+    let msg = match load_stage(stage, &LoadOptions::default()) {
+        Err(e) => e.to_string(),
+        Ok(scene) => match medium_for_scene(&scene, 8) {
+            Err(e) => format!("{e:#}"),
+            Ok(_) => panic!("{} loaded", stage.display()),
+        },
+    };
+    eprintln!("{msg}");
+    msg
+}
