@@ -14,7 +14,8 @@ use nimbus::render::film::{Aov, Film};
 use nimbus::render::job::{medium_for_scene, RenderJob};
 use nimbus::render::lights::Lights;
 use nimbus::scene::{load_stage, Camera, LoadOptions};
-use nimbus::track::{TrackerKind, TrackerSettings, TransmittanceKind};
+use nimbus::track::scheme::SchemeOptions;
+use nimbus::track::{SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
 use nimbus::volume::grid::Grid;
 use nimbus::volume::majorant::MajorantSpec;
 use nimbus::volume::medium::{Counters, Medium};
@@ -25,7 +26,7 @@ const W: u32 = 24;
 const H: u32 = 18;
 
 struct Scene {
-    medium: Medium,
+    media: Vec<Medium>,
     lights: Lights,
     camera: CameraRays,
     size: (u32, u32),
@@ -35,7 +36,7 @@ fn example(name: &str) -> Scene {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("scenes/{name}/{name}.usda"));
     let scene = load_stage(&path, &LoadOptions::default()).unwrap();
     Scene {
-        medium: medium_for_scene(&scene, 8).unwrap(),
+        media: vec![medium_for_scene(&scene, 8).unwrap()],
         lights: Lights::from_scene(&scene).unwrap(),
         camera: CameraRays::new(&scene.camera, W, H),
         size: (W, H),
@@ -50,7 +51,7 @@ fn job(
     seed: u64,
 ) -> RenderJob<'_> {
     RenderJob {
-        media: std::slice::from_ref(&s.medium),
+        media: &s.media,
         lights: &s.lights,
         camera: &s.camera,
         width: s.size.0,
@@ -85,26 +86,37 @@ const SPECIALISED: CodePaths = CodePaths {
 
 /// The auto choice for an example scene.
 fn auto(s: &Scene) -> TrackerSettings {
-    let a = Analysis::of(&s.medium, &s.lights, &s.camera, s.size);
+    let a = Analysis::of_media(&s.media, &s.lights, &s.camera, s.size);
     a.choose(TrackerSettings::default(), Given::default()).0
 }
 
-#[test]
-fn grey_single_channel_makes_the_general_paths_decisions() {
-    let s = example("cloud");
-    let t = auto(&s);
-    assert_eq!(t.tracker, TrackerKind::Delta);
-    let spec = job(&s, t, SPECIALISED, 8, 3);
-    let gen = job(&s, t, GENERAL, 8, 3);
-    assert!(spec.single_channel() && !gen.single_channel());
+/// Renders `t` on `s` single-channel and general with the same seed, and checks they
+/// made the same decisions: every count equal, pixels equal up to rounding.
+fn assert_same_decisions(s: &Scene, t: TrackerSettings, what: &str) {
+    let spec = job(s, t, SPECIALISED, 8, 3);
+    let gen = job(s, t, GENERAL, 8, 3);
+    assert!(spec.single_channel() && !gen.single_channel(), "{what}");
     let (a, b) = (spec.render(&|| {}), gen.render(&|| {}));
     // Same events from the same numbers: every count is equal.
     let (ca, cb) = (totals(&a), totals(&b));
-    assert_eq!(ca.density_lookups, cb.density_lookups);
-    assert_eq!(ca.real_collisions, cb.real_collisions);
-    assert_eq!(ca.null_collisions, cb.null_collisions);
-    assert_eq!(ca.cells_visited, cb.cells_visited);
-    assert!(ca.density_lookups > 10_000, "{}", ca.density_lookups);
+    let counts = |c: &Counters| {
+        (
+            c.density_lookups,
+            c.residual_lookups,
+            c.real_collisions,
+            c.null_collisions,
+            c.control_collisions,
+            c.cells_visited,
+            c.majorant_violations,
+        )
+    };
+    assert_eq!(counts(&ca), counts(&cb), "{what}");
+    // Enough events that a differing decision would show (the homogeneous cube's
+    // closed form looks up only its rim: 624 lookups at 8 spp).
+    assert!(
+        ca.real_collisions > 1_000 && ca.density_lookups > 500,
+        "{what}: {ca:?}"
+    );
     // The general path multiplies by weights that are 1 up to rounding (f32, ~6e-8
     // per factor, a few dozen factors per path): pixels agree far below the noise
     // (a different decision anywhere would move a pixel by O(0.1)).
@@ -113,7 +125,97 @@ fn grey_single_channel_makes_the_general_paths_decisions() {
         .zip(rgba(&b))
         .map(|(x, y)| (x - y).abs())
         .fold(0f32, f32::max);
-    assert!(worst < 1e-4, "largest pixel difference {worst}");
+    assert!(worst < 1e-4, "{what}: largest pixel difference {worst}");
+}
+
+#[test]
+fn grey_single_channel_makes_the_general_paths_decisions() {
+    let s = example("cloud");
+    let t = auto(&s);
+    assert_eq!(t.tracker, TrackerKind::Delta);
+    assert_same_decisions(&s, t, "auto");
+    // Every single-channel twin: delta and analog decomposition (also spelled
+    // spectral-decomposition with the avg scheme), with either shadow-ray estimator.
+    for (tracker, scheme) in [
+        (TrackerKind::Delta, SchemeKind::HistAvg),
+        (TrackerKind::Decomposition, SchemeKind::HistAvg),
+        (TrackerKind::SpectralDecomposition, SchemeKind::Avg),
+    ] {
+        for transmittance in [TransmittanceKind::Ratio, TransmittanceKind::ResidualRatio] {
+            let t = TrackerSettings {
+                tracker,
+                scheme,
+                transmittance,
+                ..TrackerSettings::default()
+            };
+            let what = format!(
+                "{} {} {}",
+                tracker.name(),
+                scheme.name(),
+                transmittance.name()
+            );
+            assert_same_decisions(&s, t, &what);
+        }
+    }
+    // auto's pick for a homogeneous grey medium: the closed-form path, where most
+    // collisions are the control's.
+    let homogeneous = homogeneous_cube();
+    let t = auto(&homogeneous);
+    assert_eq!(
+        (t.tracker, t.transmittance),
+        (TrackerKind::Decomposition, TransmittanceKind::ResidualRatio)
+    );
+    assert_same_decisions(&homogeneous, t, "homogeneous cube, auto");
+    // Two overlapping grey volumes: the single-channel trackers race them too.
+    let two = sky_scene(vec![
+        cube("/A", DVec3::new(-0.4, 0.0, 0.0), |p: DVec3| 0.5 + 0.4 * p.x),
+        cube("/B", DVec3::new(0.5, 0.1, -0.3), |p: DVec3| 0.3 + 0.2 * p.y),
+    ]);
+    for tracker in [TrackerKind::Delta, TrackerKind::Decomposition] {
+        for transmittance in [TransmittanceKind::Ratio, TransmittanceKind::ResidualRatio] {
+            let t = TrackerSettings {
+                tracker,
+                transmittance,
+                ..TrackerSettings::default()
+            };
+            let what = format!("two volumes, {} {}", tracker.name(), transmittance.name());
+            assert_same_decisions(&two, t, &what);
+        }
+    }
+}
+
+#[test]
+fn weighted_choices_keep_the_general_path_on_grey_media() {
+    // Weights other than 1 in a grey medium: a history-aware scheme, a control above the
+    // minimum, or the scheme options. These have no single-channel twin.
+    let s = example("cloud");
+    let d = TrackerSettings::default();
+    let weighted = [
+        TrackerSettings {
+            tracker: TrackerKind::SpectralDecomposition,
+            scheme: SchemeKind::HistAvg,
+            ..d
+        },
+        TrackerSettings {
+            tracker: TrackerKind::DecompositionWeighted,
+            ..d
+        },
+        TrackerSettings {
+            tracker: TrackerKind::Decomposition,
+            options: SchemeOptions {
+                no_absorption_events: true,
+                reduced_termination: false,
+            },
+            ..d
+        },
+        TrackerSettings {
+            tracker: TrackerKind::Spectral,
+            ..d
+        },
+    ];
+    for t in weighted {
+        assert!(!job(&s, t, SPECIALISED, 1, 1).single_channel(), "{t:?}");
+    }
 }
 
 #[test]
@@ -162,25 +264,28 @@ fn counting_compiled_out_changes_no_pixel() {
 /// A constant-density cube of 64³ voxels over [-1, 1]³, optical thickness 5 across,
 /// albedo 0.9, under a white sky, seen from z = 6.
 fn homogeneous_cube() -> Scene {
+    sky_scene(vec![cube("/Cube", DVec3::ZERO, |_| 0.5)])
+}
+
+/// A cube of 64³ voxels over [-1, 1]³ moved to `centre`, density `f`, albedo 0.9.
+fn cube(name: &str, centre: DVec3, f: impl Fn(DVec3) -> f64 + Sync) -> Medium {
     let vs = 2.0 / 64.0;
-    let raw = grid_from_fn(
-        "density",
-        [64; 3],
-        DVec3::splat(-1.0 + 0.5 * vs),
-        vs,
-        |_| 0.5,
-    );
-    let medium = Medium::with_majorants(
-        "/Cube",
+    let raw = grid_from_fn("density", [64; 3], DVec3::splat(-1.0 + 0.5 * vs), vs, f);
+    Medium::with_majorants(
+        name,
         Grid::from_raw(&raw).unwrap(),
-        DMat4::IDENTITY,
+        DMat4::from_translation(centre),
         1.0,
         [0.5; 3],
         [4.5; 3],
         0.0,
         MajorantSpec::Octree { depth: 7 },
     )
-    .unwrap();
+    .unwrap()
+}
+
+/// `media` under a white sky, seen from z = 6.
+fn sky_scene(media: Vec<Medium>) -> Scene {
     let cam = Camera {
         prim_path: "/Camera".into(),
         camera_to_world: DMat4::from_translation(DVec3::new(0.0, 0.0, 6.0)),
@@ -192,7 +297,7 @@ fn homogeneous_cube() -> Scene {
         clipping_range: (0.1, 1e6),
     };
     Scene {
-        medium,
+        media,
         lights: Lights {
             suns: vec![],
             environment: [1.0; 3],
@@ -218,7 +323,7 @@ fn image_mean_z(a: &Film, b: &Film) -> f64 {
 #[test]
 fn homogeneous_closed_form_agrees_with_delta_for_fewer_lookups() {
     let s = homogeneous_cube();
-    let a = Analysis::of(&s.medium, &s.lights, &s.camera, s.size);
+    let a = Analysis::of_media(&s.media, &s.lights, &s.camera, s.size);
     assert!(a.homogeneous && a.grey);
     let t = a.choose(TrackerSettings::default(), Given::default()).0;
     assert_eq!(

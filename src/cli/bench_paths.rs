@@ -1,5 +1,5 @@
 //! `nimbus bench paths`: what the specialised code paths of the scene analysis buy on a
-//! stage. The tracker `--tracker auto` picks is rendered four ways — the general RGB
+//! stage. The tracker `--tracker auto` picks (or the one named) is rendered four ways — the general RGB
 //! trackers or the specialised ones (single-channel tracking of grey media), each with
 //! the per-pixel counting on (cost AOVs, stats) or compiled out (an RGB-only render) —
 //! in interleaved rounds with the same seed, so machine noise hits all four alike,
@@ -15,7 +15,7 @@ use crate::render::film::{Aov, Film};
 use crate::render::job::{media_for_scene_with, RenderJob};
 use crate::render::lights::Lights;
 use crate::render::progressive::{Clock, Stopwatch};
-use crate::track::TrackerSettings;
+use crate::track::{SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use std::path::PathBuf;
@@ -34,6 +34,16 @@ pub struct PathsArgs {
     /// Majorant structure, as for `render`.
     #[command(flatten)]
     pub majorants: MajorantArgs,
+    /// Free-path sampler instead of `auto`'s pick.
+    #[arg(long, value_enum)]
+    pub tracker: Option<TrackerKind>,
+    /// Event probabilities for `spectral` and `spectral-decomposition` instead of
+    /// `auto`'s pick.
+    #[arg(long, value_enum)]
+    pub scheme: Option<SchemeKind>,
+    /// Shadow-ray transmittance estimator instead of `auto`'s pick.
+    #[arg(long, value_enum)]
+    pub transmittance: Option<TransmittanceKind>,
 }
 
 /// The four variants, in the order they are rendered in each round.
@@ -83,7 +93,17 @@ pub fn run(args: PathsArgs) -> Result<()> {
     let lights = Lights::from_scene(&scene)?;
     let camera = CameraRays::new(&scene.camera, width, height);
     let analysis = Analysis::of_media(&media, &lights, &camera, (width, height));
-    let (tracking, reason) = analysis.choose(TrackerSettings::default(), Given::default());
+    let (mut tracking, mut reason) = analysis.choose(TrackerSettings::default(), Given::default());
+    if args.tracker.is_some() || args.scheme.is_some() || args.transmittance.is_some() {
+        // Named choices replace auto's; the options auto set go with its tracker.
+        if let Some(t) = args.tracker {
+            tracking.tracker = t;
+            tracking.options = Default::default();
+        }
+        tracking.scheme = args.scheme.unwrap_or(tracking.scheme);
+        tracking.transmittance = args.transmittance.unwrap_or(tracking.transmittance);
+        reason = "named on the command line".into();
+    }
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(args.sampling.threads.unwrap_or(1))
         .build()
@@ -101,14 +121,16 @@ pub fn run(args: PathsArgs) -> Result<()> {
         paths,
     };
     println!(
-        "{}: {width}x{height}, {spp} spp, {} thread(s), {} rounds; auto: {} ({reason})",
+        "{}: {width}x{height}, {spp} spp, {} thread(s), {} rounds; tracker: {}, scheme {}, shadow rays {} ({reason})",
         args.stage.display(),
         pool.current_num_threads(),
         args.rounds,
-        tracking.tracker.name()
+        tracking.tracker.name(),
+        tracking.scheme.name(),
+        tracking.transmittance.name()
     );
     if !job(VARIANTS[2].1).single_channel() {
-        println!("note: the medium is not grey (or the tracker is not delta), so the specialised and general trackers are the same code");
+        println!("note: the medium is not grey (or the tracker has no single-channel twin), so the specialised and general trackers are the same code");
     }
     let mut seconds = vec![Vec::new(); VARIANTS.len()];
     let mut films: Vec<Option<Film>> = VARIANTS.iter().map(|_| None).collect();

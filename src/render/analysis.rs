@@ -96,7 +96,8 @@ impl Analysis {
     /// - homogeneous media: the decomposition family with residual ratio tracking —
     ///   inside the volume a majorant cell's minimum equals its maximum, so the control
     ///   carries the whole density: free paths and transmittance come in closed form
-    ///   and only the rim cells, where the field falls off, need lookups;
+    ///   and only the rim cells, where the field falls off, need lookups; for grey
+    ///   media analog `decomposition`, which runs single-channel;
     /// - grey media: `delta` — every spectral scheme reduces to it, and it ties
     ///   spectral tracking without absorption events while beating decomposition with
     ///   the default flat majorant grid (1.09–1.13× lower relMSE on the example cloud);
@@ -123,7 +124,7 @@ impl Analysis {
         }
         if self.grey {
             t.tracker = TrackerKind::Decomposition;
-            reason.push_str("; grey: analog decomposition tracking");
+            reason.push_str("; grey: analog decomposition tracking, run single-channel");
             return (t, reason);
         }
         t.tracker = TrackerKind::SpectralDecomposition;

@@ -114,37 +114,18 @@ impl<S: Scheme> FreePathSampler for Decomposition<S> {
         rng: &mut R,
         c: &mut C,
     ) -> FreePath {
-        let mut walk = q.medium.majorants.walk(q.ray.o, q.ray.d, q.tmin, q.tmax);
-        let (mut tau_c, mut tau_r) = (OpticalDepth::sample(rng), OpticalDepth::sample(rng));
-        while let Some(seg) = c.next_segment(&mut walk) {
-            let cell = self.cell(q, &seg);
-            let (mu_c, mu_r) = (cell.mu_c, cell.mu_r);
-            if !(mu_c > 0.0) && !(mu_r > 0.0) {
-                continue;
-            }
-            // Each process spends its own optical depth across cells.
-            let mut tc = tau_c.time(seg.t0, mu_c);
-            let mut tr = tau_r.time(seg.t0, mu_r);
-            loop {
-                let control_first = tc <= tr;
-                let t = if control_first { tc } else { tr };
-                if t >= seg.t1 {
-                    tau_c = tau_c.left(tc, seg.t1, mu_c);
-                    tau_r = tau_r.left(tr, seg.t1, mu_r);
-                    break;
-                }
-                if let Some(event) = self.decide(q, &cell, control_first, t, throughput, rng, c) {
-                    return event;
-                }
-                // Memoryless: only the process that fired draws its next time.
-                if control_first {
-                    tc = OpticalDepth::sample(rng).time(t, mu_c);
-                } else {
-                    tr = OpticalDepth::sample(rng).time(t, mu_r);
-                }
-            }
-        }
-        FreePath::Escape
+        walk_processes(
+            q,
+            rng,
+            c,
+            |seg| {
+                let cell = self.cell(q, seg);
+                (cell, [cell.mu_c, cell.mu_r])
+            },
+            |cell, control_first, t, rng, c| {
+                self.decide(q, cell, control_first, t, throughput, rng, c)
+            },
+        )
     }
 
     /// Every medium runs its control and residual processes; the race merges the 2k
@@ -175,4 +156,50 @@ impl<S: Scheme> FreePathSampler for Decomposition<S> {
         )
         .unwrap_or((FreePath::Escape, 0))
     }
+}
+
+/// The two collision processes of decomposition tracking along `q`'s ray: `cell` splits
+/// each majorant segment into its control and residual (returning their rates μ̄c, μ̄r),
+/// and `decide` turns a tentative collision of the control (`true`) or the residual
+/// into an event, `None` for a null collision. Shared by [`Decomposition`] and the
+/// single-channel [`GreyDecomposition`](super::grey::GreyDecomposition), which must
+/// make the same draws in the same order.
+#[inline(always)]
+pub(super) fn walk_processes<R: Rng, C: Tally, K>(
+    q: &Query,
+    rng: &mut R,
+    c: &mut C,
+    cell: impl Fn(&Segment) -> (K, [f32; 2]),
+    mut decide: impl FnMut(&K, bool, f32, &mut R, &mut C) -> Option<FreePath>,
+) -> FreePath {
+    let mut walk = q.medium.majorants.walk(q.ray.o, q.ray.d, q.tmin, q.tmax);
+    let (mut tau_c, mut tau_r) = (OpticalDepth::sample(rng), OpticalDepth::sample(rng));
+    while let Some(seg) = c.next_segment(&mut walk) {
+        let (k, [mu_c, mu_r]) = cell(&seg);
+        if !(mu_c > 0.0) && !(mu_r > 0.0) {
+            continue;
+        }
+        // Each process spends its own optical depth across cells.
+        let mut tc = tau_c.time(seg.t0, mu_c);
+        let mut tr = tau_r.time(seg.t0, mu_r);
+        loop {
+            let control_first = tc <= tr;
+            let t = if control_first { tc } else { tr };
+            if t >= seg.t1 {
+                tau_c = tau_c.left(tc, seg.t1, mu_c);
+                tau_r = tau_r.left(tr, seg.t1, mu_r);
+                break;
+            }
+            if let Some(event) = decide(&k, control_first, t, rng, c) {
+                return event;
+            }
+            // Memoryless: only the process that fired draws its next time.
+            if control_first {
+                tc = OpticalDepth::sample(rng).time(t, mu_c);
+            } else {
+                tr = OpticalDepth::sample(rng).time(t, mu_r);
+            }
+        }
+    }
+    FreePath::Escape
 }

@@ -1,19 +1,25 @@
 //! Single-channel trackers for grey media (σa, σs the same in every channel).
 //!
-//! In a grey medium delta tracking is analog — every collision weight μ★/(μ̄·P★) is 1 —
-//! and ratio tracking's three channels hold the same product. These trackers skip the
-//! per-channel weights and keep one scalar, while making the same decisions from the
-//! same random numbers as [`Delta`](super::delta::Delta) and [`Ratio`](super::ratio::Ratio):
-//! on a grey medium the image differs from the general path's only by the rounding
-//! of weights that are 1 there. [`dispatch_specialised`](super::dispatch_specialised)
-//! picks them only for grey media.
+//! In a grey medium delta tracking and analog decomposition tracking are analog —
+//! every collision weight μ★/(μ̄·P★) is 1 — and the three channels of ratio and
+//! residual ratio tracking hold the same product. These trackers skip the per-channel
+//! weights and keep one scalar, while making the same decisions from the same random
+//! numbers as [`Delta`](super::delta::Delta), [`Decomposition`] with the cell minimum
+//! as control and the avg scheme, [`Ratio`](super::ratio::Ratio) and
+//! [`ResidualRatio`](super::ratio::ResidualRatio): on a grey medium the image differs
+//! from the general path's only by the rounding of weights that are 1 there.
+//! [`dispatch_specialised`](super::dispatch_specialised) picks them only for grey media.
+//!
+//! [`Decomposition`]: super::decomposition::Decomposition
 
+use super::decomposition::walk_processes;
 use super::delta::{collide, Collision};
-use super::race::race_collisions;
-use super::ratio::{RR_SURVIVAL, RR_THRESHOLD};
+use super::race::{race, race_collisions};
+use super::ratio::{ratio, residual_ratio, Estimate};
 use super::{
     avg, walk_collisions, FreePath, FreePathSampler, Query, Spectrum, TransmittanceEstimator,
 };
+use crate::volume::majorant::Segment;
 use crate::volume::medium::Tally;
 use rand::Rng;
 use std::ops::ControlFlow;
@@ -22,9 +28,20 @@ use std::ops::ControlFlow;
 #[derive(Clone, Copy, Debug, Default)]
 pub struct GreyDelta;
 
+/// Analog decomposition tracking of a grey medium (control = cell minimum): every
+/// control collision is real, a residual collision is real with probability
+/// (d − d_min)/(d_max − d_min), and the throughput is never touched.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct GreyDecomposition;
+
 /// Ratio tracking of a grey medium with one scalar estimate.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct GreyRatio;
+
+/// Residual ratio tracking (control = cell minimum) of a grey medium with one scalar
+/// estimate.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct GreyResidualRatio;
 
 impl FreePathSampler for GreyDelta {
     #[inline]
@@ -82,29 +99,183 @@ fn decide<R: Rng, C: Tally>(
     ControlFlow::Continue(())
 }
 
+/// The avg scheme's preference for an event of coefficient `mu` in every channel:
+/// the same operations as [`Avg`](super::scheme::Avg) on three equal channels, so the
+/// same rounding.
+#[inline(always)]
+fn avg3(mu: f32) -> f32 {
+    let m = mu.abs();
+    (m + m + m) * (1.0 / 3.0)
+}
+
+/// The avg scheme's event probabilities (Pa, Ps, Pn) at density `d` under majorant
+/// `mu_bar`, as [`probabilities`](super::scheme::probabilities) computes them for
+/// three equal channels (no scheme options).
+#[inline(always)]
+fn probabilities(q: &Query, d: f32, mu_bar: f32) -> [f32; 3] {
+    let sg = q.sigma;
+    let p = [
+        avg3(d * sg.a[0]),
+        avg3(d * sg.s[0]),
+        avg3(mu_bar - d * sg.t[0]),
+    ];
+    let sum = p[0] + p[1] + p[2];
+    if !(sum > 0.0) {
+        return [0.0, 0.0, 1.0];
+    }
+    let inv = 1.0 / sum;
+    [p[0] * inv, p[1] * inv, p[2] * inv]
+}
+
+/// The event [`choose`](super::scheme::choose) picks from `u`, never one of zero
+/// probability; counted.
+#[inline(always)]
+fn choose<C: Tally>(p: [f32; 3], u: f32, t: f32, c: &mut C) -> Option<FreePath> {
+    let mut e = if u < p[0] {
+        0
+    } else if u < p[0] + p[1] {
+        1
+    } else {
+        2
+    };
+    if !(p[e] > 0.0) {
+        e = if p[2] > 0.0 {
+            2
+        } else if p[1] > 0.0 {
+            1
+        } else {
+            0
+        };
+    }
+    match e {
+        0 => {
+            c.real_collision();
+            Some(FreePath::Absorb { t })
+        }
+        1 => {
+            c.real_collision();
+            Some(FreePath::Scatter { t })
+        }
+        _ => {
+            c.null_collision();
+            None
+        }
+    }
+}
+
+/// A majorant cell split into the control d_min and the residual.
+#[derive(Clone, Copy)]
+struct Cell {
+    dc: f32,
+    r: f32,
+    mu_c: f32,
+    mu_r: f32,
+    /// The control's event probabilities, constant over the cell.
+    pc: [f32; 3],
+}
+
+impl GreyDecomposition {
+    /// The same expressions as `Decomposition::cell` with control 0.
+    #[inline(always)]
+    fn cell(q: &Query, seg: &Segment) -> Cell {
+        let t_max = q.sigma.t_max;
+        let dc = seg.dmin + 0.0 * (seg.dmax - seg.dmin);
+        let r = (seg.dmax - dc).max(dc - seg.dmin) * q.majorant_scale;
+        let mu_c = dc * t_max;
+        Cell {
+            dc,
+            r,
+            mu_c,
+            mu_r: r * t_max,
+            pc: probabilities(q, dc, mu_c),
+        }
+    }
+
+    /// One tentative collision at `t` of the control (`control_first`) or the residual.
+    #[inline(always)]
+    fn decide<R: Rng, C: Tally>(
+        q: &Query,
+        cell: &Cell,
+        control_first: bool,
+        t: f32,
+        rng: &mut R,
+        c: &mut C,
+    ) -> Option<FreePath> {
+        let p = if control_first {
+            c.control_collision();
+            cell.pc
+        } else {
+            let d = q.medium.density(q.ray.at(t), c);
+            c.residual_lookup();
+            let dr = d - cell.dc;
+            if dr > cell.r || dr < 0.0 {
+                c.majorant_violation();
+            }
+            probabilities(q, dr, cell.mu_r)
+        };
+        choose(p, rng.gen(), t, c)
+    }
+}
+
+impl FreePathSampler for GreyDecomposition {
+    #[inline]
+    fn sample<R: Rng, C: Tally>(
+        &self,
+        q: &Query,
+        _throughput: &mut Spectrum,
+        rng: &mut R,
+        c: &mut C,
+    ) -> FreePath {
+        walk_processes(
+            q,
+            rng,
+            c,
+            |seg| {
+                let cell = Self::cell(q, seg);
+                (cell, [cell.mu_c, cell.mu_r])
+            },
+            |cell, control_first, t, rng, c| Self::decide(q, cell, control_first, t, rng, c),
+        )
+    }
+
+    fn sample_race<R: Rng, C: Tally>(
+        &self,
+        qs: &[Query],
+        _throughput: &mut Spectrum,
+        rng: &mut R,
+        c: &mut C,
+    ) -> (FreePath, usize) {
+        race(
+            qs,
+            rng,
+            c,
+            |i, seg| {
+                let cell = Self::cell(&qs[i], seg);
+                [cell.mu_c, cell.mu_r]
+            },
+            |e, rng, c| {
+                let q = &qs[e.lane];
+                let cell = Self::cell(q, e.seg);
+                match Self::decide(q, &cell, e.process == 0, e.t, rng, c) {
+                    Some(event) => ControlFlow::Break(event),
+                    None => ControlFlow::Continue(()),
+                }
+            },
+        )
+        .unwrap_or((FreePath::Escape, 0))
+    }
+}
+
+impl TransmittanceEstimator for GreyResidualRatio {
+    #[inline]
+    fn transmittance<R: Rng, C: Tally>(&self, q: &Query, rng: &mut R, c: &mut C) -> Spectrum {
+        residual_ratio::<f32, R, C>(q, rng, c).spectrum()
+    }
+}
+
 impl TransmittanceEstimator for GreyRatio {
     #[inline]
     fn transmittance<R: Rng, C: Tally>(&self, q: &Query, rng: &mut R, c: &mut C) -> Spectrum {
-        let st = q.sigma.t[0];
-        let mut tr = 1f32;
-        walk_collisions(q, rng, c, |t, mu_bar, rng, c| {
-            let d = q.medium.density(q.ray.at(t), c);
-            c.null_collision();
-            tr *= 1.0 - d * st / mu_bar;
-            // Russian roulette as in `Ratio` (same threshold, same draws).
-            let m = tr.abs();
-            if m == 0.0 {
-                return ControlFlow::Break(());
-            }
-            if m < RR_THRESHOLD {
-                if rng.gen::<f32>() >= RR_SURVIVAL {
-                    tr = 0.0;
-                    return ControlFlow::Break(());
-                }
-                tr /= RR_SURVIVAL;
-            }
-            ControlFlow::Continue(())
-        });
-        [tr; 3]
+        ratio::<f32, R, C>(q, rng, c).spectrum()
     }
 }

@@ -341,18 +341,36 @@ pub fn dispatch<T>(s: &TrackerSettings, f: impl Dispatch<T>) -> T {
 }
 
 /// [`dispatch`] with the specialised trackers of the scene analysis: for a grey medium
-/// (`grey`, checked against the cross-sections by the caller) delta tracking with ratio
-/// tracking runs single-channel ([`grey`]); every other choice runs as [`dispatch`].
+/// (`grey`, checked against the cross-sections by the caller) delta tracking and
+/// analog decomposition tracking, with ratio or residual ratio tracking for shadow
+/// rays, run single-channel ([`grey`]); every other choice runs as [`dispatch`].
 pub fn dispatch_specialised<T>(s: &TrackerSettings, grey: bool, f: impl Dispatch<T>) -> T {
-    if single_channel(s, grey) {
-        return f.run(grey::GreyDelta, grey::GreyRatio);
+    if !single_channel(s, grey) {
+        return dispatch(s, f);
     }
-    dispatch(s, f)
+    use grey::{GreyDecomposition, GreyDelta, GreyRatio, GreyResidualRatio};
+    use TransmittanceKind::{Ratio, ResidualRatio};
+    match (s.tracker == TrackerKind::Delta, s.transmittance) {
+        (true, Ratio) => f.run(GreyDelta, GreyRatio),
+        (true, ResidualRatio) => f.run(GreyDelta, GreyResidualRatio),
+        (false, Ratio) => f.run(GreyDecomposition, GreyRatio),
+        (false, ResidualRatio) => f.run(GreyDecomposition, GreyResidualRatio),
+    }
 }
 
-/// Whether [`dispatch_specialised`] runs the single-channel trackers.
+/// Whether [`dispatch_specialised`] runs the single-channel trackers: on grey media,
+/// for the trackers that are analog there and have a single-channel twin — delta
+/// tracking, and decomposition tracking with the cell minimum as control and the avg
+/// scheme (`decomposition`, or `spectral-decomposition --scheme avg`) without the
+/// scheme options, which put weights other than 1 into the throughput.
 pub fn single_channel(s: &TrackerSettings, grey: bool) -> bool {
-    grey && s.tracker == TrackerKind::Delta && s.transmittance == TransmittanceKind::Ratio
+    let analog = s.options == scheme::SchemeOptions::default();
+    grey && match s.tracker {
+        TrackerKind::Delta => true,
+        TrackerKind::Decomposition => analog,
+        TrackerKind::SpectralDecomposition => analog && s.scheme == SchemeKind::Avg,
+        _ => false,
+    }
 }
 
 fn dispatch_free_path<T, E: TransmittanceEstimator>(

@@ -25,86 +25,151 @@ pub struct Ratio;
 #[derive(Clone, Copy, Debug, Default)]
 pub struct ResidualRatio;
 
+/// A transmittance estimate: one value per channel, or one scalar for a grey medium,
+/// where the three channels would hold the same product (the single-channel
+/// estimators of [`grey`](super::grey)). Both run the same estimator code.
+pub trait Estimate: Copy {
+    const ONE: Self;
+    const ZERO: Self;
+    /// Multiplies each channel λ by `f(σt(λ))` (a grey estimate: `f(σt)` once).
+    fn attenuate(&mut self, sigma_t: &Spectrum, f: impl Fn(f32) -> f32);
+    /// The largest channel magnitude.
+    fn magnitude(&self) -> f32;
+    fn divide(&mut self, s: f32);
+    fn spectrum(self) -> Spectrum;
+}
+
+impl Estimate for Spectrum {
+    const ONE: Self = [1.0; 3];
+    const ZERO: Self = [0.0; 3];
+    #[inline(always)]
+    fn attenuate(&mut self, sigma_t: &Spectrum, f: impl Fn(f32) -> f32) {
+        for ch in 0..3 {
+            self[ch] *= f(sigma_t[ch]);
+        }
+    }
+    #[inline(always)]
+    fn magnitude(&self) -> f32 {
+        self[0].abs().max(self[1].abs()).max(self[2].abs())
+    }
+    #[inline(always)]
+    fn divide(&mut self, s: f32) {
+        for v in self.iter_mut() {
+            *v /= s;
+        }
+    }
+    #[inline(always)]
+    fn spectrum(self) -> Spectrum {
+        self
+    }
+}
+
+impl Estimate for f32 {
+    const ONE: Self = 1.0;
+    const ZERO: Self = 0.0;
+    #[inline(always)]
+    fn attenuate(&mut self, sigma_t: &Spectrum, f: impl Fn(f32) -> f32) {
+        *self *= f(sigma_t[0]);
+    }
+    #[inline(always)]
+    fn magnitude(&self) -> f32 {
+        self.abs()
+    }
+    #[inline(always)]
+    fn divide(&mut self, s: f32) {
+        *self /= s;
+    }
+    #[inline(always)]
+    fn spectrum(self) -> Spectrum {
+        [self; 3]
+    }
+}
+
 /// Applies Russian roulette to `tr`; returns false when the estimate was killed.
 #[inline(always)]
-fn roulette<R: Rng>(tr: &mut Spectrum, rng: &mut R) -> bool {
-    let m = tr[0].abs().max(tr[1].abs()).max(tr[2].abs());
+fn roulette<T: Estimate, R: Rng>(tr: &mut T, rng: &mut R) -> bool {
+    let m = tr.magnitude();
     if m == 0.0 {
         return false; // nothing left to estimate (e.g. the control's exp underflowed)
     }
     if m < RR_THRESHOLD {
         if rng.gen::<f32>() >= RR_SURVIVAL {
-            *tr = [0.0; 3];
+            *tr = T::ZERO;
             return false;
         }
-        for v in tr.iter_mut() {
-            *v /= RR_SURVIVAL;
-        }
+        tr.divide(RR_SURVIVAL);
     }
     true
 }
 
+/// Ratio tracking along `q`'s ray.
+#[inline(always)]
+pub(super) fn ratio<T: Estimate, R: Rng, C: Tally>(q: &Query, rng: &mut R, c: &mut C) -> T {
+    let sg = q.sigma;
+    let mut tr = T::ONE;
+    walk_collisions(q, rng, c, |t, mu_bar, rng, c| {
+        let d = q.medium.density(q.ray.at(t), c);
+        c.null_collision();
+        tr.attenuate(&sg.t, |st| 1.0 - d * st / mu_bar);
+        if roulette(&mut tr, rng) {
+            ControlFlow::Continue(())
+        } else {
+            ControlFlow::Break(())
+        }
+    });
+    tr
+}
+
+/// Residual ratio tracking along `q`'s ray, with each cell's minimum as control.
+#[inline(always)]
+pub(super) fn residual_ratio<T: Estimate, R: Rng, C: Tally>(
+    q: &Query,
+    rng: &mut R,
+    c: &mut C,
+) -> T {
+    let sg = q.sigma;
+    let mut tr = T::ONE;
+    let mut walk = q.medium.majorants.walk(q.ray.o, q.ray.d, q.tmin, q.tmax);
+    let mut tau = OpticalDepth::sample(rng);
+    while let Some(seg) = c.next_segment(&mut walk) {
+        if seg.dmin > 0.0 {
+            let len = seg.t1 - seg.t0;
+            tr.attenuate(&sg.t, |st| (-seg.dmin * st * len).exp());
+            // The control attenuates without collisions, so roulette here too:
+            // otherwise a shadow ray whose estimate the control has driven to ~0
+            // keeps walking (and looking up the residual) to the far side.
+            if !roulette(&mut tr, rng) {
+                return tr;
+            }
+        }
+        let mu_r = (seg.dmax - seg.dmin) * sg.t_max * q.majorant_scale;
+        if !(mu_r > 0.0) {
+            continue;
+        }
+        let mut t = seg.t0;
+        while let Some(tc) = tau.collide(t, seg.t1, mu_r) {
+            t = tc;
+            tau = OpticalDepth::sample(rng);
+            let d = q.medium.density(q.ray.at(t), c);
+            c.residual_lookup();
+            c.null_collision();
+            tr.attenuate(&sg.t, |st| 1.0 - (d - seg.dmin) * st / mu_r);
+            if !roulette(&mut tr, rng) {
+                return tr;
+            }
+        }
+    }
+    tr
+}
+
 impl TransmittanceEstimator for Ratio {
     fn transmittance<R: Rng, C: Tally>(&self, q: &Query, rng: &mut R, c: &mut C) -> Spectrum {
-        let sg = q.sigma;
-        let mut tr = [1f32; 3];
-        walk_collisions(q, rng, c, |t, mu_bar, rng, c| {
-            let d = q.medium.density(q.ray.at(t), c);
-            c.null_collision();
-            for ch in 0..3 {
-                tr[ch] *= 1.0 - d * sg.t[ch] / mu_bar;
-            }
-            if roulette(&mut tr, rng) {
-                ControlFlow::Continue(())
-            } else {
-                ControlFlow::Break(())
-            }
-        });
-        tr
+        ratio::<Spectrum, R, C>(q, rng, c)
     }
 }
 
 impl TransmittanceEstimator for ResidualRatio {
     fn transmittance<R: Rng, C: Tally>(&self, q: &Query, rng: &mut R, c: &mut C) -> Spectrum {
-        let sg = q.sigma;
-        let mut tr = [1f32; 3];
-        let mut walk = q.medium.majorants.walk(q.ray.o, q.ray.d, q.tmin, q.tmax);
-        let mut tau = OpticalDepth::sample(rng);
-        while let Some(seg) = c.next_segment(&mut walk) {
-            if seg.dmin > 0.0 {
-                let len = seg.t1 - seg.t0;
-                for ch in 0..3 {
-                    tr[ch] *= (-seg.dmin * sg.t[ch] * len).exp();
-                }
-                // The control attenuates without collisions, so roulette here too:
-                // otherwise a shadow ray whose estimate the control has driven to ~0
-                // keeps walking (and looking up the residual) to the far side.
-                if !roulette(&mut tr, rng) {
-                    return tr;
-                }
-            }
-            let mu_r = (seg.dmax - seg.dmin) * sg.t_max * q.majorant_scale;
-            if !(mu_r > 0.0) {
-                continue;
-            }
-            let mut t = seg.t0;
-            loop {
-                let Some(tc) = tau.collide(t, seg.t1, mu_r) else {
-                    break;
-                };
-                t = tc;
-                tau = OpticalDepth::sample(rng);
-                let d = q.medium.density(q.ray.at(t), c);
-                c.residual_lookup();
-                c.null_collision();
-                for ch in 0..3 {
-                    tr[ch] *= 1.0 - (d - seg.dmin) * sg.t[ch] / mu_r;
-                }
-                if !roulette(&mut tr, rng) {
-                    return tr;
-                }
-            }
-        }
-        tr
+        residual_ratio::<Spectrum, R, C>(q, rng, c)
     }
 }
