@@ -551,6 +551,67 @@ fn tracker_settings_from_stage_and_flags() {
     assert_clean_error(&run(&bad, &[]), "nosuchaov");
 }
 
+/// `auto` picks the closed-form path for a homogeneous grey volume (decomposition
+/// with residual ratio shadow rays) when rendered from the command line, although the
+/// stage applies `NimbusRenderSettingsAPI`, whose schema fallbacks (scheme hist-avg,
+/// transmittance ratio) are not choices the stage made; an authored
+/// `nimbus:transmittance` still wins.
+#[test]
+fn auto_is_not_overruled_by_schema_fallbacks() {
+    use glam::DVec3;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let vs = 2.0 / 32.0;
+    let cube = nimbus::volume::procedural::grid_from_fn(
+        "density",
+        [32; 3],
+        DVec3::splat(-1.0 + 0.5 * vs),
+        vs,
+        |_| 0.5,
+    );
+    nimbus::volume::vdb::write_float_grid(&d.join("cube.vdb"), &cube).unwrap();
+    let text = std::fs::read_to_string(root().join("scenes/cloud/cloud.usda"))
+        .unwrap()
+        .replace("@./cloud.vdb@", "@./cube.vdb@");
+    assert!(text.contains("NimbusRenderSettingsAPI"));
+    let stats = d.join("s.json");
+    let out = d.join("o.exr");
+    let render = |name: &str, extra: &str| -> serde_json::Value {
+        let stage = d.join(name);
+        let t = text.replace(
+            "int nimbus:seed = 1",
+            &format!("int nimbus:seed = 1\n        {extra}"),
+        );
+        std::fs::write(&stage, t).unwrap();
+        let o = nimbus(&[
+            "render",
+            stage.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--res",
+            "8x6",
+            "--spp",
+            "1",
+            "--stats",
+            stats.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        stats_json(&stats)
+    };
+    let j = render("auto.usda", "");
+    assert_eq!(j["analysis"]["homogeneous"], true);
+    assert_eq!(
+        (j["tracker"].as_str(), j["transmittance"].as_str()),
+        (Some("decomposition"), Some("residual-ratio"))
+    );
+    assert_eq!(j["code_paths"]["single_channel"], true);
+    let j = render("named.usda", "token nimbus:transmittance = \"ratio\"");
+    assert_eq!(
+        (j["tracker"].as_str(), j["transmittance"].as_str()),
+        (Some("decomposition"), Some("ratio"))
+    );
+}
+
 /// Writes an EXR with f32 channels `(name, values)`, optionally inside a named layer.
 fn write_test_exr(
     path: &Path,

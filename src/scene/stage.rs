@@ -574,11 +574,21 @@ impl Loader<'_> {
                 .transpose()?
                 .unwrap_or(defaults.seed),
             products: self.products(prim)?,
-            tracker: read_string(prim, tokens::TRACKER, t)?,
-            scheme: read_string(prim, tokens::SCHEME, t)?,
-            transmittance: read_string(prim, tokens::TRANSMITTANCE, t)?,
-            control: read_f64(prim, tokens::CONTROL, t)?,
-            octree_depth: read_i64(prim, tokens::OCTREE_DEPTH, t)?,
+            // Only what the stage authors: a schema fallback names no choice, so
+            // `--tracker auto` stays free to pick the scheme and shadow-ray estimator.
+            tracker: if_authored(prim, tokens::TRACKER, || {
+                read_string(prim, tokens::TRACKER, t)
+            })?,
+            scheme: if_authored(prim, tokens::SCHEME, || {
+                read_string(prim, tokens::SCHEME, t)
+            })?,
+            transmittance: if_authored(prim, tokens::TRANSMITTANCE, || {
+                read_string(prim, tokens::TRANSMITTANCE, t)
+            })?,
+            control: if_authored(prim, tokens::CONTROL, || read_f64(prim, tokens::CONTROL, t))?,
+            octree_depth: if_authored(prim, tokens::OCTREE_DEPTH, || {
+                read_i64(prim, tokens::OCTREE_DEPTH, t)
+            })?,
         })
     }
 
@@ -707,6 +717,20 @@ fn first_target(prim: &Prim, rel: &str) -> Result<Option<sdf::Path>, SceneError>
 pub(super) fn authored(attr: &usd::Attribute, prim: &Prim) -> Result<bool, SceneError> {
     attr.has_authored_value()
         .map_err(|e| prim_error(prim.path(), format!("{}: {e}", attr.name())))
+}
+
+/// `read()` when `name` has an authored opinion on `prim`, else `None` (also for a
+/// property with a schema fallback).
+fn if_authored<T>(
+    prim: &Prim,
+    name: &str,
+    read: impl FnOnce() -> Result<Option<T>, SceneError>,
+) -> Result<Option<T>, SceneError> {
+    if authored(&prim.attribute(name), prim)? {
+        read()
+    } else {
+        Ok(None)
+    }
 }
 
 pub(super) fn read_value(
