@@ -8,7 +8,10 @@ use common::{mean_se, paths, Setup};
 use glam::{DMat4, DVec3};
 use nimbus::render::analysis::{CodePaths, Given};
 use nimbus::render::lights::{usd_blackbody_rgb, Lights};
-use nimbus::track::{SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
+use nimbus::track::{
+    FreePathSampler, SchemeKind, TrackerKind, TrackerSettings, TransmittanceEstimator,
+    TransmittanceKind,
+};
 use nimbus::volume::emission::{blackbody_radiance, Emission, EmissionGrid, EmissionParams};
 use nimbus::volume::grid::{Grid, RawGrid};
 use nimbus::volume::medium::{Counters, Medium};
@@ -761,14 +764,24 @@ fn example_fire_scene_emits() {
 }
 
 /// The single-channel trackers of grey media (`GreyDelta` with `GreyRatio`, which
-/// `auto` runs for grey media) collect emission too: grey σa = 1, the closed form of
-/// `absorbing_emitting_cube_matches_closed_form`. N = 40,000 paths through the centre,
-/// seed 5; |z| < 4 per channel.
+/// `auto` runs for grey media, and `GreyDecomposition` with `GreyResidualRatio`, its
+/// pick for homogeneous grey media) collect emission too: grey σa = 1, the closed form
+/// of `absorbing_emitting_cube_matches_closed_form`. N = 40,000 paths through the
+/// centre, seed 5; |z| < 4 per channel.
 #[test]
 fn grey_single_channel_trackers_collect_emission() {
+    use nimbus::track::grey::{GreyDecomposition, GreyDelta, GreyRatio, GreyResidualRatio};
+    check_grey_emission(GreyDelta, GreyRatio, "delta");
+    check_grey_emission(GreyDecomposition, GreyResidualRatio, "decomposition");
+}
+
+fn check_grey_emission<F: FreePathSampler, E: TransmittanceEstimator>(
+    free_path: F,
+    transmittance: E,
+    what: &str,
+) {
     use nimbus::render::integrator::Integrator;
     use nimbus::render::sampler::pixel_sampler;
-    use nimbus::track::grey::{GreyDelta, GreyRatio};
     let env = [0.3, 0.2, 0.1];
     let lights = Lights {
         environment: env,
@@ -779,8 +792,8 @@ fn grey_single_channel_trackers_collect_emission() {
     let (e, le) = both_sources();
     m.set_emission(Some(e));
     let it = Integrator {
-        free_path: GreyDelta,
-        transmittance: GreyRatio,
+        free_path,
+        transmittance,
         single_channel: false,
         majorant_scale: 1.0,
         count: true,
@@ -799,14 +812,14 @@ fn grey_single_channel_trackers_collect_emission() {
     let s: Vec<[f64; 3]> = (0..40_000)
         .map(|_| it.sample(4.5, 4.5, &mut rng, &mut c).rgb)
         .collect();
-    assert!(c.emission_lookups > 0);
+    assert!(c.emission_lookups > 0, "{what}");
     let tr = (-1.0f64).exp();
     let z = [0, 1, 2].map(|ch| {
         let v: Vec<f64> = s.iter().map(|rgb| rgb[ch]).collect();
         let (mean, se) = mean_se(&v);
         (mean - (env[ch] * tr + le[ch] * (1.0 - tr))) / se.max(1e-12)
     });
-    assert!(z.iter().all(|z| z.abs() < 4.0), "z = {z:?}");
+    assert!(z.iter().all(|z| z.abs() < 4.0), "{what}: z = {z:?}");
 }
 
 /// Asserts that the message `msg` contains every one of `needles`.
