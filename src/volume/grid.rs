@@ -269,6 +269,12 @@ impl Grid {
             for dst in values.iter_mut().skip(leaf.values.len()) {
                 *dst = background;
             }
+            // A leaf that holds only the background (sims often keep such leaves
+            // active) reads the same as no brick: it is not stored.
+            if values.iter().all(|&v| v == background) {
+                grid.index[e] = NO_BRICK;
+                continue;
+            }
             grid.index[e] = grid.bricks.len() as u32;
             grid.bricks.push(values);
         }
@@ -416,4 +422,48 @@ impl Grid {
 pub fn floor_i32(x: f32) -> i32 {
     let i = x as i32;
     i - (x < i as f32) as i32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn leaf(origin: [i32; 3], value: impl Fn(usize) -> f32) -> RawLeaf {
+        RawLeaf {
+            origin,
+            values: (0..BRICK_VOXELS).map(value).collect(),
+            active: [u64::MAX; 8],
+        }
+    }
+
+    /// Active leaves that hold only the background (here 0, after negative values are
+    /// sanitised to it) get no brick, and every lookup reads as it did with the brick.
+    #[test]
+    fn background_only_leaves_are_not_stored() {
+        let raw = RawGrid {
+            name: "density".into(),
+            class: "fog volume".into(),
+            background: 0.0,
+            leaves: vec![
+                leaf([0, 0, 0], |i| (i % 7) as f32 * 0.25),
+                leaf([8, 0, 0], |_| 0.0),
+                leaf([0, 8, 0], |_| -1.0),
+            ],
+            tiles: vec![],
+            index_to_world: DMat4::IDENTITY,
+        };
+        let g = Grid::from_raw(&raw).unwrap();
+        assert_eq!(g.brick_count(), 1);
+        assert_eq!(g.active_voxels, 3 * 512);
+        assert_eq!(g.sanitized_voxels, 512);
+        for (i, &v) in raw.leaves[0].values.iter().enumerate() {
+            let ijk = [(i >> 6) as i32, ((i >> 3) & 7) as i32, (i & 7) as i32];
+            assert_eq!(g.voxel(ijk), v);
+            assert_eq!(g.voxel([ijk[0] + 8, ijk[1], ijk[2]]), 0.0);
+            assert_eq!(g.voxel([ijk[0], ijk[1] + 8, ijk[2]]), 0.0);
+        }
+        // Across the face between the stored and the dropped leaf: the lerp towards 0.
+        let v = g.sample_trilinear([7.5, 3.0, 3.0]);
+        assert_eq!(v, 0.5 * g.voxel([7, 3, 3]));
+    }
 }
