@@ -118,25 +118,52 @@ fn auto_follows_its_rules() {
     let named = Given {
         scheme: true,
         transmittance: true,
+        majorants: true,
     };
     let (t, _) = a.choose(base, named);
     assert_eq!(t.scheme, SchemeKind::Max);
 
-    // Homogeneous media: the decomposition family with residual ratio tracking (closed
-    // form inside), unless the user named the shadow-ray estimator.
+    // Homogeneous media with no majorant structure named: one global majorant (tight
+    // inside), and the tracker of their colour.
     let cube = medium(|_| 0.5, [0.1; 3], [0.9; 3], 0.0);
     let a = Analysis::of(&cube, &sky([1.0; 3]), &cam, (32, 24));
     let (t, reason) = a.choose(TrackerSettings::default(), Given::default());
+    assert_eq!(
+        (t.tracker, t.transmittance),
+        (TrackerKind::Delta, TransmittanceKind::Ratio)
+    );
+    assert!(reason.contains("global majorant"), "{reason}");
+    assert_eq!(
+        a.majorants(Given::default()),
+        Some(MajorantSpec::Uniform { cell_voxels: 0 })
+    );
+    // With a structure named: the decomposition family with residual ratio tracking
+    // (closed form inside), unless the user named the shadow-ray estimator too.
+    let cells = Given {
+        majorants: true,
+        ..Given::default()
+    };
+    assert_eq!(a.majorants(cells), None);
+    let (t, reason) = a.choose(TrackerSettings::default(), cells);
     assert_eq!(t.tracker, TrackerKind::Decomposition);
     assert_eq!(t.transmittance, TransmittanceKind::ResidualRatio);
-    assert!(reason.contains("homogeneous"), "{reason}");
+    assert!(reason.contains("closed form"), "{reason}");
     let (t, _) = a.choose(TrackerSettings::default(), named);
     assert_eq!(t.transmittance, TransmittanceKind::Ratio);
     let chroma_cube = medium(|_| 0.5, [0.2, 0.3, 0.6], [1.1, 1.2, 1.0], 0.0);
     let a = Analysis::of(&chroma_cube, &sky([1.0; 3]), &cam, (32, 24));
-    let (t, _) = a.choose(TrackerSettings::default(), Given::default());
+    let (t, _) = a.choose(TrackerSettings::default(), cells);
     assert_eq!(t.tracker, TrackerKind::SpectralDecomposition);
     assert_eq!(t.transmittance, TransmittanceKind::ResidualRatio);
+    let (t, _) = a.choose(TrackerSettings::default(), Given::default());
+    assert_eq!(
+        (t.tracker, t.transmittance),
+        (TrackerKind::SpectralDecomposition, TransmittanceKind::Ratio)
+    );
+    assert!(t.options.no_absorption_events);
+    // Heterogeneous media keep the structure they were loaded with.
+    let a = Analysis::of(&grey, &sky([1.0; 3]), &cam, (32, 24));
+    assert_eq!(a.majorants(Given::default()), None);
 }
 
 /// The example scenes through the CLI: `auto` (the default) picks delta for the grey

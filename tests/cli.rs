@@ -551,11 +551,12 @@ fn tracker_settings_from_stage_and_flags() {
     assert_clean_error(&run(&bad, &[]), "nosuchaov");
 }
 
-/// `auto` picks the closed-form path for a homogeneous grey volume (decomposition
-/// with residual ratio shadow rays) when rendered from the command line, although the
-/// stage applies `NimbusRenderSettingsAPI`, whose schema fallbacks (scheme hist-avg,
-/// transmittance ratio) are not choices the stage made; an authored
-/// `nimbus:transmittance` still wins.
+/// `auto` on a homogeneous grey volume rendered from the command line: with no majorant
+/// structure named, one global majorant and delta tracking; with one named on the
+/// stage (`nimbus:octreeDepth`), the closed-form path (decomposition with residual
+/// ratio shadow rays), although the stage applies `NimbusRenderSettingsAPI`, whose
+/// schema fallbacks (scheme hist-avg, transmittance ratio) are not choices the stage
+/// made; an authored `nimbus:transmittance` still wins.
 #[test]
 fn auto_is_not_overruled_by_schema_fallbacks() {
     use glam::DVec3;
@@ -602,10 +603,21 @@ fn auto_is_not_overruled_by_schema_fallbacks() {
     assert_eq!(j["analysis"]["homogeneous"], true);
     assert_eq!(
         (j["tracker"].as_str(), j["transmittance"].as_str()),
+        (Some("delta"), Some("ratio"))
+    );
+    assert_eq!(j["majorant_cells"], 1);
+    assert_eq!(j["code_paths"]["single_channel"], true);
+    let j = render("octree.usda", "int nimbus:octreeDepth = 5");
+    assert_eq!(
+        (j["tracker"].as_str(), j["transmittance"].as_str()),
         (Some("decomposition"), Some("residual-ratio"))
     );
+    assert_eq!(j["octree_depth"], 5);
     assert_eq!(j["code_paths"]["single_channel"], true);
-    let j = render("named.usda", "token nimbus:transmittance = \"ratio\"");
+    let j = render(
+        "named.usda",
+        "int nimbus:octreeDepth = 5\n        token nimbus:transmittance = \"ratio\"",
+    );
     assert_eq!(
         (j["tracker"].as_str(), j["transmittance"].as_str()),
         (Some("decomposition"), Some("ratio"))

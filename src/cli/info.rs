@@ -262,7 +262,12 @@ fn print_analysis(scene: &crate::scene::Scene, depth: u32) {
                 a.lights_total,
                 a.volume_visible
             );
-            let (t, reason) = a.choose(TrackerSettings::default(), Given::default());
+            // What `render` would do without flags: the stage may name the structure.
+            let given = Given {
+                majorants: scene.settings.octree_depth.is_some(),
+                ..Given::default()
+            };
+            let (t, reason) = a.choose(TrackerSettings::default(), given);
             println!(
                 "tracker auto: {} scheme {} transmittance {}{}: {reason}",
                 t.tracker.name(),
@@ -274,6 +279,9 @@ fn print_analysis(scene: &crate::scene::Scene, depth: u32) {
                     ""
                 }
             );
+            if let Some(MajorantSpec::Uniform { cell_voxels: 0 }) = a.majorants(given) {
+                println!("majorants auto: one global majorant per volume");
+            }
         }
         Err(e) => println!("analysis: unavailable ({e:#})"),
     }

@@ -112,13 +112,16 @@ pub struct RenderArgs {
     pub checkpoint: Option<f64>,
 }
 
+/// The edge of a flat majorant grid's cells when no structure is named.
+pub const DEFAULT_CELL_VOXELS: u32 = 8;
+
 /// The majorant structure flags of `render` and the benchmarks.
 #[derive(Args, Debug, Clone)]
 pub struct MajorantArgs {
     /// Edge of a majorant cell in voxels; 0 = one global majorant for the volume
-    /// (a flat grid; ignored when --octree-depth is given).
-    #[arg(long, default_value_t = 8)]
-    pub majorant_cell: u32,
+    /// (a flat grid; ignored when --octree-depth is given) [default: 8].
+    #[arg(long)]
+    pub majorant_cell: Option<u32>,
     /// Majorant octree depth: 1 = one cell for the volume, d = 2^(d-1) leaf cells per
     /// axis (capped at voxel resolution). Overrides --majorant-cell and nimbus:octreeDepth.
     #[arg(long)]
@@ -373,7 +376,7 @@ fn render_frame(
             );
         }
     }
-    let spec = args.majorants.spec(settings)?;
+    let mut spec = args.majorants.spec(settings)?;
     let mut media = media_for_scene_with(&scene, spec)?;
     let load_seconds = wall.elapsed().as_secs_f64();
 
@@ -410,6 +413,12 @@ fn render_frame(
     let auto_reason = request.auto.then(|| {
         let (t, reason) = analysis.choose(tracking, request.given);
         tracking = t;
+        if let Some(majorants) = analysis.majorants(request.given) {
+            for medium in &mut media {
+                medium.set_majorants(majorants);
+            }
+            spec = majorants;
+        }
         reason
     });
     if let Some(reason) = &auto_reason {
@@ -652,9 +661,15 @@ impl MajorantArgs {
             }
             Some(depth) => Ok(MajorantSpec::Octree { depth }),
             None => Ok(MajorantSpec::Uniform {
-                cell_voxels: self.majorant_cell,
+                cell_voxels: self.majorant_cell.unwrap_or(DEFAULT_CELL_VOXELS),
             }),
         }
+    }
+
+    /// Whether the flags or the stage name a majorant structure (else `auto` may pick
+    /// one).
+    pub fn named(&self, stage: &RenderSettings) -> bool {
+        self.majorant_cell.is_some() || self.octree_depth.is_some() || stage.octree_depth.is_some()
     }
 }
 
@@ -756,6 +771,7 @@ fn tracker_settings(args: &RenderArgs, stage: &RenderSettings) -> Result<Tracker
         given: Given {
             scheme: scheme_given,
             transmittance: args.transmittance.is_some() || stage.transmittance.is_some(),
+            majorants: args.majorants.named(stage),
         },
     })
 }

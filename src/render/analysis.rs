@@ -6,6 +6,7 @@
 use crate::render::camera::CameraRays;
 use crate::render::lights::Lights;
 use crate::track::{SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
+use crate::volume::majorant::MajorantSpec;
 use crate::volume::medium::Medium;
 use serde::Serialize;
 
@@ -93,11 +94,14 @@ impl Analysis {
 
     /// `--tracker auto`: the tracker, scheme and options for this scene, and why.
     /// Measured with `nimbus bench error` (README, "Scene analysis and `auto`"):
-    /// - homogeneous media: the decomposition family with residual ratio tracking —
-    ///   inside the volume a majorant cell's minimum equals its maximum, so the control
-    ///   carries the whole density: free paths and transmittance come in closed form
-    ///   and only the rim cells, where the field falls off, need lookups; for grey
-    ///   media analog `decomposition`, which runs single-channel;
+    /// - homogeneous media with no majorant structure named: one global majorant
+    ///   ([`Analysis::majorants`]) and the tracker of their colour below;
+    /// - homogeneous media in a named structure of cells: the decomposition family with
+    ///   residual ratio tracking — inside the volume a majorant cell's minimum equals
+    ///   its maximum, so the control carries the whole density: free paths and
+    ///   transmittance come in closed form and only the rim cells, where the field
+    ///   falls off, need lookups; for grey media analog `decomposition`, which runs
+    ///   single-channel;
     /// - grey media: `delta` — every spectral scheme reduces to it, and it ties
     ///   spectral tracking without absorption events while beating decomposition with
     ///   the default flat majorant grid (1.09–1.13× lower relMSE on the example cloud);
@@ -110,48 +114,66 @@ impl Analysis {
     /// `given`: what the user set (a named scheme or shadow-ray estimator is kept).
     pub fn choose(&self, base: TrackerSettings, given: Given) -> (TrackerSettings, String) {
         let mut t = base;
-        let mut reason = String::new();
-        if self.grey && !self.homogeneous {
-            t.tracker = TrackerKind::Delta;
-            reason.push_str("grey medium: delta tracking is exact with unit weights (spectral schemes reduce to it), run single-channel");
-            return (t, reason);
+        let mut reason = Vec::new();
+        // The closed form needs majorant cells inside the volume: with the global
+        // majorant `auto` builds when no structure is named (see `majorants`), the one
+        // cell's minimum is the rim's 0 and decomposition would be delta tracking.
+        let closed_form = self.homogeneous && given.majorants;
+        if self.homogeneous && !given.majorants {
+            reason.push(GLOBAL_MAJORANT_REASON);
         }
-        if self.homogeneous {
+        if self.grey && !closed_form {
+            t.tracker = TrackerKind::Delta;
+            reason.push("grey medium: delta tracking is exact with unit weights (spectral schemes reduce to it), run single-channel");
+            return (t, reason.join("; "));
+        }
+        if closed_form {
             if !given.transmittance {
                 t.transmittance = TransmittanceKind::ResidualRatio;
             }
-            reason.push_str("homogeneous medium: the cells' minimum is their maximum, so the decomposition control carries the density and free paths and transmittance come in closed form (lookups only where the field falls off at the rim)");
+            reason.push("homogeneous medium: the cells' minimum is their maximum, so the decomposition control carries the density and free paths and transmittance come in closed form (lookups only where the field falls off at the rim)");
         }
         if self.grey {
             t.tracker = TrackerKind::Decomposition;
-            reason.push_str("; grey: analog decomposition tracking, run single-channel");
-            return (t, reason);
+            reason.push("grey: analog decomposition tracking, run single-channel");
+            return (t, reason.join("; "));
         }
         t.tracker = TrackerKind::SpectralDecomposition;
         if !given.scheme {
             t.scheme = SchemeKind::HistAvg;
         }
-        if !reason.is_empty() {
-            reason.push_str("; ");
-        }
-        reason.push_str(
+        reason.push(
             "chromatic medium: spectral decomposition tracking with history-aware avg (bounded throughput)",
         );
         if !self.emissive {
             t.options.no_absorption_events = true;
-            reason.push_str(
-                "; no emission, so absorption lives in the weights (no absorption events)",
-            );
+            reason.push("no emission, so absorption lives in the weights (no absorption events)");
         }
-        (t, reason)
+        (t, reason.join("; "))
+    }
+
+    /// The majorant structure `auto` builds in place of the one the media were loaded
+    /// with, `None` to keep that: for homogeneous media, when the user named no
+    /// structure (`given.majorants`), one global majorant. It is tight everywhere but
+    /// at the rim, so every tentative collision inside is real and no cell is crossed;
+    /// measured against the default flat grid of 8-voxel cells (with the closed-form
+    /// decomposition there) on a 64³ cube of optical thickness 0.6, 6 and 60 across:
+    /// 1.33×, 1.36× and 1.24× lower relMSE at equal time (README).
+    pub fn majorants(&self, given: Given) -> Option<MajorantSpec> {
+        (self.homogeneous && !given.majorants).then_some(MajorantSpec::Uniform { cell_voxels: 0 })
     }
 }
+
+/// Why [`Analysis::majorants`] builds a global majorant.
+const GLOBAL_MAJORANT_REASON: &str = "homogeneous medium and no majorant structure named: one global majorant, tight inside the volume (every tentative collision there is real, no cell is crossed)";
 
 /// What the user set explicitly, which `--tracker auto` keeps.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Given {
     pub scheme: bool,
     pub transmittance: bool,
+    /// A majorant structure (`--majorant-cell`, `--octree-depth`, `nimbus:octreeDepth`).
+    pub majorants: bool,
 }
 
 /// The specialised code paths a render runs, chosen once before it starts: each is
