@@ -16,6 +16,7 @@ use super::decomposition::walk_processes;
 use super::delta::{collide, Collision};
 use super::race::{race, race_collisions};
 use super::ratio::{ratio, residual_ratio, Estimate};
+use super::scheme::pick;
 use super::{
     avg, walk_collisions, FreePath, FreePathSampler, Query, Spectrum, TransmittanceEstimator,
 };
@@ -127,27 +128,10 @@ fn probabilities(q: &Query, d: f32, mu_bar: f32) -> [f32; 3] {
     [p[0] * inv, p[1] * inv, p[2] * inv]
 }
 
-/// The event [`choose`](super::scheme::choose) picks from `u`, never one of zero
-/// probability; counted.
+/// The event [`pick`] chooses from `u`, counted, as a free-path outcome.
 #[inline(always)]
 fn choose<C: Tally>(p: [f32; 3], u: f32, t: f32, c: &mut C) -> Option<FreePath> {
-    let mut e = if u < p[0] {
-        0
-    } else if u < p[0] + p[1] {
-        1
-    } else {
-        2
-    };
-    if !(p[e] > 0.0) {
-        e = if p[2] > 0.0 {
-            2
-        } else if p[1] > 0.0 {
-            1
-        } else {
-            0
-        };
-    }
-    match e {
+    match pick(p, u) {
         0 => {
             c.real_collision();
             Some(FreePath::Absorb { t })

@@ -141,24 +141,7 @@ pub fn probabilities<S: Scheme>(
 /// collision weights w★(λ) = μ★(λ)/(μ̄·P★).
 #[inline(always)]
 pub fn choose(k: &Coefficients, mu_bar: f32, p: [f32; 3], u: f32) -> (Event, Spectrum) {
-    let mut e = if u < p[0] {
-        0
-    } else if u < p[0] + p[1] {
-        1
-    } else {
-        2
-    };
-    // Rounding can leave u past a sum slightly below 1: never pick a zero-probability
-    // event (its weight would divide by zero).
-    if !(p[e] > 0.0) {
-        e = if p[2] > 0.0 {
-            2
-        } else if p[1] > 0.0 {
-            1
-        } else {
-            0
-        };
-    }
+    let e = pick(p, u);
     let (event, mu) = match e {
         0 => (Event::Absorb, k.mu_a),
         1 => (Event::Scatter, k.mu_s),
@@ -166,6 +149,29 @@ pub fn choose(k: &Coefficients, mu_bar: f32, p: [f32; 3], u: f32) -> (Event, Spe
     };
     let inv = 1.0 / (mu_bar * p[e]);
     (event, [mu[0] * inv, mu[1] * inv, mu[2] * inv])
+}
+
+/// The event (0 absorption, 1 scattering, 2 null) the uniform `u` picks with
+/// probabilities `p`. Rounding can leave `u` past a sum slightly below 1: a
+/// zero-probability event is never picked (its weight would divide by zero).
+#[inline(always)]
+pub fn pick(p: [f32; 3], u: f32) -> usize {
+    let e = if u < p[0] {
+        0
+    } else if u < p[0] + p[1] {
+        1
+    } else {
+        2
+    };
+    if p[e] > 0.0 {
+        e
+    } else if p[2] > 0.0 {
+        2
+    } else if p[1] > 0.0 {
+        1
+    } else {
+        0
+    }
 }
 
 /// One tentative collision with coefficients `k` under majorant `mu_bar`, decided by
