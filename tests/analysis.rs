@@ -139,10 +139,7 @@ fn auto_follows_its_rules() {
     );
     // With a structure named: the decomposition family with residual ratio tracking
     // (closed form inside), unless the user named the shadow-ray estimator too.
-    let cells = Given {
-        majorants: true,
-        ..Given::default()
-    };
+    let cells = Given::MAJORANTS;
     assert_eq!(a.majorants(cells), None);
     let (t, reason) = a.choose(TrackerSettings::default(), cells);
     assert_eq!(t.tracker, TrackerKind::Decomposition);

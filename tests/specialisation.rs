@@ -88,14 +88,8 @@ const SPECIALISED: CodePaths = CodePaths {
 /// they are rendered with (named, as by `--majorant-cell` or `--octree-depth`).
 fn auto(s: &Scene) -> TrackerSettings {
     let a = Analysis::of_media(&s.media, &s.lights, &s.camera, s.size);
-    a.choose(TrackerSettings::default(), NAMED_MAJORANTS).0
+    a.choose(TrackerSettings::default(), Given::MAJORANTS).0
 }
-
-const NAMED_MAJORANTS: Given = Given {
-    scheme: false,
-    transmittance: false,
-    majorants: true,
-};
 
 /// Renders `t` on `s` single-channel and general with the same seed, and checks they
 /// made the same decisions: every count equal, pixels equal up to rounding.
@@ -332,7 +326,7 @@ fn homogeneous_closed_form_agrees_with_delta_for_fewer_lookups() {
     let s = homogeneous_cube();
     let a = Analysis::of_media(&s.media, &s.lights, &s.camera, s.size);
     assert!(a.homogeneous && a.grey);
-    let t = a.choose(TrackerSettings::default(), NAMED_MAJORANTS).0;
+    let t = a.choose(TrackerSettings::default(), Given::MAJORANTS).0;
     assert_eq!(
         (t.tracker, t.transmittance),
         (TrackerKind::Decomposition, TransmittanceKind::ResidualRatio)

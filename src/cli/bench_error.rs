@@ -99,14 +99,7 @@ const AUTO: &str = "auto";
 /// `auto=LABEL`, and returns the reason to print.
 fn resolve_auto(trackers: &mut [TrackerSpec], analysis: &Analysis) -> Option<String> {
     let spec = trackers.iter_mut().find(|t| t.label == AUTO)?;
-    let (settings, reason) = analysis.choose(
-        TrackerSettings::default(),
-        // The bench's majorant structure serves every tracker, `auto` included.
-        Given {
-            majorants: true,
-            ..Given::default()
-        },
-    );
+    let (settings, reason) = analysis.choose(TrackerSettings::default(), Given::MAJORANTS);
     spec.label = format!("{AUTO}={}", label_of(&settings));
     spec.settings = settings;
     Some(reason)

@@ -93,14 +93,7 @@ pub fn run(args: PathsArgs) -> Result<()> {
     let lights = Lights::from_scene(&scene)?;
     let camera = CameraRays::new(&scene.camera, width, height);
     let analysis = Analysis::of_media(&media, &lights, &camera, (width, height));
-    let (mut tracking, mut reason) = analysis.choose(
-        TrackerSettings::default(),
-        // The bench's majorant structure serves every tracker, `auto` included.
-        Given {
-            majorants: true,
-            ..Given::default()
-        },
-    );
+    let (mut tracking, mut reason) = analysis.choose(TrackerSettings::default(), Given::MAJORANTS);
     if args.tracker.is_some() || args.scheme.is_some() || args.transmittance.is_some() {
         // Named choices replace auto's; the options auto set go with its tracker.
         if let Some(t) = args.tracker {

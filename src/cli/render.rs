@@ -410,17 +410,18 @@ fn render_frame(
             media.iter().find(|m| m.emission.is_some()).map_or("", |m| &m.prim_path)
         );
     }
-    let auto_reason = request.auto.then(|| {
+    let mut auto_reason = None;
+    if request.auto {
         let (t, reason) = analysis.choose(tracking, request.given);
         tracking = t;
+        auto_reason = Some(reason);
         if let Some(majorants) = analysis.majorants(request.given) {
             for medium in &mut media {
                 medium.set_majorants(majorants);
             }
             spec = majorants;
         }
-        reason
-    });
+    }
     if let Some(reason) = &auto_reason {
         eprintln!(
             "nimbus: tracker auto: {} (scheme {}, transmittance {}{}): {reason}",

@@ -176,6 +176,16 @@ pub struct Given {
     pub majorants: bool,
 }
 
+impl Given {
+    /// Only the majorant structure is set: the benches' case, whose one structure
+    /// serves every tracker, `auto` included.
+    pub const MAJORANTS: Given = Given {
+        scheme: false,
+        transmittance: false,
+        majorants: true,
+    };
+}
+
 /// The specialised code paths a render runs, chosen once before it starts: each is
 /// a separate instantiation of the integrator and trackers, not a branch per collision.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]

@@ -42,32 +42,63 @@ impl<S: Scheme> Decomposition<S> {
     }
 }
 
-/// A majorant cell split into control and residual.
+/// A majorant segment split into a constant control d_c and a residual bound
+/// r ≥ |d − d_c|, with the rates of their collision processes μ̄c = d_c·max σt and
+/// μ̄r = r·max σt. Shared with the single-channel
+/// [`GreyDecomposition`](super::grey::GreyDecomposition).
 #[derive(Clone, Copy)]
-struct Cell {
-    /// Control density d_c and residual bound r ≥ |d − d_c|.
-    dc: f32,
-    r: f32,
-    /// The processes' rates μ̄c = d_c·max σt and μ̄r = r·max σt.
-    mu_c: f32,
-    mu_r: f32,
-    /// The control's coefficients, constant over the cell.
-    kc: Coefficients,
+pub(super) struct Split {
+    pub dc: f32,
+    pub r: f32,
+    pub mu_c: f32,
+    pub mu_r: f32,
+}
+
+impl Split {
+    /// The split at d_c = d_min + control·(d_max − d_min).
+    #[inline(always)]
+    pub(super) fn of(q: &Query, seg: &Segment, control: f32) -> Split {
+        let t_max = q.sigma.t_max;
+        let dc = seg.dmin + control * (seg.dmax - seg.dmin);
+        let r = (seg.dmax - dc).max(dc - seg.dmin) * q.majorant_scale;
+        Split {
+            dc,
+            r,
+            mu_c: dc * t_max,
+            mu_r: r * t_max,
+        }
+    }
+
+    /// The residual d(x) − d_c at `t`, looked up and counted. A residual beyond its
+    /// bound, or below 0 when the control is the minimum (`at_minimum`), is counted as
+    /// a majorant violation.
+    #[inline(always)]
+    pub(super) fn residual<C: Tally>(&self, q: &Query, t: f32, at_minimum: bool, c: &mut C) -> f32 {
+        let d = q.medium.density(q.ray.at(t), c);
+        c.residual_lookup();
+        let dr = d - self.dc;
+        if dr > self.r || (at_minimum && dr < 0.0) {
+            c.majorant_violation();
+        }
+        dr
+    }
+}
+
+/// A split majorant cell and what its control's collisions need, which is constant
+/// over the cell (coefficients, or a grey medium's event probabilities).
+#[derive(Clone, Copy)]
+pub(super) struct Cell<K> {
+    pub split: Split,
+    pub control: K,
 }
 
 impl<S: Scheme> Decomposition<S> {
     #[inline(always)]
-    fn cell(&self, q: &Query, seg: &Segment) -> Cell {
-        let sg = q.sigma;
-        let dc = seg.dmin + self.control * (seg.dmax - seg.dmin);
-        let r = (seg.dmax - dc).max(dc - seg.dmin) * q.majorant_scale;
-        let mu_c = dc * sg.t_max;
+    fn cell(&self, q: &Query, seg: &Segment) -> Cell<Coefficients> {
+        let split = Split::of(q, seg, self.control);
         Cell {
-            dc,
-            r,
-            mu_c,
-            mu_r: r * sg.t_max,
-            kc: Coefficients::of(sg, dc, mu_c),
+            split,
+            control: Coefficients::of(q.sigma, split.dc, split.mu_c),
         }
     }
 
@@ -78,29 +109,23 @@ impl<S: Scheme> Decomposition<S> {
     fn decide<R: Rng, C: Tally>(
         &self,
         q: &Query,
-        cell: &Cell,
+        cell: &Cell<Coefficients>,
         control_first: bool,
         t: f32,
         throughput: &mut Spectrum,
         rng: &mut R,
         c: &mut C,
     ) -> Option<FreePath> {
-        let sg = q.sigma;
-        let (mu_bar, k);
-        if control_first {
+        let (k, mu_bar) = if control_first {
             c.control_collision();
-            k = cell.kc;
-            mu_bar = cell.mu_c;
+            (cell.control, cell.split.mu_c)
         } else {
-            let d = q.medium.density(q.ray.at(t), c);
-            c.residual_lookup();
-            let dr = d - cell.dc;
-            k = Coefficients::of(sg, dr, cell.mu_r);
-            if dr > cell.r || (self.control == 0.0 && dr < 0.0) {
-                c.majorant_violation();
-            }
-            mu_bar = cell.mu_r;
-        }
+            let dr = cell.split.residual(q, t, self.control == 0.0, c);
+            (
+                Coefficients::of(q.sigma, dr, cell.split.mu_r),
+                cell.split.mu_r,
+            )
+        };
         collide::<S, C>(&k, mu_bar, t, self.options, rng.gen(), throughput, c)
     }
 }
@@ -118,10 +143,7 @@ impl<S: Scheme> FreePathSampler for Decomposition<S> {
             q,
             rng,
             c,
-            |seg| {
-                let cell = self.cell(q, seg);
-                (cell, [cell.mu_c, cell.mu_r])
-            },
+            |seg| self.cell(q, seg),
             |cell, control_first, t, rng, c| {
                 self.decide(q, cell, control_first, t, throughput, rng, c)
             },
@@ -137,30 +159,20 @@ impl<S: Scheme> FreePathSampler for Decomposition<S> {
         rng: &mut R,
         c: &mut C,
     ) -> (FreePath, usize) {
-        race(
+        race_processes(
             qs,
             rng,
             c,
-            |i, seg| {
-                let cell = self.cell(&qs[i], seg);
-                [cell.mu_c, cell.mu_r]
-            },
-            |e, rng, c| {
-                let q = &qs[e.lane];
-                let cell = self.cell(q, e.seg);
-                match self.decide(q, &cell, e.process == 0, e.t, throughput, rng, c) {
-                    Some(event) => ControlFlow::Break(event),
-                    None => ControlFlow::Continue(()),
-                }
+            |q, seg| self.cell(q, seg),
+            |q, cell, control_first, t, rng, c| {
+                self.decide(q, cell, control_first, t, throughput, rng, c)
             },
         )
-        .unwrap_or((FreePath::Escape, 0))
     }
 }
 
 /// The two collision processes of decomposition tracking along `q`'s ray: `cell` splits
-/// each majorant segment into its control and residual (returning their rates μ̄c, μ̄r),
-/// and `decide` turns a tentative collision of the control (`true`) or the residual
+/// each majorant segment into its control and residual, and `decide` turns a tentative collision of the control (`true`) or the residual
 /// into an event, `None` for a null collision. Shared by [`Decomposition`] and the
 /// single-channel [`GreyDecomposition`](super::grey::GreyDecomposition), which must
 /// make the same draws in the same order.
@@ -169,13 +181,14 @@ pub(super) fn walk_processes<R: Rng, C: Tally, K>(
     q: &Query,
     rng: &mut R,
     c: &mut C,
-    cell: impl Fn(&Segment) -> (K, [f32; 2]),
-    mut decide: impl FnMut(&K, bool, f32, &mut R, &mut C) -> Option<FreePath>,
+    cell: impl Fn(&Segment) -> Cell<K>,
+    mut decide: impl FnMut(&Cell<K>, bool, f32, &mut R, &mut C) -> Option<FreePath>,
 ) -> FreePath {
     let mut walk = q.medium.majorants.walk(q.ray.o, q.ray.d, q.tmin, q.tmax);
     let (mut tau_c, mut tau_r) = (OpticalDepth::sample(rng), OpticalDepth::sample(rng));
     while let Some(seg) = c.next_segment(&mut walk) {
-        let (k, [mu_c, mu_r]) = cell(&seg);
+        let k = cell(&seg);
+        let (mu_c, mu_r) = (k.split.mu_c, k.split.mu_r);
         if !(mu_c > 0.0) && !(mu_r > 0.0) {
             continue;
         }
@@ -202,4 +215,34 @@ pub(super) fn walk_processes<R: Rng, C: Tally, K>(
         }
     }
     FreePath::Escape
+}
+
+/// [`walk_processes`] for several media: every medium runs its control and residual
+/// processes, and the race ([`race`]) merges the 2k processes in `t` order. The cell is
+/// split again at each tentative collision (the race hands out segments, not cells).
+#[inline(always)]
+pub(super) fn race_processes<R: Rng, C: Tally, K>(
+    qs: &[Query],
+    rng: &mut R,
+    c: &mut C,
+    cell: impl Fn(&Query, &Segment) -> Cell<K>,
+    mut decide: impl FnMut(&Query, &Cell<K>, bool, f32, &mut R, &mut C) -> Option<FreePath>,
+) -> (FreePath, usize) {
+    race(
+        qs,
+        rng,
+        c,
+        |i, seg| {
+            let s = cell(&qs[i], seg).split;
+            [s.mu_c, s.mu_r]
+        },
+        |e, rng, c| {
+            let q = &qs[e.lane];
+            match decide(q, &cell(q, e.seg), e.process == 0, e.t, rng, c) {
+                Some(event) => ControlFlow::Break(event),
+                None => ControlFlow::Continue(()),
+            }
+        },
+    )
+    .unwrap_or((FreePath::Escape, 0))
 }

@@ -12,9 +12,9 @@
 //!
 //! [`Decomposition`]: super::decomposition::Decomposition
 
-use super::decomposition::walk_processes;
+use super::decomposition::{race_processes, walk_processes, Cell, Split};
 use super::delta::{collide, Collision};
-use super::race::{race, race_collisions};
+use super::race::race_collisions;
 use super::ratio::{ratio, residual_ratio, Estimate};
 use super::scheme::pick;
 use super::{
@@ -147,31 +147,14 @@ fn choose<C: Tally>(p: [f32; 3], u: f32, t: f32, c: &mut C) -> Option<FreePath> 
     }
 }
 
-/// A majorant cell split into the control d_min and the residual.
-#[derive(Clone, Copy)]
-struct Cell {
-    dc: f32,
-    r: f32,
-    mu_c: f32,
-    mu_r: f32,
-    /// The control's event probabilities, constant over the cell.
-    pc: [f32; 3],
-}
-
 impl GreyDecomposition {
-    /// The same expressions as `Decomposition::cell` with control 0.
+    /// `Decomposition::cell` with control 0, and the control's event probabilities.
     #[inline(always)]
-    fn cell(q: &Query, seg: &Segment) -> Cell {
-        let t_max = q.sigma.t_max;
-        let dc = seg.dmin + 0.0 * (seg.dmax - seg.dmin);
-        let r = (seg.dmax - dc).max(dc - seg.dmin) * q.majorant_scale;
-        let mu_c = dc * t_max;
+    fn cell(q: &Query, seg: &Segment) -> Cell<[f32; 3]> {
+        let split = Split::of(q, seg, 0.0);
         Cell {
-            dc,
-            r,
-            mu_c,
-            mu_r: r * t_max,
-            pc: probabilities(q, dc, mu_c),
+            split,
+            control: probabilities(q, split.dc, split.mu_c),
         }
     }
 
@@ -179,7 +162,7 @@ impl GreyDecomposition {
     #[inline(always)]
     fn decide<R: Rng, C: Tally>(
         q: &Query,
-        cell: &Cell,
+        cell: &Cell<[f32; 3]>,
         control_first: bool,
         t: f32,
         rng: &mut R,
@@ -187,15 +170,10 @@ impl GreyDecomposition {
     ) -> Option<FreePath> {
         let p = if control_first {
             c.control_collision();
-            cell.pc
+            cell.control
         } else {
-            let d = q.medium.density(q.ray.at(t), c);
-            c.residual_lookup();
-            let dr = d - cell.dc;
-            if dr > cell.r || dr < 0.0 {
-                c.majorant_violation();
-            }
-            probabilities(q, dr, cell.mu_r)
+            let dr = cell.split.residual(q, t, true, c);
+            probabilities(q, dr, cell.split.mu_r)
         };
         choose(p, rng.gen(), t, c)
     }
@@ -214,10 +192,7 @@ impl FreePathSampler for GreyDecomposition {
             q,
             rng,
             c,
-            |seg| {
-                let cell = Self::cell(q, seg);
-                (cell, [cell.mu_c, cell.mu_r])
-            },
+            |seg| Self::cell(q, seg),
             |cell, control_first, t, rng, c| Self::decide(q, cell, control_first, t, rng, c),
         )
     }
@@ -229,24 +204,7 @@ impl FreePathSampler for GreyDecomposition {
         rng: &mut R,
         c: &mut C,
     ) -> (FreePath, usize) {
-        race(
-            qs,
-            rng,
-            c,
-            |i, seg| {
-                let cell = Self::cell(&qs[i], seg);
-                [cell.mu_c, cell.mu_r]
-            },
-            |e, rng, c| {
-                let q = &qs[e.lane];
-                let cell = Self::cell(q, e.seg);
-                match Self::decide(q, &cell, e.process == 0, e.t, rng, c) {
-                    Some(event) => ControlFlow::Break(event),
-                    None => ControlFlow::Continue(()),
-                }
-            },
-        )
-        .unwrap_or((FreePath::Escape, 0))
+        race_processes(qs, rng, c, Self::cell, Self::decide)
     }
 }
 

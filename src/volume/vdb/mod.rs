@@ -166,10 +166,22 @@ pub fn read_float_grid_with(
     name: &str,
     index: Option<i32>,
 ) -> Result<RawGrid, VdbError> {
-    let file = loc.to_string();
+    with_selected(loc, name, index, |info, desc| {
+        float_from(reader, loc, info, desc)
+    })
+}
+
+/// Validates the file at `loc` once, selects the grid (`name`, `index`) as
+/// [`read_float_grid`] describes, and hands both to `read`.
+fn with_selected<T>(
+    loc: &AssetLocation,
+    name: &str,
+    index: Option<i32>,
+    read: impl FnOnce(&FileInfo, &GridDesc) -> Result<T, VdbError>,
+) -> Result<T, VdbError> {
     let info = validate_location(loc)?;
-    let desc = select(&info, &file, name, index)?;
-    float_from(reader, loc, &info, desc)
+    let desc = select(&info, &loc.to_string(), name, index)?;
+    read(&info, desc)
 }
 
 /// Reads the float grid `desc` of the validated file `info`.
@@ -235,10 +247,9 @@ pub fn read_vec3s_grid_with(
     name: &str,
     index: Option<i32>,
 ) -> Result<[RawGrid; 3], VdbError> {
-    let file = loc.to_string();
-    let info = validate_location(loc)?;
-    let desc = select(&info, &file, name, index)?;
-    vec3s_from(reader, loc, &info, desc)
+    with_selected(loc, name, index, |info, desc| {
+        vec3s_from(reader, loc, info, desc)
+    })
 }
 
 /// A colour grid: a Vec3s grid as [`read_vec3s_grid`] reads it, or a float grid as a
@@ -258,22 +269,21 @@ pub fn read_color_grid_with(
     name: &str,
     index: Option<i32>,
 ) -> Result<[RawGrid; 3], VdbError> {
-    let file = loc.to_string();
-    let info = validate_location(loc)?;
-    let desc = select(&info, &file, name, index)?;
-    if desc.is_float() {
-        let g = float_from(reader, loc, &info, desc)?;
-        return Ok([g.clone(), g.clone(), g]);
-    }
-    if !desc.is_vec3s() {
-        return Err(VdbError::WrongType {
-            file,
-            grid: desc.name.clone(),
-            found: desc.value_type_label(),
-            expected: "float or Vec3s",
-        });
-    }
-    vec3s_from(reader, loc, &info, desc)
+    with_selected(loc, name, index, |info, desc| {
+        if desc.is_float() {
+            let g = float_from(reader, loc, info, desc)?;
+            return Ok([g.clone(), g.clone(), g]);
+        }
+        if !desc.is_vec3s() {
+            return Err(VdbError::WrongType {
+                file: loc.to_string(),
+                grid: desc.name.clone(),
+                found: desc.value_type_label(),
+                expected: "float or Vec3s",
+            });
+        }
+        vec3s_from(reader, loc, info, desc)
+    })
 }
 
 fn vec3s_from(
