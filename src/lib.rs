@@ -6,6 +6,7 @@
 //! [`render`] integrator → film/AOVs → [`output`] EXR.
 
 pub mod cli;
+pub mod color;
 pub mod output;
 pub mod render;
 pub mod scene;

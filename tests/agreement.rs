@@ -25,8 +25,9 @@ use nimbus::render::film::Film;
 use nimbus::render::job::{medium_for_scene, RenderJob};
 use nimbus::render::lights::Lights;
 use nimbus::scene::{load_stage, LoadOptions};
-use nimbus::track::{SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
-use nimbus::volume::medium::{Counters, Medium};
+use nimbus::track::select::{SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
+use nimbus::volume::counters::Counters;
+use nimbus::volume::medium::Medium;
 use std::path::PathBuf;
 
 const W: u32 = 24;

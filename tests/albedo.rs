@@ -8,11 +8,12 @@ use common::{mean_se, paths, Setup};
 use glam::{DMat4, DVec3};
 use nimbus::render::job::medium_for_scene;
 use nimbus::render::lights::Lights;
-use nimbus::scene::{load_stage, AssetLocation, LoadOptions};
-use nimbus::track::{SchemeKind, TrackerKind, TrackerSettings};
+use nimbus::scene::{load_stage, LoadOptions};
+use nimbus::track::select::{SchemeKind, TrackerKind, TrackerSettings};
 use nimbus::volume::albedo::AlbedoGrid;
+use nimbus::volume::asset::AssetLocation;
+use nimbus::volume::counters::Counters;
 use nimbus::volume::grid::{RawGrid, RawTile};
-use nimbus::volume::medium::Counters;
 use nimbus::volume::procedural::grid_from_fn;
 use nimbus::volume::vdb::{
     list_grids, list_grids_with, read_color_grid, read_float_grid_with, read_vec3s_grid_with,

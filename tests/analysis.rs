@@ -6,7 +6,7 @@ use nimbus::render::analysis::{Analysis, Given};
 use nimbus::render::camera::CameraRays;
 use nimbus::render::lights::Lights;
 use nimbus::scene::Camera;
-use nimbus::track::{SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
+use nimbus::track::select::{SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
 use nimbus::volume::grid::Grid;
 use nimbus::volume::majorant::MajorantSpec;
 use nimbus::volume::medium::Medium;

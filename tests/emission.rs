@@ -6,15 +6,15 @@ mod common;
 
 use common::{mean_se, paths, Setup};
 use glam::{DMat4, DVec3};
+use nimbus::color::usd_blackbody_rgb;
 use nimbus::render::analysis::{CodePaths, Given};
-use nimbus::render::lights::{usd_blackbody_rgb, Lights};
-use nimbus::track::{
-    FreePathSampler, SchemeKind, TrackerKind, TrackerSettings, TransmittanceEstimator,
-    TransmittanceKind,
-};
+use nimbus::render::lights::Lights;
+use nimbus::track::free_path::{FreePathSampler, TransmittanceEstimator};
+use nimbus::track::select::{SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
+use nimbus::volume::counters::Counters;
 use nimbus::volume::emission::{blackbody_radiance, Emission, EmissionGrid, EmissionParams};
 use nimbus::volume::grid::{Grid, RawGrid};
-use nimbus::volume::medium::{Counters, Medium};
+use nimbus::volume::medium::Medium;
 use nimbus::volume::procedural::grid_from_fn;
 use std::path::{Path, PathBuf};
 use std::process::Command;

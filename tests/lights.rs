@@ -17,7 +17,8 @@ use nimbus::render::sampler::pixel_sampler;
 use nimbus::scene::{load_stage, Camera, LoadOptions};
 use nimbus::track::delta::Delta;
 use nimbus::track::ratio::Ratio;
-use nimbus::volume::medium::{Counters, Medium};
+use nimbus::volume::counters::Counters;
+use nimbus::volume::medium::Medium;
 use rand::{Rng, SeedableRng};
 use serde_json::Value;
 
@@ -246,7 +247,7 @@ fn loaded_lights_match_pxr() {
 /// relative tolerance 1e-5, absolute 1e-6 near 0).
 #[test]
 fn color_temperature_matches_pxr() {
-    use nimbus::render::lights::usd_blackbody_rgb;
+    use nimbus::color::usd_blackbody_rgb;
     let Some((_dir, expected)) = generate_fixtures() else {
         return;
     };

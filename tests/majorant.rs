@@ -3,15 +3,16 @@
 //! depth.
 
 use glam::{DMat4, DVec3, Vec3};
-use nimbus::scene::AssetLocation;
 use nimbus::track::decomposition::Decomposition;
 use nimbus::track::delta::Delta;
+use nimbus::track::free_path::{FreePath, FreePathSampler, Query, TransmittanceEstimator};
 use nimbus::track::ratio::Ratio;
 use nimbus::track::scheme::{Avg, SchemeOptions};
-use nimbus::track::{FreePath, FreePathSampler, Query, TransmittanceEstimator};
+use nimbus::volume::asset::AssetLocation;
+use nimbus::volume::counters::Counters;
 use nimbus::volume::grid::Grid;
 use nimbus::volume::majorant::{MajorantSpec, MajorantTree};
-use nimbus::volume::medium::{Counters, Medium};
+use nimbus::volume::medium::Medium;
 use nimbus::volume::procedural::grid_from_fn;
 use proptest::prelude::*;
 use rand::{Rng, SeedableRng};

@@ -7,7 +7,9 @@
 //! as `stage.usda` in a scratch folder (as the fuzz target does, so a file that names
 //! `./stage.usda` refers to itself).
 
-use nimbus::scene::{load_stage, AssetLocation, LoadOptions};
+use nimbus::scene::{load_stage, LoadOptions};
+
+use nimbus::volume::asset::AssetLocation;
 use nimbus::volume::vdb::{list_grids, read_float_grid_with, Reader};
 use std::path::PathBuf;
 use std::sync::Arc;

@@ -11,7 +11,8 @@ use nimbus::render::sampler::pixel_sampler;
 use nimbus::scene::Camera;
 use nimbus::track::delta::Delta;
 use nimbus::track::ratio::Ratio;
-use nimbus::volume::medium::{Counters, Medium};
+use nimbus::volume::counters::Counters;
+use nimbus::volume::medium::Medium;
 
 /// A narrow camera on the +Z axis at distance 10 looking at the origin: every ray of the
 /// central pixels crosses the cube within 1e-4 of its axis length.

@@ -14,12 +14,11 @@ use glam::{DMat4, DVec3};
 use nimbus::render::camera::CameraRays;
 use nimbus::render::integrator::Integrator;
 use nimbus::render::lights::Lights;
-use nimbus::track::{
-    self, Dispatch, FreePath, FreePathSampler, Query, TrackerKind, TrackerSettings,
-    TransmittanceEstimator,
-};
+use nimbus::track::free_path::{FreePath, FreePathSampler, Query, TransmittanceEstimator};
+use nimbus::track::select::{Dispatch, TrackerKind, TrackerSettings};
+use nimbus::volume::counters::Counters;
 use nimbus::volume::grid::Grid;
-use nimbus::volume::medium::{Counters, IndexRay, Medium};
+use nimbus::volume::medium::{IndexRay, Medium};
 use nimbus::volume::procedural::grid_from_fn;
 use rand::SeedableRng;
 use rand_pcg::Pcg32;
@@ -263,7 +262,7 @@ fn every_tracker_races_overlapping_media() {
                 seed: 11,
             };
             eprintln!("{}", label(&settings));
-            track::dispatch(&settings, &run);
+            nimbus::track::select::dispatch(&settings, &run);
         }
     }
 }
@@ -293,14 +292,14 @@ fn transmittance_of_overlapping_media_is_the_product() {
         }
     }
     for transmittance in [
-        track::TransmittanceKind::Ratio,
-        track::TransmittanceKind::ResidualRatio,
+        nimbus::track::select::TransmittanceKind::Ratio,
+        nimbus::track::select::TransmittanceKind::ResidualRatio,
     ] {
         let settings = TrackerSettings {
             transmittance,
             ..TrackerSettings::default()
         };
-        track::dispatch(&settings, Shadow);
+        nimbus::track::select::dispatch(&settings, Shadow);
     }
 }
 
@@ -418,7 +417,7 @@ fn render(
                             x as f64 + 0.5,
                             y as f64 + 0.5,
                             &mut rng,
-                            &mut nimbus::volume::medium::NoCounts,
+                            &mut nimbus::volume::counters::NoCounts,
                         );
                         for ch in 0..3 {
                             out[ch].push(r.rgb[ch]);
@@ -429,7 +428,7 @@ fn render(
             out
         }
     }
-    track::dispatch(
+    nimbus::track::select::dispatch(
         settings,
         R {
             media,

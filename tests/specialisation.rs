@@ -15,10 +15,11 @@ use nimbus::render::job::{medium_for_scene, RenderJob};
 use nimbus::render::lights::Lights;
 use nimbus::scene::{load_stage, Camera, LoadOptions};
 use nimbus::track::scheme::SchemeOptions;
-use nimbus::track::{SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
+use nimbus::track::select::{SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
+use nimbus::volume::counters::Counters;
 use nimbus::volume::grid::Grid;
 use nimbus::volume::majorant::MajorantSpec;
-use nimbus::volume::medium::{Counters, Medium};
+use nimbus::volume::medium::Medium;
 use nimbus::volume::procedural::grid_from_fn;
 use std::path::PathBuf;
 

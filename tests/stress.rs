@@ -13,15 +13,15 @@ use nimbus::render::film::{Aov, Pixel};
 use nimbus::render::lights::{Lights, Sun};
 use nimbus::track::decomposition::Decomposition;
 use nimbus::track::delta::Delta;
+use nimbus::track::free_path::{FreePath, FreePathSampler, Query, TransmittanceEstimator};
 use nimbus::track::ratio::{Ratio, ResidualRatio};
 use nimbus::track::scheme::{Avg, HistAvg, HistMax, Max, SchemeOptions};
+use nimbus::track::select::{SchemeKind, TrackerKind};
 use nimbus::track::spectral::Spectral;
-use nimbus::track::{
-    FreePath, FreePathSampler, Query, SchemeKind, TrackerKind, TransmittanceEstimator,
-};
+use nimbus::volume::counters::Counters;
 use nimbus::volume::grid::{Grid, RawGrid, RawTile, BRICK_VOXELS};
 use nimbus::volume::majorant::MajorantSpec;
-use nimbus::volume::medium::{Counters, Medium};
+use nimbus::volume::medium::Medium;
 use nimbus::volume::procedural::grid_from_fn;
 use rand::SeedableRng;
 use rand_pcg::Pcg32;

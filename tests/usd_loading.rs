@@ -6,7 +6,8 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use glam::{DMat4, DVec3};
-use nimbus::scene::{load_stage, AssetLocation, Field, LoadOptions, Scene, SceneError};
+use nimbus::scene::{load_stage, Field, LoadOptions, Scene, SceneError};
+use nimbus::volume::asset::AssetLocation;
 use serde_json::Value;
 
 const REL_TOL: f64 = 1e-9;

@@ -5,7 +5,7 @@
 //! `Reader::OpenVdb.available()`; CI builds with `NIMBUS_OPENVDB=require`.
 
 use glam::{DMat4, DVec3};
-use nimbus::scene::AssetLocation;
+use nimbus::volume::asset::AssetLocation;
 use nimbus::volume::grid::{RawGrid, RawLeaf, RawTile};
 use nimbus::volume::vdb::{
     active_reader, list_grids, list_grids_with, read_float_grid, read_float_grid_with,

@@ -3,7 +3,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use nimbus::scene::AssetLocation;
+use nimbus::volume::asset::AssetLocation;
 use std::sync::Arc;
 
 fuzz_target!(|data: &[u8]| {

@@ -13,13 +13,12 @@
 
 use crate::output::{check_writable, write_atomically};
 use crate::render::analysis::CodePaths;
-use crate::render::camera::CameraRays;
-use crate::render::job::{media_for_scene_with, RenderJob};
-use crate::render::lights::Lights;
-use crate::track::{TrackerKind, TrackerSettings, TransmittanceKind};
+use crate::render::job::RenderJob;
+use crate::render::session::Session;
+use crate::track::select::{TrackerKind, TrackerSettings, TransmittanceKind};
 use crate::volume::majorant::{MajorantSpec, MAX_DEPTH};
 use crate::volume::ticks::{Calibration, TrackerTimes};
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use clap::{Args, Subcommand};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -87,67 +86,42 @@ fn octree(args: OctreeArgs) -> Result<()> {
     if let Some(p) = &args.csv {
         check_writable(p)?;
     }
-    let (scene, width, height) = args.sampling.load_stage(&args.stage)?;
-    let s = &scene.settings;
-    let spp = args.sampling.spp.unwrap_or(s.samples);
-    if spp == 0 {
-        bail!("--spp must be at least 1");
-    }
-    let seed = args.sampling.seed.unwrap_or(s.seed);
-    let mut media = media_for_scene_with(
-        &scene,
-        MajorantSpec::Octree {
-            depth: args.depths[0],
-        },
-    )?;
-    let lights = Lights::from_scene(&scene)?;
-    let camera = CameraRays::new(&scene.camera, width, height);
+    // The session renders as `nimbus render --octree-depth D` does: the same loading,
+    // the same octree and the same pruning for each tracker.
+    let mut overrides = args.sampling.overrides(&super::render::MajorantArgs {
+        majorant_cell: None,
+        octree_depth: Some(args.depths[0]),
+    });
+    overrides.octree_prune = Some(args.prune);
     // One thread by default: the timers measure thread-seconds, which then add up to
     // the wall time.
-    let threads = args.sampling.threads.unwrap_or(1);
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .context("cannot start worker threads")?;
+    overrides.threads = Some(args.sampling.threads.unwrap_or(1));
+    let mut session = Session::open(&args.stage, &overrides)?;
+    let (width, height, spp, seed) = (session.width, session.height, session.spp, session.seed);
+    let pool = session.pool(1)?;
+    let threads = pool.current_num_threads();
     let calibration = Calibration::measure();
     let mut rows = Vec::new();
     for &depth in &args.depths {
-        let spec = MajorantSpec::Octree { depth };
         for tracker in [TrackerKind::Delta, TrackerKind::Decomposition] {
-            // Pruning depends on the tracker, so each row gets a fresh octree.
-            let residual = tracker == TrackerKind::Decomposition;
-            let pruned: usize = pool.install(|| {
-                media
-                    .iter_mut()
-                    .map(|m| {
-                        m.set_majorants(spec);
-                        m.prune_majorants(args.prune, residual)
-                    })
-                    .sum()
-            });
-            let job = RenderJob {
-                paths: CodePaths::default(),
-                media: &media,
-                lights: &lights,
-                camera: &camera,
-                width,
-                height,
-                spp,
-                max_depth: s.max_depth,
-                seed,
-                // Shadow rays pair with the free-path sampler: ratio tracking with
-                // delta, residual ratio tracking (control + residual, lookups only for
-                // the residual) with decomposition — otherwise most lookups of both rows
-                // would be the same ratio-tracked shadow rays.
-                tracking: TrackerSettings {
+            // Shadow rays pair with the free-path sampler: ratio tracking with delta,
+            // residual ratio tracking (control + residual, lookups only for the
+            // residual) with decomposition — otherwise most lookups of both rows would
+            // be the same ratio-tracked shadow rays. Pruning depends on the tracker, so
+            // each row gets a fresh octree.
+            session.spec = MajorantSpec::Octree { depth };
+            pool.install(|| {
+                session.retrack(TrackerSettings {
                     tracker,
                     transmittance: match tracker {
                         TrackerKind::Decomposition => TransmittanceKind::ResidualRatio,
                         _ => TransmittanceKind::Ratio,
                     },
                     ..TrackerSettings::default()
-                },
-            };
+                })
+            });
+            let job = session.job_with(CodePaths::default());
+            let media = session.media();
             let start = Instant::now();
             let film = pool.install(|| job.render(&|| {}));
             let total_seconds = start.elapsed().as_secs_f64();
@@ -179,8 +153,13 @@ fn octree(args: OctreeArgs) -> Result<()> {
                 memory_bytes: media.iter().map(|m| m.majorants.memory_bytes()).sum(),
             };
             eprintln!(
-                "nimbus: depth {depth} {}: {:.2} s ({pruned} octree nodes pruned)",
-                row.tracker, row.total_seconds
+                "nimbus: depth {depth} {}: {:.2} s ({} majorant cells after pruning)",
+                row.tracker,
+                row.total_seconds,
+                media
+                    .iter()
+                    .map(|m| m.majorants.cell_count())
+                    .sum::<usize>()
             );
             rows.push(row);
         }

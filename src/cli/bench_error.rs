@@ -3,19 +3,20 @@
 //! a high-sample reference (relMSE and MSE as `nimbus compare` defines them, mean over
 //! R, G, B). Writes a CSV, a log-log plot, and prints the equal-time table.
 
+use super::choice;
 use super::compare::channel_error;
 use super::error_plot::{self, Series};
 use super::reference::{self, ReferenceSettings, Rgb};
 use super::render::{MajorantArgs, SamplingArgs};
 use crate::output::{check_writable, write_atomically};
 use crate::render::analysis::{Analysis, CodePaths, Given};
-use crate::render::camera::CameraRays;
-use crate::render::job::{media_for_scene_with, RenderJob};
-use crate::render::lights::Lights;
+use crate::render::job::RenderJob;
 use crate::render::progressive::{render_progressive, Budget, Clock};
-use crate::track::{SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
-use anyhow::{bail, Context, Result};
-use clap::{Args, ValueEnum};
+use crate::render::session::Session;
+use crate::track::select::Choice;
+use crate::track::select::{SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
+use anyhow::{bail, Result};
+use clap::Args;
 use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 
@@ -66,7 +67,7 @@ pub struct ErrorArgs {
     pub majorants: MajorantArgs,
     /// The clock of the budgets: `cpu` (the process' CPU seconds, all threads: fair on
     /// a shared, loaded machine) or `wall`.
-    #[arg(long, value_enum, default_value_t = Clock::Cpu)]
+    #[arg(long, value_parser = choice::parser::<Clock>(), default_value = "cpu")]
     pub clock: Clock,
 }
 
@@ -81,15 +82,6 @@ pub const REFERENCE_SEED: u64 = 0x5eed_0f_5eed_0f_5e;
 pub struct TrackerSpec {
     pub label: String,
     pub settings: TrackerSettings,
-}
-
-fn names<T: ValueEnum>() -> String {
-    T::value_variants()
-        .iter()
-        .filter_map(|v| v.to_possible_value())
-        .map(|p| p.get_name().to_string())
-        .collect::<Vec<_>>()
-        .join(", ")
 }
 
 /// The tracker item that stands for `--tracker auto`'s choice on the stage.
@@ -126,13 +118,13 @@ pub fn parse_tracker(item: &str) -> Result<TrackerSpec> {
     if name.is_empty() {
         bail!(
             "empty tracker in --trackers; known trackers: {}",
-            names::<TrackerKind>()
+            TrackerKind::names()
         );
     }
-    let Ok(tracker) = TrackerKind::from_str(name, false) else {
+    let Some(tracker) = TrackerKind::from_name(name) else {
         bail!(
             "unknown tracker '{name}' in --trackers; known trackers: {}",
-            names::<TrackerKind>()
+            TrackerKind::names()
         );
     };
     let mut s = TrackerSettings {
@@ -141,14 +133,14 @@ pub fn parse_tracker(item: &str) -> Result<TrackerSpec> {
     };
     let (mut scheme, mut transmittance) = (None, None);
     for p in parts.map(str::trim) {
-        if let Ok(k) = SchemeKind::from_str(p, false) {
+        if let Some(k) = SchemeKind::from_name(p) {
             if !tracker.uses_scheme() {
                 bail!("tracker '{name}' takes no scheme, got '{item}'");
             }
             if scheme.replace(k).is_some() {
                 bail!("'{item}' names two schemes");
             }
-        } else if let Ok(k) = TransmittanceKind::from_str(p, false) {
+        } else if let Some(k) = TransmittanceKind::from_name(p) {
             if transmittance.replace(k).is_some() {
                 bail!("'{item}' names two shadow-ray estimators");
             }
@@ -168,8 +160,8 @@ pub fn parse_tracker(item: &str) -> Result<TrackerSpec> {
         } else {
             bail!(
                 "'{p}' in '{item}' is neither a scheme ({}), a shadow-ray estimator ({}) nor an option ({NO_ABSORPTION_EVENTS}, {REDUCED_TERMINATION})",
-                names::<SchemeKind>(),
-                names::<TransmittanceKind>()
+                SchemeKind::names(),
+                TransmittanceKind::names()
             );
         }
     }
@@ -265,9 +257,11 @@ pub fn run(args: ErrorArgs) -> Result<()> {
         }
     }
 
-    let (scene, width, height) = args.sampling.load_stage(&args.stage)?;
-    let settings = &scene.settings;
-    let base_seed = args.sampling.seed.unwrap_or(settings.seed);
+    // The session loads and prunes as `nimbus render` with the same flags does; each
+    // tracker below gets the majorant structure pruned for it (`Session::retrack`).
+    let mut session = Session::open(&args.stage, &args.sampling.overrides(&args.majorants))?;
+    let (width, height) = (session.width, session.height);
+    let base_seed = session.seed;
     let seeds: Vec<u64> = (0..args.seeds as u64)
         .map(|i| base_seed.wrapping_add(i))
         .collect();
@@ -291,9 +285,7 @@ pub fn run(args: ErrorArgs) -> Result<()> {
         }
         None => None,
     };
-    let spec = args.majorants.spec(settings)?;
-    let media = media_for_scene_with(&scene, spec)?;
-    if let Some(medium) = media.iter().find(|m| m.emission.is_some()) {
+    if let Some(medium) = session.media().iter().find(|m| m.emission.is_some()) {
         if let Some(t) = trackers
             .iter()
             .find(|t| t.settings.options.no_absorption_events)
@@ -305,28 +297,13 @@ pub fn run(args: ErrorArgs) -> Result<()> {
             );
         }
     }
-    let lights = Lights::from_scene(&scene)?;
-    let camera = CameraRays::new(&scene.camera, width, height);
-    let analysis = Analysis::of_media(&media, &lights, &camera, (width, height));
-    if let Some(reason) = resolve_auto(&mut trackers, &analysis) {
+    if let Some(reason) = resolve_auto(&mut trackers, &session.analysis) {
         println!("auto: {reason}");
     }
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(args.sampling.threads.unwrap_or(0))
-        .build()
-        .context("cannot start worker threads")?;
-    let job = RenderJob {
-        paths: CodePaths::default(),
-        media: &media,
-        lights: &lights,
-        camera: &camera,
-        width,
-        height,
-        spp: args.sampling.spp.unwrap_or(u32::MAX),
-        max_depth: settings.max_depth,
-        seed: base_seed,
-        tracking: TrackerSettings::default(),
-    };
+    let pool = session.pool(0)?;
+    // The reference is rendered with delta tracking; give it the octree pruned for
+    // delta, as a delta render would have it.
+    session.retrack(TrackerSettings::default());
     let reference = match reference_given {
         Some(r) => r,
         None => {
@@ -337,12 +314,17 @@ pub fn run(args: ErrorArgs) -> Result<()> {
                 spp: args.reference_spp,
                 seed: REFERENCE_SEED,
             };
-            reference::cached_or_render(&scene, &job, &r, &dir, &pool)?.0
+            let job = RenderJob {
+                spp: args.sampling.spp.unwrap_or(u32::MAX),
+                ..session.job_with(CodePaths::default())
+            };
+            reference::cached_or_render(&session.scene, &job, &r, &dir, &pool)?.0
         }
     };
 
     let runs = measure(
-        &job,
+        &mut session,
+        args.sampling.spp.unwrap_or(u32::MAX),
         &pool,
         &trackers,
         &args.budgets,
@@ -385,7 +367,8 @@ pub fn run(args: ErrorArgs) -> Result<()> {
 /// Renders every tracker at every budget with every seed. Trackers alternate innermost
 /// so a change of machine load spreads over all of them rather than hitting one.
 fn measure(
-    job: &RenderJob,
+    session: &mut Session,
+    spp_cap: u32,
     pool: &rayon::ThreadPool,
     trackers: &[TrackerSpec],
     budgets: &[f64],
@@ -398,21 +381,24 @@ fn measure(
     for &seed in seeds {
         for (b, &budget) in budgets.iter().enumerate() {
             for (t, spec) in trackers.iter().enumerate() {
+                if session.tracking != spec.settings {
+                    session.retrack(spec.settings);
+                }
                 let j = RenderJob {
-                    paths: CodePaths::default(),
                     seed,
-                    tracking: spec.settings,
-                    ..*job
+                    spp: spp_cap,
+                    ..session.job_with(CodePaths::default())
                 };
                 let limits = Budget {
-                    spp_cap: job.spp,
+                    spp_cap,
                     time_limit: Some(budget),
                     checkpoint: None,
                     clock,
                 };
-                let (film, p) = render_progressive(&j, pool, &limits, &never, &|_| {}, |_, _| {
-                    Ok::<(), anyhow::Error>(())
-                })?;
+                let (film, p) =
+                    render_progressive(&j, None, pool, &limits, &never, &|_| {}, |_, _| {
+                        Ok::<(), anyhow::Error>(())
+                    })?;
                 let (counters, _, nonfinite) = film.totals();
                 if nonfinite > 0 {
                     eprintln!(

@@ -8,15 +8,14 @@
 //! Prints the median seconds per sample of each and the ratios, and checks that the
 //! four images agree (equal decisions: differences are rounding only).
 
+use super::choice;
 use super::render::{MajorantArgs, SamplingArgs};
-use crate::render::analysis::{Analysis, CodePaths, Given};
-use crate::render::camera::CameraRays;
+use crate::render::analysis::CodePaths;
 use crate::render::film::{Aov, Film};
-use crate::render::job::{media_for_scene_with, RenderJob};
-use crate::render::lights::Lights;
 use crate::render::progressive::{Clock, Stopwatch};
-use crate::track::{SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
-use anyhow::{bail, Context, Result};
+use crate::render::session::Session;
+use crate::track::select::{SchemeKind, TrackerKind, TransmittanceKind};
+use anyhow::{bail, Result};
 use clap::Args;
 use std::path::PathBuf;
 
@@ -35,14 +34,14 @@ pub struct PathsArgs {
     #[command(flatten)]
     pub majorants: MajorantArgs,
     /// Free-path sampler instead of `auto`'s pick.
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = choice::parser::<TrackerKind>())]
     pub tracker: Option<TrackerKind>,
     /// Event probabilities for `spectral` and `spectral-decomposition` instead of
     /// `auto`'s pick.
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = choice::parser::<SchemeKind>())]
     pub scheme: Option<SchemeKind>,
     /// Shadow-ray transmittance estimator instead of `auto`'s pick.
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = choice::parser::<TransmittanceKind>())]
     pub transmittance: Option<TransmittanceKind>,
 }
 
@@ -82,44 +81,22 @@ pub fn run(args: PathsArgs) -> Result<()> {
     if args.rounds == 0 {
         bail!("--rounds must be at least 1");
     }
-    let (scene, width, height) = args.sampling.load_stage(&args.stage)?;
-    let s = &scene.settings;
-    let spp = args.sampling.spp.unwrap_or(s.samples);
-    if spp == 0 {
-        bail!("--spp must be at least 1");
-    }
-    let spec = args.majorants.spec(s)?;
-    let media = media_for_scene_with(&scene, spec)?;
-    let lights = Lights::from_scene(&scene)?;
-    let camera = CameraRays::new(&scene.camera, width, height);
-    let analysis = Analysis::of_media(&media, &lights, &camera, (width, height));
-    let (mut tracking, mut reason) = analysis.choose(TrackerSettings::default(), Given::MAJORANTS);
-    if args.tracker.is_some() || args.scheme.is_some() || args.transmittance.is_some() {
-        // Named choices replace auto's; the options auto set go with its tracker.
-        if let Some(t) = args.tracker {
-            tracking.tracker = t;
-            tracking.options = Default::default();
-        }
-        tracking.scheme = args.scheme.unwrap_or(tracking.scheme);
-        tracking.transmittance = args.transmittance.unwrap_or(tracking.transmittance);
-        reason = "named on the command line".into();
-    }
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(args.sampling.threads.unwrap_or(1))
-        .build()
-        .context("cannot start worker threads")?;
-    let job = |paths| RenderJob {
-        media: &media,
-        lights: &lights,
-        camera: &camera,
-        width,
-        height,
-        spp,
-        max_depth: s.max_depth,
-        seed: args.sampling.seed.unwrap_or(s.seed),
-        tracking,
-        paths,
-    };
+    // The session resolves the flags as `nimbus render` does (same `auto`, same
+    // majorant structure and pruning), so the four variants time what a user runs.
+    let mut overrides = args.sampling.overrides(&args.majorants);
+    overrides.threads = Some(args.sampling.threads.unwrap_or(1));
+    overrides.tracker = args.tracker.map(|t| t.name().to_string());
+    overrides.scheme = args.scheme;
+    overrides.transmittance = args.transmittance;
+    let session = Session::open(&args.stage, &overrides)?;
+    let (width, height, spp) = (session.width, session.height, session.spp);
+    let tracking = session.tracking;
+    let reason = session
+        .auto_reason
+        .clone()
+        .unwrap_or_else(|| "named on the command line".into());
+    let pool = session.pool(1)?;
+    let job = |paths| session.job_with(paths);
     println!(
         "{}: {width}x{height}, {spp} spp, {} thread(s), {} rounds; tracker: {}, scheme {}, shadow rays {} ({reason})",
         args.stage.display(),
@@ -163,16 +140,40 @@ pub fn run(args: PathsArgs) -> Result<()> {
         100.0 * (medians[2] / medians[3] - 1.0)
     );
     let reference = films[0].as_ref().expect("rendered");
-    for (i, (name, _)) in VARIANTS.iter().enumerate().skip(1) {
+    let mut disagree = Vec::new();
+    for (i, (name, paths)) in VARIANTS.iter().enumerate().skip(1) {
         let f = films[i].as_ref().expect("rendered");
+        let d = largest_difference(reference, f);
         println!(
-            "largest |difference| in R, G, B, A against \"{}\": {name} {:.3e}",
+            "largest |difference| in R, G, B, A against \"{}\": {name} {d:.3e}",
             VARIANTS[0].0,
-            largest_difference(reference, f)
+        );
+        // Counting never changes a decision: the same trackers give the same image bit
+        // for bit. The single-channel trackers make the same decisions in other
+        // floating-point order: rounding only.
+        let tolerance = if paths.specialise == VARIANTS[0].1.specialise {
+            0.0
+        } else {
+            SPECIALISED_TOLERANCE
+        };
+        if !(d <= tolerance) {
+            disagree.push(format!("{name}: {d:.3e} > {tolerance:e}"));
+        }
+    }
+    if !disagree.is_empty() {
+        bail!(
+            "the variants' images disagree with \"{}\" beyond rounding: {}",
+            VARIANTS[0].0,
+            disagree.join("; ")
         );
     }
     Ok(())
 }
+
+/// Largest pixel difference allowed between the general and the single-channel
+/// trackers (the same decisions, other rounding; `tests/specialisation.rs` checks the
+/// same bound).
+const SPECIALISED_TOLERANCE: f64 = 1e-4;
 
 fn median(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);

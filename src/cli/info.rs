@@ -235,7 +235,7 @@ fn print_analysis(scene: &crate::scene::Scene, depth: u32) {
     use crate::render::camera::CameraRays;
     use crate::render::job::media_for_scene_with;
     use crate::render::lights::Lights;
-    use crate::track::TrackerSettings;
+    use crate::track::select::TrackerSettings;
     let size = scene.settings.resolution;
     let analysed = media_for_scene_with(scene, MajorantSpec::Octree { depth }).and_then(|m| {
         let lights = Lights::from_scene(scene)?;
@@ -290,7 +290,7 @@ fn print_analysis(scene: &crate::scene::Scene, depth: u32) {
 /// `nimbus info FILE.vdb`: the file's grids (name, type, active voxels) and, for float
 /// and Vec3s grids, what loading them gives: voxel counts, value range, world bounds.
 fn vdb_info(args: &InfoArgs) -> Result<()> {
-    use crate::scene::AssetLocation;
+    use crate::volume::asset::AssetLocation;
     let loc = AssetLocation::File(args.stage.clone());
     let grids = vdb::list_grids(&loc)?;
     println!("vdb: {} ({} grids)", args.stage.display(), grids.len());

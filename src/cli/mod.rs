@@ -5,6 +5,7 @@ mod bench;
 // keep merges with parallel branches conflict-free.
 mod bench_error;
 mod bench_paths;
+mod choice;
 mod error_plot;
 mod info;
 mod reference;

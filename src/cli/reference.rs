@@ -8,8 +8,9 @@ use crate::render::analysis::CodePaths;
 use crate::render::film::{Aov, Film};
 use crate::render::job::RenderJob;
 use crate::render::progressive::{render_progressive, Budget, Clock};
-use crate::scene::{AssetLocation, Scene};
-use crate::track::TrackerSettings;
+use crate::scene::Scene;
+use crate::track::select::TrackerSettings;
+use crate::volume::asset::AssetLocation;
 use anyhow::{bail, Context, Result};
 use std::hash::Hasher;
 use std::path::{Path, PathBuf};
@@ -170,13 +171,21 @@ pub fn cached_or_render(
         checkpoint: None,
     };
     let never = AtomicBool::new(false);
-    let (film, p) = render_progressive(&reference_job, pool, &budget, &never, &|_| {}, |_, p| {
-        eprintln!(
-            "nimbus: reference: {}/{} spp, {:.1} s",
-            p.spp, r.spp, p.seconds
-        );
-        Ok::<(), anyhow::Error>(())
-    })?;
+    let (film, p) = render_progressive(
+        &reference_job,
+        None,
+        pool,
+        &budget,
+        &never,
+        &|_| {},
+        |_, p| {
+            eprintln!(
+                "nimbus: reference: {}/{} spp, {:.1} s",
+                p.spp, r.spp, p.seconds
+            );
+            Ok::<(), anyhow::Error>(())
+        },
+    )?;
     let (_, _, nonfinite) = film.totals();
     if nonfinite > 0 {
         bail!("the reference has {nonfinite} NaN or infinite samples; it was not cached");

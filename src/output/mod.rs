@@ -3,6 +3,8 @@
 //! render never leaves a partial file or clobbers an existing one.
 
 pub mod exr;
+pub mod preview;
+pub mod products;
 pub mod stats;
 
 use std::io::Write;

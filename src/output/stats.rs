@@ -80,3 +80,84 @@ pub struct CodePathsUsed {
     /// Grey medium tracked single-channel (`track::grey`).
     pub single_channel: bool,
 }
+
+impl RenderStats {
+    /// The stats of `session` after the samples in `film` (`p` says how they went).
+    pub fn new(
+        session: &crate::render::session::Session,
+        film: &crate::render::film::Film,
+        p: &crate::render::progressive::Progress,
+        run: &super::products::RunFacts,
+    ) -> RenderStats {
+        use crate::volume::majorant::MajorantSpec;
+        let (totals, _samples, nonfinite) = film.totals();
+        let samples = film.width as f64 * film.height as f64 * p.spp as f64;
+        let media = session.media();
+        let t = &session.tracking;
+        let calibration = t.profile.then(crate::volume::ticks::Calibration::measure);
+        let times = calibration.map(|c| c.split(&totals));
+        let job = session.job(run.counting);
+        RenderStats {
+            stage: session.stage_path.display().to_string(),
+            samples_per_pixel: p.spp,
+            passes: p.passes,
+            max_pass_seconds: p.max_pass_seconds,
+            spp_cap: (session.spp != u32::MAX).then_some(session.spp),
+            time_limit_seconds: session.time_limit,
+            interrupted: p.interrupted,
+            width: film.width,
+            height: film.height,
+            wall_seconds: run.wall_seconds,
+            load_seconds: session.load_seconds,
+            render_seconds: p.seconds,
+            threads: run.threads,
+            seed: session.seed,
+            tracker: t.tracker.name().into(),
+            scheme: t.scheme.name().into(),
+            transmittance: t.transmittance.name().into(),
+            residual_lookups: totals.residual_lookups,
+            control_collisions: totals.control_collisions,
+            max_throughput_mean: totals.max_throughput / samples,
+            max_throughput_peak: totals.peak_throughput,
+            density_lookups: totals.density_lookups,
+            emission_lookups: totals.emission_lookups,
+            albedo_lookups: totals.albedo_lookups,
+            clamped_albedo_values: media
+                .iter()
+                .map(|m| m.albedo.as_ref().map_or(0, |a| a.clamped_values))
+                .sum(),
+            real_collisions: totals.real_collisions,
+            null_collisions: totals.null_collisions,
+            cells_visited: totals.cells_visited,
+            majorant_violations: totals.majorant_violations,
+            nonfinite_samples: nonfinite,
+            sanitized_voxels: media.iter().map(|m| m.density.sanitized_voxels).sum(),
+            majorant_cells: media.iter().map(|m| m.majorants.cell_count()).sum(),
+            octree_depth: match session.spec {
+                MajorantSpec::Octree { depth } => Some(depth),
+                MajorantSpec::Uniform { .. } => None,
+            },
+            octree_levels: media
+                .iter()
+                .map(|m| m.majorants.levels())
+                .max()
+                .unwrap_or(0),
+            octree_build_seconds: media.iter().map(|m| m.majorants.build_seconds()).sum(),
+            octree_memory_bytes: media.iter().map(|m| m.majorants.memory_bytes()).sum(),
+            vdb_reader: crate::volume::vdb::active_reader().name().into(),
+            lookup_seconds: times.map(|t| t.lookup_seconds),
+            traversal_seconds: times.map(|t| t.traversal_seconds),
+            other_tracker_seconds: times.map(|t| t.other_tracker_seconds),
+            timer_empty_region_ns: calibration
+                .map(|c| c.empty_region_ticks / c.ticks_per_second * 1e9),
+            no_absorption_events: t.options.no_absorption_events,
+            reduced_termination: t.options.reduced_termination,
+            tracker_auto_reason: session.auto_reason.clone(),
+            analysis: session.analysis.clone(),
+            code_paths: CodePathsUsed {
+                counting: job.paths.count,
+                single_channel: job.single_channel(),
+            },
+        }
+    }
+}

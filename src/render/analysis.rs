@@ -5,7 +5,7 @@
 
 use crate::render::camera::CameraRays;
 use crate::render::lights::Lights;
-use crate::track::{SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
+use crate::track::select::{SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
 use crate::volume::majorant::MajorantSpec;
 use crate::volume::medium::Medium;
 use serde::Serialize;

@@ -2,7 +2,7 @@
 //! from them.
 
 use crate::render::sampler::{pixel_sampler, Sampler};
-use crate::volume::medium::Counters;
+use crate::volume::counters::Counters;
 
 /// Everything accumulated for one pixel over its samples.
 #[derive(Clone, Copy, Debug, Default)]
@@ -138,9 +138,50 @@ impl Aov {
     }
 }
 
+/// A rectangle of pixels of the full image, `x0..x1` × `y0..y1` (y down): the data
+/// window of a tile.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Region {
+    pub x0: u32,
+    pub y0: u32,
+    pub x1: u32,
+    pub y1: u32,
+}
+
+impl Region {
+    /// The whole of a `width` × `height` image.
+    pub fn full(width: u32, height: u32) -> Region {
+        Region {
+            x0: 0,
+            y0: 0,
+            x1: width,
+            y1: height,
+        }
+    }
+
+    pub fn width(&self) -> u32 {
+        self.x1 - self.x0
+    }
+
+    pub fn height(&self) -> u32 {
+        self.y1 - self.y0
+    }
+
+    /// Whether the region is non-empty and lies inside a `width` × `height` image.
+    pub fn fits(&self, width: u32, height: u32) -> bool {
+        self.x0 < self.x1 && self.y0 < self.y1 && self.x1 <= width && self.y1 <= height
+    }
+}
+
+/// The accumulated pixels of a render: the whole image or a region of it.
 pub struct Film {
+    /// Width and height of the pixels held (the region's).
     pub width: u32,
     pub height: u32,
+    /// Where these pixels lie in the full image (the full image for a whole frame).
+    pub region: Region,
+    /// The full image's width and height.
+    pub full: (u32, u32),
     /// Row-major, y down.
     pub pixels: Vec<Pixel>,
     /// Each pixel's random stream, carried from one pass to the next so a render of N
@@ -152,12 +193,25 @@ pub struct Film {
 impl Film {
     /// An empty film whose pixel streams start where a render with `seed` starts.
     pub fn new(width: u32, height: u32, seed: u64) -> Film {
-        let n = width as usize * height as usize;
+        Film::of_region(width, height, Region::full(width, height), seed)
+    }
+
+    /// An empty film of `region` of a `width` × `height` image. Each pixel's stream is
+    /// seeded from its index in the full image, so a region renders exactly the pixels
+    /// a whole-frame render gives it, bit for bit.
+    pub fn of_region(width: u32, height: u32, region: Region, seed: u64) -> Film {
+        let n = region.width() as usize * region.height() as usize;
+        let samplers = (region.y0..region.y1)
+            .flat_map(|y| (region.x0..region.x1).map(move |x| y as u64 * width as u64 + x as u64))
+            .map(|i| pixel_sampler(seed, i))
+            .collect();
         Film {
-            width,
-            height,
+            width: region.width(),
+            height: region.height(),
+            region,
+            full: (width, height),
             pixels: vec![Pixel::default(); n],
-            samplers: (0..n as u64).map(|i| pixel_sampler(seed, i)).collect(),
+            samplers,
         }
     }
 

@@ -4,15 +4,17 @@
 //! transmittance, MIS between environment NEE and phase sampling, and volume emission
 //! collected at absorption events; an albedo grid weights each scatter event by c(x).
 
+use crate::color::Spectrum;
 use crate::render::camera::CameraRays;
 use crate::render::film::{Film, Pixel};
 use crate::render::lights::LightSample;
 use crate::render::lights::Lights;
 use crate::render::phase::{hg, sample_hg};
 use crate::render::sampler::{pixel_sampler, Sampler};
+use crate::track::free_path::{FreePath, FreePathSampler, Query, TransmittanceEstimator};
 use crate::track::race::MAX_MEDIA;
-use crate::track::{self, FreePath, FreePathSampler, Query, Spectrum, TransmittanceEstimator};
-use crate::volume::medium::{Counters, IndexRay, Medium, NoCounts, Sigma, Tally};
+use crate::volume::counters::{Counters, NoCounts, Tally};
+use crate::volume::medium::{IndexRay, Medium, Sigma};
 use glam::DVec3;
 use rand::Rng;
 use rayon::prelude::*;
@@ -60,18 +62,20 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         film
     }
 
-    /// Adds `n` samples to every pixel of `film` (a film from [`Film::new`] with this
-    /// integrator's size and seed), continuing each pixel's random stream.
+    /// Adds `n` samples to every pixel of `film` (a film from [`Film::new`] or
+    /// [`Film::of_region`] with this integrator's size and seed), continuing each
+    /// pixel's random stream.
     pub fn render_pass(&self, film: &mut Film, n: u32, progress: &(dyn Fn() + Sync)) {
-        let w = self.width as usize;
-        assert_eq!(film.pixels.len(), w * self.height as usize, "film size");
+        assert_eq!(film.full, (self.width, self.height), "film size");
+        let (region, w) = (film.region, film.width as usize);
         film.pixels
             .par_chunks_mut(w)
             .zip(film.samplers.par_chunks_mut(w))
             .enumerate()
             .for_each(|(y, (row, rngs))| {
+                let y = region.y0 + y as u32;
                 for (x, (px, rng)) in row.iter_mut().zip(rngs).enumerate() {
-                    self.add_samples(px, rng, x as u32, y as u32, n);
+                    self.add_samples(px, rng, region.x0 + x as u32, y, n);
                 }
                 progress();
             });
@@ -177,7 +181,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             match event {
                 FreePath::Escape => {
                     if depth == 0 {
-                        alpha = 1.0 - track::avg(throughput) as f64;
+                        alpha = 1.0 - crate::track::free_path::avg(throughput) as f64;
                         if self.lights.has_environment() {
                             let le = self.lights.environment_radiance(dir);
                             self.add(&mut radiance, throughput, le, 1.0);
@@ -228,7 +232,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                     }
                     if depth >= RR_DEPTH {
                         // Weighted trackers make throughputs signed: survive by magnitude.
-                        let q = track::max3(throughput.map(f32::abs)).min(1.0);
+                        let q = crate::track::free_path::max3(throughput.map(f32::abs)).min(1.0);
                         if !(rng.gen::<f32>() < q) {
                             break;
                         }

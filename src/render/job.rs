@@ -3,15 +3,14 @@
 
 use crate::render::analysis::CodePaths;
 use crate::render::camera::CameraRays;
-use crate::render::film::Film;
+use crate::render::film::{Film, Region};
 use crate::render::integrator::Integrator;
 use crate::render::lights::Lights;
 use crate::scene::schema::tokens;
 use crate::scene::{Field, Scene, Volume};
+use crate::track::free_path::{FreePathSampler, TransmittanceEstimator};
 use crate::track::race::MAX_MEDIA;
-use crate::track::{
-    self, Dispatch, FreePathSampler, TrackerKind, TrackerSettings, TransmittanceEstimator,
-};
+use crate::track::select::{Dispatch, TrackerKind, TrackerSettings};
 use crate::volume::albedo::AlbedoGrid;
 use crate::volume::emission::{Emission, EmissionGrid};
 use crate::volume::grid::Grid;
@@ -39,7 +38,7 @@ impl RenderJob<'_> {
     /// Renders `spp` samples per pixel in one pass on the current rayon pool; `progress`
     /// is called once per finished row.
     pub fn render(&self, progress: &(dyn Fn() + Sync)) -> Film {
-        let mut film = self.new_film();
+        let mut film = self.new_film(None);
         self.render_pass(&mut film, self.spp, progress);
         film
     }
@@ -52,12 +51,14 @@ impl RenderJob<'_> {
 
     /// Whether the render runs the single-channel trackers of grey media.
     pub fn single_channel(&self) -> bool {
-        track::single_channel(&self.tracking, self.grey())
+        crate::track::select::single_channel(&self.tracking, self.grey())
     }
 
-    /// An empty film for this job (its size, pixel streams seeded from its seed).
-    pub fn new_film(&self) -> Film {
-        Film::new(self.width, self.height, self.seed)
+    /// An empty film for this job (its size, pixel streams seeded from its seed), of
+    /// the whole frame or of `region` of it.
+    pub fn new_film(&self, region: Option<Region>) -> Film {
+        let region = region.unwrap_or(Region::full(self.width, self.height));
+        Film::of_region(self.width, self.height, region, self.seed)
     }
 
     /// Adds `n` samples per pixel to `film` (progressive rendering: any split of N
@@ -95,7 +96,7 @@ impl RenderJob<'_> {
                 .render_pass(self.film, self.n, self.progress)
             }
         }
-        track::dispatch_specialised(
+        crate::track::select::dispatch_specialised(
             &self.tracking,
             self.grey(),
             Pass {

@@ -10,3 +10,4 @@ pub mod lights;
 pub mod phase;
 pub mod progressive;
 pub mod sampler;
+pub mod session;

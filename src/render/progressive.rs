@@ -2,8 +2,9 @@
 //! reached or a stop is requested, with checkpoints in between. Each pixel's random
 //! stream lives in the film, so the pass structure does not change the image.
 
-use crate::render::film::Film;
+use crate::render::film::{Film, Region};
 use crate::render::job::RenderJob;
+use crate::track::select::Choice;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
@@ -21,7 +22,7 @@ pub struct Budget {
 }
 
 /// The clock budgets and progress are measured on.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Clock {
     /// Wall-clock time (what a user waits).
     #[default]
@@ -29,6 +30,31 @@ pub enum Clock {
     /// CPU time of this process, all threads summed: on a shared machine other
     /// programs do not inflate it, so equal-time comparisons stay fair under load.
     Cpu,
+}
+
+impl Choice for Clock {
+    const ALL: &'static [Self] = &[Clock::Wall, Clock::Cpu];
+
+    fn name(self) -> &'static str {
+        Clock::name(self)
+    }
+
+    fn help(self) -> &'static str {
+        match self {
+            Clock::Wall => "Wall-clock time (what a user waits)",
+            Clock::Cpu => "CPU time of this process, all threads summed (fair under load)",
+        }
+    }
+}
+
+impl Clock {
+    /// The option's name (a CLI value, a schema token, a stats string).
+    pub fn name(self) -> &'static str {
+        match self {
+            Clock::Wall => "wall",
+            Clock::Cpu => "cpu",
+        }
+    }
 }
 
 /// A running stopwatch on a [`Clock`].
@@ -72,12 +98,13 @@ pub fn process_cpu_seconds() -> f64 {
     ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
 }
 
-/// Renders `job` in passes on `pool` until `budget` is spent or `stop` is set (checked
+/// Renders `job` (the whole frame, or `region` of it) in passes on `pool` until `budget` is spent or `stop` is set (checked
 /// between passes: a pass always finishes). `on_samples(n)` is called per finished row
 /// with the pass size; `after_pass` after every pass, with `checkpoint_due` set when a
 /// checkpoint should be written; its error ends the render.
 pub fn render_progressive<E>(
     job: &RenderJob,
+    region: Option<Region>,
     pool: &rayon::ThreadPool,
     budget: &Budget,
     stop: &AtomicBool,
@@ -85,7 +112,7 @@ pub fn render_progressive<E>(
     mut after_pass: impl FnMut(&Film, &Progress) -> Result<(), E>,
 ) -> Result<(Film, Progress), E> {
     let start = Stopwatch::start(budget.clock);
-    let mut film = job.new_film();
+    let mut film = job.new_film(region);
     let mut p = Progress::default();
     let mut schedule = PassSchedule::new(budget.spp_cap, budget.time_limit, budget.checkpoint);
     let mut last_checkpoint = 0.0;

@@ -5,10 +5,11 @@
 //! its UsdLux schema fallback when unauthored (the registry knows UsdLux), so the
 //! `unwrap_or` values below only matter for stages the registry cannot type.
 
-use super::stage::{
+use super::attrs::{
     authored, prim_error, read_asset, read_f64, read_string, read_value, read_vec3, wrong_type,
+    SceneError,
 };
-use super::{DistantLight, DomeLight, RectLight, SceneError, SphereLight};
+use super::description::{DistantLight, DomeLight, RectLight, SphereLight};
 use glam::{DMat4, DVec3};
 use openusd::sdf::Value;
 use openusd::usd::{Prim, TimeCode};

@@ -55,6 +55,7 @@ pub mod tokens {
     pub const TRANSMITTANCE: &str = "nimbus:transmittance";
     pub const CONTROL: &str = "nimbus:control";
     pub const OCTREE_DEPTH: &str = "nimbus:octreeDepth";
+    pub const PREVIEW_NAME: &str = "nimbus:previewName";
 }
 
 /// Why the embedded schema could not be registered. This is a build defect (the

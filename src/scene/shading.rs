@@ -14,7 +14,7 @@
 //! the material's own interface inputs) are read: an input driven by another shader
 //! is refused with an error naming it, not silently replaced by a default.
 
-use super::stage::{prim_error, read_string, read_value, SceneError};
+use super::attrs::{prim_error, read_string, read_value, SceneError};
 use openusd::sdf::{self, Value};
 use openusd::usd::{Prim, Stage, TimeCode};
 

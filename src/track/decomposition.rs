@@ -17,9 +17,10 @@
 
 use super::race::race;
 use super::scheme::{collide, Coefficients, Scheme, SchemeOptions};
-use super::{FreePath, FreePathSampler, OpticalDepth, Query, Spectrum};
+use crate::color::Spectrum;
+use crate::track::free_path::{FreePath, FreePathSampler, OpticalDepth, Query};
+use crate::volume::counters::Tally;
 use crate::volume::majorant::Segment;
-use crate::volume::medium::Tally;
 use rand::Rng;
 use std::marker::PhantomData;
 use std::ops::ControlFlow;

@@ -13,8 +13,9 @@
 //! estimator that stays unbiased there.
 
 use super::race::race_collisions;
-use super::{walk_collisions, FreePath, FreePathSampler, Query, Spectrum};
-use crate::volume::medium::Tally;
+use crate::color::Spectrum;
+use crate::track::free_path::{walk_collisions, FreePath, FreePathSampler, Query};
+use crate::volume::counters::Tally;
 use rand::Rng;
 use std::ops::ControlFlow;
 
@@ -30,8 +31,8 @@ impl FreePathSampler for Delta {
         rng: &mut R,
         c: &mut C,
     ) -> FreePath {
-        let avg_a = super::avg(q.sigma.a);
-        let avg_s = super::avg(q.sigma.s);
+        let avg_a = crate::track::free_path::avg(q.sigma.a);
+        let avg_s = crate::track::free_path::avg(q.sigma.s);
         walk_collisions(q, rng, c, |t, mu_bar, rng, c| {
             decide(q, t, mu_bar, avg_a, avg_s, throughput, rng, c)
         })
@@ -46,7 +47,10 @@ impl FreePathSampler for Delta {
         c: &mut C,
     ) -> (FreePath, usize) {
         race_collisions(qs, rng, c, |q, t, mu_bar, rng, c| {
-            let (avg_a, avg_s) = (super::avg(q.sigma.a), super::avg(q.sigma.s));
+            let (avg_a, avg_s) = (
+                crate::track::free_path::avg(q.sigma.a),
+                crate::track::free_path::avg(q.sigma.s),
+            );
             decide(q, t, mu_bar, avg_a, avg_s, throughput, rng, c)
         })
         .unwrap_or((FreePath::Escape, 0))

@@ -17,11 +17,12 @@ use super::delta::{collide, Collision};
 use super::race::race_collisions;
 use super::ratio::{ratio, residual_ratio, Estimate};
 use super::scheme::pick;
-use super::{
-    avg, walk_collisions, FreePath, FreePathSampler, Query, Spectrum, TransmittanceEstimator,
+use crate::color::Spectrum;
+use crate::track::free_path::{
+    avg, walk_collisions, FreePath, FreePathSampler, Query, TransmittanceEstimator,
 };
+use crate::volume::counters::Tally;
 use crate::volume::majorant::Segment;
-use crate::volume::medium::Tally;
 use rand::Rng;
 use std::ops::ControlFlow;
 

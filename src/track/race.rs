@@ -17,9 +17,9 @@
 //!
 //! The lanes live on the stack (at most [`MAX_MEDIA`]): the hot path allocates nothing.
 
-use super::{majorant, OpticalDepth, Query};
+use crate::track::free_path::{majorant, OpticalDepth, Query};
+use crate::volume::counters::Tally;
 use crate::volume::majorant::{Segment, TreeWalk};
-use crate::volume::medium::Tally;
 use rand::Rng;
 use std::ops::ControlFlow;
 

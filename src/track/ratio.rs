@@ -11,8 +11,10 @@
 //! channel magnitude drops below [`RR_THRESHOLD`], the estimate survives with
 //! probability [`RR_SURVIVAL`] and is divided by it, which keeps it unbiased.
 
-use super::{walk_collisions, OpticalDepth, Query, Spectrum, TransmittanceEstimator};
-use crate::volume::medium::Tally;
+use crate::track::free_path::{walk_collisions, OpticalDepth, Query, TransmittanceEstimator};
+
+use crate::color::Spectrum;
+use crate::volume::counters::Tally;
 use rand::Rng;
 use std::ops::ControlFlow;
 

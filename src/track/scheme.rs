@@ -5,8 +5,11 @@
 //! Schemes are zero-sized types so each tracker is monomorphised per scheme: no dynamic
 //! dispatch per collision.
 
-use super::{mul, FreePath, Spectrum};
-use crate::volume::medium::{Sigma, Tally};
+use crate::track::free_path::{mul, FreePath};
+
+use crate::color::Spectrum;
+use crate::volume::counters::Tally;
+use crate::volume::medium::Sigma;
 
 /// Which event a collision turned into.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -7,8 +7,9 @@
 
 use super::race::race_collisions;
 use super::scheme::{collide, Coefficients, Scheme, SchemeOptions};
-use super::{walk_collisions, FreePath, FreePathSampler, Query, Spectrum};
-use crate::volume::medium::Tally;
+use crate::color::Spectrum;
+use crate::track::free_path::{walk_collisions, FreePath, FreePathSampler, Query};
+use crate::volume::counters::Tally;
 use rand::Rng;
 use std::marker::PhantomData;
 use std::ops::ControlFlow;

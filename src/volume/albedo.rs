@@ -21,8 +21,9 @@
 //! Values outside [0,1] and non-finite values are clamped into [0,1] (NaN → 0) when the
 //! grid is built; [`AlbedoGrid::clamped_values`] counts them (one count per component).
 
+use crate::volume::counters::Tally;
+use crate::volume::grid::{world_to_index, MediumError};
 use crate::volume::grid::{Grid, RawGrid};
-use crate::volume::medium::{world_to_index, MediumError, Tally};
 use glam::{DMat4, DVec3};
 
 /// An albedo multiplier grid: one float grid per channel (r, g, b) with one world → index

@@ -16,9 +16,10 @@
 //! (grids of one file may have different transforms), and only at absorption events:
 //! the free-path loops never touch emission.
 
-use crate::render::lights::usd_blackbody_rgb;
+use crate::color::usd_blackbody_rgb;
+use crate::volume::counters::Tally;
 use crate::volume::grid::Grid;
-use crate::volume::medium::{world_to_index, MediumError, Tally};
+use crate::volume::grid::{world_to_index, MediumError};
 use glam::{DMat4, DVec3};
 
 /// An emission grid with its world → index transform.

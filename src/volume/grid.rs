@@ -424,6 +424,34 @@ pub fn floor_i32(x: f32) -> i32 {
     i - (x < i as f32) as i32
 }
 
+#[derive(Debug, thiserror::Error)]
+pub enum MediumError {
+    #[error("volume {prim}: {message}")]
+    Invalid { prim: String, message: String },
+}
+
+/// The world → index transform of `grid` under a volume's `volume_to_world`: the
+/// inverse of volume_to_world · index_to_world. A singular product is an error naming
+/// the prim (and `what`, a prefix such as "nimbus:emissionField `flames`: ").
+pub fn world_to_index(
+    prim: &str,
+    what: &str,
+    volume_to_world: DMat4,
+    grid: &Grid,
+) -> Result<DMat4, MediumError> {
+    let index_to_world = volume_to_world * grid.index_to_world;
+    let det = index_to_world.determinant();
+    if !det.is_finite() || det.abs() < 1e-300 {
+        return Err(MediumError::Invalid {
+            prim: prim.to_string(),
+            message: format!(
+                "{what}the volume's transform times the grid's index-to-world transform is singular (determinant {det:e}); cannot map rays into the grid"
+            ),
+        });
+    }
+    Ok(index_to_world.inverse())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -2,6 +2,8 @@
 //! and the majorant structure the trackers walk.
 
 pub mod albedo;
+pub mod asset;
+pub mod counters;
 pub mod emission;
 pub mod grid;
 pub mod majorant;

@@ -81,20 +81,3 @@ pub struct TrackerTimes {
     /// Tracker queries minus their lookups and traversal: sampling, weights, events.
     pub other_tracker_seconds: f64,
 }
-
-impl Calibration {
-    /// Splits the timed counters of a render (`c.timing` set) into seconds. The tracker
-    /// regions contain the lookup and traversal regions, so those are taken out of them
-    /// together with the bias of the nested clock reads.
-    pub fn split(&self, c: &crate::volume::medium::Counters) -> TrackerTimes {
-        let lookup = self.seconds(c.lookup_ticks, c.density_lookups);
-        let traversal = self.seconds(c.traversal_ticks, c.walk_steps);
-        let nested = c.density_lookups + c.walk_steps;
-        let tracker = self.seconds(c.tracker_ticks, c.tracker_calls + nested);
-        TrackerTimes {
-            lookup_seconds: lookup,
-            traversal_seconds: traversal,
-            other_tracker_seconds: (tracker - lookup - traversal).max(0.0),
-        }
-    }
-}

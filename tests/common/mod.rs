@@ -9,12 +9,13 @@ use nimbus::render::integrator::Integrator;
 use nimbus::render::lights::Lights;
 use nimbus::render::sampler::pixel_sampler;
 use nimbus::scene::Camera;
-use nimbus::track::{
-    self, Dispatch, FreePathSampler, SchemeKind, TrackerKind, TrackerSettings,
-    TransmittanceEstimator, TransmittanceKind,
+use nimbus::track::free_path::{FreePathSampler, TransmittanceEstimator};
+use nimbus::track::select::{
+    Dispatch, SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind,
 };
+use nimbus::volume::counters::Counters;
 use nimbus::volume::grid::Grid;
-use nimbus::volume::medium::{Counters, Medium};
+use nimbus::volume::medium::Medium;
 use nimbus::volume::procedural::grid_from_fn;
 
 /// Mean and standard error of samples.
@@ -44,16 +45,16 @@ pub fn optical_depth(f: &dyn Fn(f64) -> f64, a: f64, b: f64) -> f64 {
 /// Every tracker setting a render can select: each tracker, with each scheme where the
 /// scheme matters, with both shadow-ray estimators.
 pub fn all_settings(majorant_scale: f32) -> Vec<TrackerSettings> {
-    use clap::ValueEnum;
+    use nimbus::track::select::Choice;
     let mut out = Vec::new();
-    for &tracker in TrackerKind::value_variants() {
+    for &tracker in TrackerKind::ALL {
         let schemes: &[SchemeKind] = if tracker.uses_scheme() {
-            SchemeKind::value_variants()
+            SchemeKind::ALL
         } else {
             &[SchemeKind::HistAvg]
         };
         for &scheme in schemes {
-            for &transmittance in TransmittanceKind::value_variants() {
+            for &transmittance in TransmittanceKind::ALL {
                 out.push(TrackerSettings {
                     tracker,
                     scheme,
@@ -184,7 +185,7 @@ impl Dispatch<Output> for Run<'_, '_> {
 }
 
 pub fn render(setup: &Setup, settings: &TrackerSettings) -> Film {
-    match track::dispatch(
+    match nimbus::track::select::dispatch(
         settings,
         Run {
             setup,
@@ -205,7 +206,7 @@ pub fn paths(
     fy: f64,
     n: usize,
 ) -> Vec<([f64; 3], Counters)> {
-    match track::dispatch(
+    match nimbus::track::select::dispatch(
         settings,
         Run {
             setup,

@@ -11,7 +11,7 @@
 //! three floats per value, from three float grids of one topology ([`WriteGrid::Vec3s`]);
 //! only OpenVDB reads them back (vdb-rs does not read Vec3s trees).
 
-use super::VdbError;
+use super::error::VdbError;
 use crate::volume::grid::{RawGrid, BRICK_VOXELS};
 use glam::{DMat4, DVec3};
 use std::collections::BTreeMap;

@@ -1,0 +1,314 @@
+//! The files a render writes: one EXR per RenderProduct (or the `-o` image of a stage
+//! without products) with its RenderVars' channels, the stats JSON and the preview
+//! PNGs; their names for a frame of a sequence; and writing them all for the samples
+//! done so far (after the last pass, and at every checkpoint).
+
+use super::exr::{write_exr, ExrMetadata};
+use super::preview::write_preview;
+use super::stats::RenderStats;
+use super::{check_writable, write_atomically, OutputError};
+use crate::render::film::{Aov, Film};
+use crate::render::progressive::Progress;
+use crate::render::session::Session;
+use crate::scene::{RenderSettings, RenderVar};
+use anyhow::{bail, Context, Result};
+use std::path::{Path, PathBuf};
+
+/// One EXR to write: a RenderProduct (or the `-o` image of a stage without one) and
+/// its channels.
+#[derive(Clone, Debug)]
+pub struct ProductOutput {
+    pub path: PathBuf,
+    /// The RenderProduct prim, `None` for the `-o` image of a stage without products.
+    pub prim_path: Option<String>,
+    pub aovs: Vec<Aov>,
+    /// The product's preview PNG (`nimbus:previewName`, or `--preview` for the first).
+    pub preview: Option<PathBuf>,
+}
+
+/// Everything a render writes.
+#[derive(Clone, Debug)]
+pub struct Outputs {
+    pub products: Vec<ProductOutput>,
+    pub stats: Option<PathBuf>,
+}
+
+/// What the caller asks to write beyond the stage's products.
+#[derive(Clone, Debug, Default)]
+pub struct OutputRequest {
+    /// Replaces the first product's path; needed when the stage has no product.
+    pub output: Option<PathBuf>,
+    /// Extra AOVs for the first product.
+    pub aovs: Vec<Aov>,
+    pub stats: Option<PathBuf>,
+    /// A preview PNG of the first product.
+    pub preview: Option<PathBuf>,
+}
+
+impl Outputs {
+    /// The files a render of `settings` writes, named for `frame` when it is a frame
+    /// of a sequence (`sequence`), else for a whole single frame only where a name asks
+    /// for it with `#`; checked to be distinct and writable before anything renders.
+    pub fn resolve(
+        stage: &Path,
+        settings: &RenderSettings,
+        request: &OutputRequest,
+        frame: Option<f64>,
+        sequence: bool,
+    ) -> Result<Outputs> {
+        let single = frame.filter(|t| t.fract() == 0.0 && t.abs() < 1e15);
+        let name = |p: &PathBuf| match (sequence, single) {
+            (true, Some(f)) => frame_path(p, f as i64),
+            (false, Some(t)) if p.to_string_lossy().contains('#') => frame_path(p, t as i64),
+            _ => p.clone(),
+        };
+        let stats = request.stats.as_ref().map(name);
+        if let Some(s) = &stats {
+            check_writable(s)?;
+        }
+        let products: Vec<ProductOutput> = product_outputs(request, settings)
+            .with_context(|| format!("{}", stage.display()))?
+            .into_iter()
+            .map(|o| ProductOutput {
+                path: name(&o.path),
+                preview: o.preview.as_ref().map(name),
+                ..o
+            })
+            .collect();
+        let outputs = Outputs { products, stats };
+        outputs.check_distinct()?;
+        for o in &outputs.products {
+            check_writable(&o.path)?;
+            if let Some(p) = &o.preview {
+                check_writable(p)?;
+            }
+        }
+        Ok(outputs)
+    }
+
+    /// Whether anything written reads the per-pixel counters (then counting runs).
+    pub fn need_counts(&self) -> bool {
+        self.stats.is_some()
+            || self
+                .products
+                .iter()
+                .any(|o| o.aovs.iter().any(|a| a.uses_counters()))
+    }
+
+    /// Writes every EXR, preview and the stats for the samples in `film` so far.
+    pub fn write(
+        &self,
+        session: &Session,
+        film: &Film,
+        run: &RunFacts,
+        p: &Progress,
+    ) -> Result<()> {
+        let t = &session.tracking;
+        for o in &self.products {
+            write_exr(
+                &o.path,
+                film,
+                &o.aovs,
+                &ExrMetadata {
+                    stage: session.stage_path.display().to_string(),
+                    tracker: t.tracker.name().into(),
+                    scheme: t.scheme.name().into(),
+                    transmittance: t.transmittance.name().into(),
+                    spp: p.spp,
+                    render_seconds: p.seconds,
+                    time: session.frame.unwrap_or(f64::NAN),
+                    product: o.prim_path.clone(),
+                },
+            )?;
+            if let Some(preview) = &o.preview {
+                write_preview(preview, film)?;
+            }
+        }
+        if let Some(path) = &self.stats {
+            let stats = RenderStats::new(session, film, p, run);
+            write_json(path, &stats)?;
+        }
+        Ok(())
+    }
+
+    /// The paths written, for messages.
+    pub fn list(&self) -> String {
+        self.products
+            .iter()
+            .flat_map(|o| std::iter::once(&o.path).chain(o.preview.as_ref()))
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+
+    /// Two products writing one file would overwrite each other.
+    fn check_distinct(&self) -> Result<()> {
+        let o = &self.products;
+        for (i, a) in o.iter().enumerate() {
+            if let Some(b) = o[..i].iter().find(|b| b.path == a.path) {
+                bail!(
+                    "{} and {} both write {}",
+                    b.prim_path.as_deref().unwrap_or("-o"),
+                    a.prim_path.as_deref().unwrap_or("-o"),
+                    a.path.display()
+                );
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Facts of the run the stats report that the session and the film do not hold.
+#[derive(Clone, Copy, Debug)]
+pub struct RunFacts {
+    /// Seconds since the render was asked for (loading included).
+    pub wall_seconds: f64,
+    pub threads: usize,
+    /// Whether counting ran (the counters are zero otherwise).
+    pub counting: bool,
+}
+
+/// Writes `value` as pretty JSON, atomically.
+pub fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<(), OutputError> {
+    let json = serde_json::to_string_pretty(value).map_err(|e| OutputError::Write {
+        path: path.display().to_string(),
+        message: e.to_string(),
+    })?;
+    write_atomically(path, |f| {
+        use std::io::Write;
+        f.write_all(json.as_bytes()).map_err(|e| e.to_string())
+    })
+}
+
+/// The AOVs `names` name (`--aovs`), without repeats.
+pub fn requested_aovs(names: &[String]) -> Result<Vec<Aov>> {
+    let mut aovs = Vec::new();
+    for n in names.iter().map(|n| n.trim()).filter(|n| !n.is_empty()) {
+        let Some(a) = Aov::from_name(n) else {
+            let known: Vec<_> = Aov::ALL.iter().map(|a| a.channel_name()).collect();
+            bail!("unknown AOV '{n}'; known AOVs: {}", known.join(", "));
+        };
+        if !aovs.contains(&a) {
+            aovs.push(a);
+        }
+    }
+    Ok(aovs)
+}
+
+/// The EXRs to write. Without RenderProducts: `-o` with R, G, B, A, lookups and the
+/// extra AOVs. With them: one EXR per product at its `productName` (relative names are
+/// relative to the working directory, as for `-o`), `-o` replacing the first product's;
+/// each holds R, G, B, A and the channels of its own RenderVars, and the first also the
+/// extra AOVs and the requested preview.
+fn product_outputs(
+    request: &OutputRequest,
+    settings: &RenderSettings,
+) -> Result<Vec<ProductOutput>> {
+    let output = request.output.as_deref();
+    if settings.products.is_empty() {
+        let Some(path) = output else {
+            bail!("no output: the stage has no RenderProduct, so give one with -o OUT.exr");
+        };
+        let mut aovs = Aov::DEFAULT.to_vec();
+        add_aovs(&mut aovs, &request.aovs);
+        return Ok(vec![ProductOutput {
+            path: path.to_path_buf(),
+            prim_path: None,
+            aovs,
+            preview: request.preview.clone(),
+        }]);
+    }
+    let mut outputs = Vec::new();
+    for (i, product) in settings.products.iter().enumerate() {
+        let path = match (i, output, &product.product_name) {
+            (0, Some(o), _) => o.to_path_buf(),
+            (_, _, Some(name)) => PathBuf::from(name),
+            (_, _, None) => bail!(
+                "{}: RenderProduct has no productName{}",
+                product.prim_path,
+                if i == 0 {
+                    "; give the output with -o"
+                } else {
+                    ""
+                }
+            ),
+        };
+        let mut aovs = vec![Aov::R, Aov::G, Aov::B, Aov::A];
+        for var in &product.vars {
+            add_aovs(&mut aovs, &render_var_aovs(var)?);
+        }
+        let mut preview = product.preview_name.as_ref().map(PathBuf::from);
+        if i == 0 {
+            add_aovs(&mut aovs, &request.aovs);
+            preview = request.preview.clone().or(preview);
+        }
+        outputs.push(ProductOutput {
+            path,
+            prim_path: Some(product.prim_path.clone()),
+            aovs,
+            preview,
+        });
+    }
+    Ok(outputs)
+}
+
+fn add_aovs(aovs: &mut Vec<Aov>, more: &[Aov]) {
+    for &a in more {
+        if !aovs.contains(&a) {
+            aovs.push(a);
+        }
+    }
+}
+
+/// The channels a RenderVar names: `color` (also `C`, `Ci`, `rgb`) is R, G, B;
+/// `alpha`/`a` is A; the other AOVs go by their channel names.
+fn render_var_aovs(var: &RenderVar) -> Result<Vec<Aov>> {
+    let name = var.source_name.trim();
+    Ok(match name {
+        "color" | "C" | "Ci" | "rgb" | "RGB" => vec![Aov::R, Aov::G, Aov::B],
+        "alpha" | "a" | "A" => vec![Aov::A],
+        other => match Aov::from_name(other) {
+            Some(a) => vec![a],
+            None => {
+                let known: Vec<_> = Aov::ALL.iter().map(|a| a.channel_name()).collect();
+                bail!(
+                    "{}: sourceName \"{other}\" is not an AOV Nimbus knows; known: color, alpha, {}",
+                    var.prim_path,
+                    known.join(", ")
+                );
+            }
+        },
+    })
+}
+
+/// The output path of `frame` in a sequence: the first run of `#` in the file name
+/// becomes the frame number zero-padded to the run's length; without one, `.NNNN`
+/// (four digits at least) goes before the extension.
+pub fn frame_path(path: &Path, frame: i64) -> PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let number = |width: usize| {
+        if frame < 0 {
+            format!(
+                "-{:0width$}",
+                frame.unsigned_abs(),
+                width = width.saturating_sub(1)
+            )
+        } else {
+            format!("{frame:0width$}")
+        }
+    };
+    let new_name = match name.find('#') {
+        Some(start) => {
+            let len = name[start..].chars().take_while(|&c| c == '#').count();
+            format!("{}{}{}", &name[..start], number(len), &name[start + len..])
+        }
+        None => match name.rfind('.').filter(|&i| i > 0) {
+            Some(dot) => format!("{}.{}{}", &name[..dot], number(4), &name[dot..]),
+            None => format!("{name}.{}", number(4)),
+        },
+    };
+    path.with_file_name(new_name)
+}

@@ -1,0 +1,521 @@
+//! A render session: the one library entry point that turns a stage path and the
+//! caller's overrides into a running render. `nimbus render`, `info`, every `bench`,
+//! the reference renders (and the farm tasks and Python module after them) call it, so
+//! each step — load, validate, analyse, `auto`, prune the octree, render — is written
+//! once and a benchmark measures exactly what a user runs.
+//!
+//! Precedence lives here, once: an override (a CLI flag, a keyword argument) beats what
+//! the stage authors, which beats the schema fallback.
+
+use crate::render::analysis::{Analysis, CodePaths, Given};
+use crate::render::camera::CameraRays;
+use crate::render::film::{Film, Region};
+use crate::render::job::{media_for_scene_with, RenderJob};
+use crate::render::lights::Lights;
+use crate::render::progressive::{render_progressive, Budget, Clock, Progress};
+use crate::scene::{load_stage, LoadOptions, RenderSettings, Scene};
+use crate::track::scheme::SchemeOptions;
+use crate::track::select::{Choice, SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
+use crate::volume::majorant::{MajorantSpec, MAX_DEPTH};
+use crate::volume::medium::Medium;
+use anyhow::{anyhow, bail, Context, Result};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+
+/// The edge of a flat majorant grid's cells when no structure is named.
+pub const DEFAULT_CELL_VOXELS: u32 = 8;
+
+/// The octree pruning cost when none is given (one cell crossing = one lookup).
+pub const DEFAULT_OCTREE_PRUNE: f32 = 1.0;
+
+/// Memory Nimbus may use for the film (bytes per pixel of accumulators), checked before
+/// rendering so an absurd resolution is refused with a message instead of an abort.
+const MAX_FILM_BYTES: u64 = 8 << 30;
+
+/// What the caller asks for. `None` (and `false`) leave the choice to the stage, and
+/// the stage's silence to the schema fallbacks.
+#[derive(Clone, Debug, Default)]
+pub struct Overrides {
+    /// Time code to evaluate the stage at (`None`: the stage's default time).
+    pub frame: Option<f64>,
+    /// Camera prim path (overrides the render settings' camera).
+    pub camera: Option<String>,
+    /// Samples per pixel (`nimbus:samples`).
+    pub spp: Option<u32>,
+    /// Resolution (the render settings' `resolution`).
+    pub res: Option<(u32, u32)>,
+    pub seed: Option<u64>,
+    /// Worker threads (`None`: all cores). The image does not depend on it.
+    pub threads: Option<usize>,
+    pub max_depth: Option<u32>,
+    /// Flat majorant grid cell edge in voxels (0: one global majorant).
+    pub majorant_cell: Option<u32>,
+    /// Majorant octree depth (beats `majorant_cell` and `nimbus:octreeDepth`).
+    pub octree_depth: Option<u32>,
+    /// Octree pruning cost in lookups per cell crossing (default
+    /// [`DEFAULT_OCTREE_PRUNE`]; 0 keeps every level).
+    pub octree_prune: Option<f32>,
+    /// A tracker name or `auto` (`nimbus:tracker`).
+    pub tracker: Option<String>,
+    pub scheme: Option<SchemeKind>,
+    pub transmittance: Option<TransmittanceKind>,
+    /// Control of `decomposition-weighted`, in [0, 1] (`nimbus:control`).
+    pub control: Option<f32>,
+    pub reduced_termination: bool,
+    pub no_absorption_events: bool,
+    /// Multiplies every majorant (default 1).
+    pub majorant_scale: Option<f32>,
+    /// Time lookups, traversal and the rest of the trackers.
+    pub profile: bool,
+    /// Run the general RGB trackers even where a specialised one applies.
+    pub no_specialise: bool,
+    /// Seconds of rendering to spend; without `spp` the budget alone decides.
+    pub time_limit: Option<f64>,
+}
+
+/// A loaded, validated, analysed stage ready to render, with every setting resolved.
+pub struct Session {
+    pub stage_path: PathBuf,
+    /// The time code rendered (`None`: the stage's default time).
+    pub frame: Option<f64>,
+    pub scene: Scene,
+    media: Vec<Medium>,
+    lights: Lights,
+    camera: CameraRays,
+    pub width: u32,
+    pub height: u32,
+    /// Samples per pixel at most (`u32::MAX`: a time limit alone bounds the render).
+    pub spp: u32,
+    pub max_depth: u32,
+    pub seed: u64,
+    pub time_limit: Option<f64>,
+    pub tracking: TrackerSettings,
+    /// The majorant structure the media carry (after `auto`).
+    pub spec: MajorantSpec,
+    /// Why `auto` chose what it chose; `None` when the tracker was named.
+    pub auto_reason: Option<String>,
+    pub analysis: Analysis,
+    /// Seconds spent loading the stage and its grids.
+    pub load_seconds: f64,
+    octree_prune: f32,
+    specialise: bool,
+    threads: Option<usize>,
+    /// Things the user should hear about (printed by the caller).
+    pub warnings: Vec<String>,
+}
+
+impl Session {
+    /// Loads `stage` with `overrides`: the scene, every volume's grids, the lights and
+    /// the camera; checks the settings; analyses the scene, lets `auto` decide, and
+    /// prunes the majorant octree for the chosen tracker.
+    pub fn open(stage: &Path, overrides: &Overrides) -> Result<Session> {
+        let start = Instant::now();
+        let o = overrides;
+        let opts = LoadOptions {
+            frame: o.frame,
+            camera: o.camera.clone(),
+        };
+        let scene = load_stage(stage, &opts)?;
+        let settings = &scene.settings;
+        let request = tracker_request(o, settings)?;
+        let (width, height) = o.res.unwrap_or(settings.resolution);
+        if width == 0 || height == 0 {
+            bail!(
+                "{}: render resolution {width}x{height} has a zero side",
+                stage.display()
+            );
+        }
+        let spp = o.spp.unwrap_or(settings.samples);
+        if spp == 0 {
+            bail!("samples per pixel must be at least 1");
+        }
+        if let Some(v) = o.time_limit {
+            if !(v.is_finite() && v > 0.0) {
+                bail!("--time-limit must be a positive number of seconds, got {v}");
+            }
+        }
+        // With a time budget and no explicit spp, the budget alone decides.
+        let spp = match (o.time_limit, o.spp) {
+            (Some(_), None) => u32::MAX,
+            _ => spp,
+        };
+        check_film_memory(width, height)?;
+        let prune = o.octree_prune.unwrap_or(DEFAULT_OCTREE_PRUNE);
+        if !(prune.is_finite() && prune >= 0.0) {
+            bail!("the octree pruning cost must be a non-negative number, got {prune}");
+        }
+        let mut spec = majorant_spec(o, settings)?;
+        let mut media = media_for_scene_with(&scene, spec)?;
+        let load_seconds = start.elapsed().as_secs_f64();
+        let lights = Lights::from_scene(&scene)?;
+        check_camera(&scene)?;
+        let camera = CameraRays::new(&scene.camera, width, height);
+        let analysis = Analysis::of_media(&media, &lights, &camera, (width, height));
+        let mut tracking = request.settings;
+        if analysis.emissive && tracking.options.no_absorption_events {
+            bail!(
+                "--no-absorption-events: volume {} emits light (nimbus:temperatureField / nimbus:emissionField), and emission is collected at absorption events; drop the flag",
+                media.iter().find(|m| m.emission.is_some()).map_or("", |m| &m.prim_path)
+            );
+        }
+        let mut auto_reason = None;
+        if request.auto {
+            let (t, reason) = analysis.choose(tracking, request.given);
+            tracking = t;
+            auto_reason = Some(reason);
+            if let Some(majorants) = analysis.majorants(request.given) {
+                for medium in &mut media {
+                    medium.set_majorants(majorants);
+                }
+                spec = majorants;
+            }
+        }
+        let mut warnings = Vec::new();
+        if !analysis.volume_visible {
+            warnings.push(format!(
+                "no camera ray of a 16x16 probe grid reaches the volume {}: only light it scatters or shadows could show",
+                media
+                    .iter()
+                    .map(|m| m.prim_path.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ));
+        }
+        let mut session = Session {
+            stage_path: stage.to_path_buf(),
+            frame: o.frame,
+            width,
+            height,
+            spp,
+            max_depth: o.max_depth.unwrap_or(settings.max_depth),
+            seed: o.seed.unwrap_or(settings.seed),
+            time_limit: o.time_limit,
+            scene,
+            media,
+            lights,
+            camera,
+            tracking,
+            spec,
+            auto_reason,
+            analysis,
+            load_seconds,
+            octree_prune: prune,
+            specialise: !o.no_specialise,
+            threads: o.threads,
+            warnings,
+        };
+        session.prune();
+        Ok(session)
+    }
+
+    /// Opens the session of every frame of `first..=last` in turn (a frame that fails
+    /// to load is an `Err` in its place; the others still come).
+    pub fn frames<'a>(
+        stage: &'a Path,
+        overrides: &'a Overrides,
+        first: i64,
+        last: i64,
+    ) -> impl Iterator<Item = (i64, Result<Session>)> + 'a {
+        (first..=last).map(move |frame| {
+            let o = Overrides {
+                frame: Some(frame as f64),
+                ..overrides.clone()
+            };
+            (frame, Session::open(stage, &o))
+        })
+    }
+
+    /// The media, one per visible volume.
+    pub fn media(&self) -> &[Medium] {
+        &self.media
+    }
+
+    /// Switches to other tracker settings (a benchmark's next tracker), with the
+    /// majorant structure rebuilt and pruned as a render with those settings prunes it.
+    pub fn retrack(&mut self, tracking: TrackerSettings) {
+        self.tracking = tracking;
+        self.auto_reason = None;
+        self.rebuild_majorants();
+    }
+
+    /// Switches to another majorant structure (a benchmark's next octree depth),
+    /// pruned as a render with it prunes it.
+    pub fn set_majorants(&mut self, spec: MajorantSpec) {
+        self.spec = spec;
+        self.rebuild_majorants();
+    }
+
+    fn rebuild_majorants(&mut self) {
+        for medium in &mut self.media {
+            medium.set_majorants(self.spec);
+        }
+        self.prune();
+    }
+
+    /// Prunes an octree where finer cells cost more crossings than they save lookups
+    /// (the saving depends on whether the tracker pays lookups for residuals).
+    fn prune(&mut self) -> usize {
+        if !matches!(self.spec, MajorantSpec::Octree { .. }) {
+            return 0;
+        }
+        let residual = self.tracking.pays_residual();
+        let cost = self.octree_prune;
+        self.media
+            .iter_mut()
+            .map(|m| m.prune_majorants(cost, residual))
+            .sum()
+    }
+
+    /// The render job of this session; `count` turns the per-pixel counters on.
+    pub fn job(&self, count: bool) -> RenderJob<'_> {
+        self.job_with(CodePaths {
+            count: count || self.tracking.profile,
+            specialise: self.specialise,
+        })
+    }
+
+    /// The render job with the code paths named (benchmarks compare them).
+    pub fn job_with(&self, paths: CodePaths) -> RenderJob<'_> {
+        RenderJob {
+            media: &self.media,
+            lights: &self.lights,
+            camera: &self.camera,
+            width: self.width,
+            height: self.height,
+            spp: self.spp,
+            max_depth: self.max_depth,
+            seed: self.seed,
+            tracking: self.tracking,
+            paths,
+        }
+    }
+
+    /// A worker pool of the requested size (`default` threads when none was asked for;
+    /// 0 means all cores).
+    pub fn pool(&self, default: usize) -> Result<rayon::ThreadPool> {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(self.threads.unwrap_or(default))
+            .build()
+            .context("cannot start worker threads")
+    }
+
+    /// Renders the whole frame, or `region` of it, progressively on `pool`: passes
+    /// until the session's samples or time limit (or `budget`'s checkpoints) are
+    /// spent, or `stop` is set. `on_samples(n)` is called per finished row of a pass of
+    /// `n` samples (progress); `after_pass` after every pass (checkpoints).
+    #[allow(clippy::too_many_arguments)]
+    pub fn render<E>(
+        &self,
+        job: &RenderJob,
+        region: Option<Region>,
+        pool: &rayon::ThreadPool,
+        clock: Clock,
+        checkpoint: Option<f64>,
+        stop: &AtomicBool,
+        on_samples: &(dyn Fn(u32) + Sync),
+        after_pass: impl FnMut(&Film, &Progress) -> Result<(), E>,
+    ) -> Result<(Film, Progress), E> {
+        let budget = Budget {
+            clock,
+            spp_cap: job.spp,
+            time_limit: self.time_limit,
+            checkpoint,
+        };
+        render_progressive(job, region, pool, &budget, stop, on_samples, after_pass)
+    }
+
+    /// One line saying what `auto` chose and why (`None` when the tracker was named).
+    pub fn auto_summary(&self) -> Option<String> {
+        let reason = self.auto_reason.as_ref()?;
+        let t = &self.tracking;
+        Some(format!(
+            "tracker auto: {} (scheme {}, transmittance {}{}): {reason}",
+            t.tracker.name(),
+            t.scheme.name(),
+            t.transmittance.name(),
+            if t.options.no_absorption_events {
+                ", no absorption events"
+            } else {
+                ""
+            }
+        ))
+    }
+}
+
+/// The tracker settings the overrides and the stage ask for: `auto` (no tracker named,
+/// or `auto`) leaves the tracker to [`Analysis::choose`].
+struct TrackerRequest {
+    settings: TrackerSettings,
+    auto: bool,
+    given: Given,
+}
+
+/// A stage token naming one of `K`'s options, checked (an error names the prim).
+fn from_stage<K: Choice>(
+    stage: &RenderSettings,
+    attr: &str,
+    value: &Option<String>,
+) -> Result<Option<K>> {
+    let Some(v) = value else { return Ok(None) };
+    K::from_name(v).map(Some).ok_or_else(|| {
+        anyhow!(
+            "{}: {attr} = \"{v}\" is not one of {}",
+            stage.prim_path.as_deref().unwrap_or("render settings"),
+            K::names()
+        )
+    })
+}
+
+/// Tracker settings: overrides beat the stage's render settings, which beat the
+/// defaults.
+fn tracker_request(o: &Overrides, stage: &RenderSettings) -> Result<TrackerRequest> {
+    let d = TrackerSettings::default();
+    let named = o.tracker.clone().or_else(|| stage.tracker.clone());
+    let auto = named.as_deref().is_none_or(|t| t == "auto");
+    let tracker = if auto {
+        d.tracker
+    } else if let Some(t) = &o.tracker {
+        TrackerKind::from_name(t).ok_or_else(|| {
+            anyhow!(
+                "--tracker {t}: not a tracker; known: auto, {}",
+                TrackerKind::names()
+            )
+        })?
+    } else {
+        from_stage(stage, "nimbus:tracker", &stage.tracker)?.unwrap_or(d.tracker)
+    };
+    let scheme = o
+        .scheme
+        .or(from_stage(stage, "nimbus:scheme", &stage.scheme)?)
+        .unwrap_or(d.scheme);
+    let transmittance = o
+        .transmittance
+        .or(from_stage(
+            stage,
+            "nimbus:transmittance",
+            &stage.transmittance,
+        )?)
+        .unwrap_or(d.transmittance);
+    let control = o
+        .control
+        .or(stage.control.map(|c| c as f32))
+        .unwrap_or(d.control);
+    if !(control.is_finite() && (0.0..=1.0).contains(&control)) {
+        bail!("the decomposition control must lie in [0, 1], got {control}");
+    }
+    let majorant_scale = o.majorant_scale.unwrap_or(1.0);
+    if !(majorant_scale.is_finite() && majorant_scale > 0.0) {
+        bail!("--majorant-scale must be positive, got {majorant_scale}");
+    }
+    let settings = TrackerSettings {
+        tracker,
+        scheme,
+        transmittance,
+        control,
+        options: SchemeOptions {
+            reduced_termination: o.reduced_termination,
+            no_absorption_events: o.no_absorption_events,
+        },
+        majorant_scale,
+        profile: o.profile,
+    };
+    Ok(TrackerRequest {
+        settings,
+        auto,
+        given: Given {
+            scheme: o.scheme.is_some() || stage.scheme.is_some(),
+            transmittance: o.transmittance.is_some() || stage.transmittance.is_some(),
+            majorants: majorants_named(o, stage),
+        },
+    })
+}
+
+/// The majorant structure: the octree depth override, else the stage's
+/// `nimbus:octreeDepth` (0 there means the flat grid), else the flat grid of
+/// `majorant_cell` (default [`DEFAULT_CELL_VOXELS`]) cells.
+pub fn majorant_spec(o: &Overrides, stage: &RenderSettings) -> Result<MajorantSpec> {
+    let from_stage = match stage.octree_depth {
+        None | Some(0) => None,
+        Some(d) => Some(u32::try_from(d).map_err(|_| {
+            anyhow!(
+                "{}: nimbus:octreeDepth = {d} must lie in 0..={MAX_DEPTH}",
+                stage.prim_path.as_deref().unwrap_or("render settings")
+            )
+        })?),
+    };
+    match o.octree_depth.or(from_stage) {
+        Some(depth) if !(1..=MAX_DEPTH).contains(&depth) => {
+            bail!("the octree depth must lie in 1..={MAX_DEPTH}, got {depth}")
+        }
+        Some(depth) => Ok(MajorantSpec::Octree { depth }),
+        None => Ok(MajorantSpec::Uniform {
+            cell_voxels: o.majorant_cell.unwrap_or(DEFAULT_CELL_VOXELS),
+        }),
+    }
+}
+
+/// Whether the overrides or the stage name a majorant structure (else `auto` may pick
+/// one).
+fn majorants_named(o: &Overrides, stage: &RenderSettings) -> bool {
+    o.majorant_cell.is_some() || o.octree_depth.is_some() || stage.octree_depth.is_some()
+}
+
+/// A camera the renderer can shoot rays from: positive focal length and apertures,
+/// a non-empty clipping range.
+fn check_camera(scene: &Scene) -> Result<()> {
+    let c = &scene.camera;
+    let positive = |v: f64| v.is_finite() && v > 0.0;
+    if !(positive(c.focal_length)
+        && positive(c.horizontal_aperture)
+        && positive(c.vertical_aperture))
+    {
+        bail!(
+            "camera {}: focal length {} and apertures {}x{} must be positive",
+            c.prim_path,
+            c.focal_length,
+            c.horizontal_aperture,
+            c.vertical_aperture
+        );
+    }
+    if !(c.clipping_range.0.is_finite() && c.clipping_range.1 > c.clipping_range.0) {
+        bail!(
+            "camera {}: clipping range {:?} is empty",
+            c.prim_path,
+            c.clipping_range
+        );
+    }
+    Ok(())
+}
+
+/// Refuses a film larger than [`MAX_FILM_BYTES`] or than the memory available.
+fn check_film_memory(width: u32, height: u32) -> Result<()> {
+    let film_bytes = width as u64 * height as u64 * Film::BYTES_PER_PIXEL as u64;
+    let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
+    if film_bytes > MAX_FILM_BYTES {
+        bail!(
+            "resolution {width}x{height} needs {:.1} GiB of film memory, more than the {} GiB limit",
+            gib(film_bytes),
+            MAX_FILM_BYTES >> 30
+        );
+    }
+    if let Some(available) = available_memory_bytes() {
+        if film_bytes > available {
+            bail!(
+                "resolution {width}x{height} needs {:.2} GiB of film memory, more than the {:.2} GiB this machine has available",
+                gib(film_bytes),
+                gib(available)
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Memory the system can give a new allocation without swapping (`MemAvailable` of
+/// /proc/meminfo, Linux); `None` where that is not known.
+fn available_memory_bytes() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}

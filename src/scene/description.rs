@@ -1,0 +1,272 @@
+//! The scene as plain data: what [`load_stage`](super::stage::load_stage) returns —
+//! camera, lights, volumes and their fields, render settings, products and vars — with
+//! world-space transforms already evaluated and asset paths already resolved.
+
+use crate::volume::asset::AssetLocation;
+use crate::volume::emission::EmissionParams;
+use glam::DMat4;
+use std::path::PathBuf;
+
+/// A composed, evaluated scene at one time code.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// The stage file this scene was loaded from.
+    pub stage_path: PathBuf,
+    /// The time code the scene was evaluated at.
+    pub time: f64,
+    pub camera: Camera,
+    pub distant_lights: Vec<DistantLight>,
+    pub dome_lights: Vec<DomeLight>,
+    pub sphere_lights: Vec<SphereLight>,
+    pub rect_lights: Vec<RectLight>,
+    pub volumes: Vec<Volume>,
+    pub settings: RenderSettings,
+}
+
+/// A pinhole camera (UsdGeomCamera). Lengths in the stage's units as USD defines them:
+/// focal length and apertures in tenths of a scene unit ("mm" when the unit is cm);
+/// only their ratios matter to a pinhole camera.
+#[derive(Clone, Debug)]
+pub struct Camera {
+    pub prim_path: String,
+    /// Camera → world. The camera looks down its local −Z with +Y up.
+    pub camera_to_world: DMat4,
+    pub focal_length: f64,
+    pub horizontal_aperture: f64,
+    pub vertical_aperture: f64,
+    pub horizontal_aperture_offset: f64,
+    pub vertical_aperture_offset: f64,
+    /// (near, far) clipping range.
+    pub clipping_range: (f64, f64),
+}
+
+/// UsdLuxDistantLight. Its emission scale is `intensity · 2^exposure · color`: radiance
+/// (nits) over a disk of angular diameter `angle`, or, with `normalize` (or a zero
+/// angle), the illuminance delivered to a surface facing the light (see
+/// `render::lights`).
+#[derive(Clone, Debug)]
+pub struct DistantLight {
+    pub prim_path: String,
+    /// Unit world-space direction *towards* the light (the light shines along its local −Z,
+    /// so this is the light's world +Z axis).
+    pub direction: [f64; 3],
+    pub intensity: f64,
+    pub exposure: f64,
+    pub color: [f64; 3],
+    /// `inputs:normalize`.
+    pub normalize: bool,
+    /// `inputs:colorTemperature` when `inputs:enableColorTemperature` is on.
+    pub color_temperature: Option<f64>,
+    /// Angular diameter in degrees (`inputs:angle`).
+    pub angle_degrees: f64,
+}
+
+/// UsdLuxDomeLight: a constant colour, or a lat-long texture times that colour.
+#[derive(Clone, Debug)]
+pub struct DomeLight {
+    pub prim_path: String,
+    /// Light → world; the texture's +Y pole and +Z (longitude 0) are the light's local
+    /// axes.
+    pub light_to_world: DMat4,
+    pub intensity: f64,
+    pub exposure: f64,
+    pub color: [f64; 3],
+    pub color_temperature: Option<f64>,
+    /// `inputs:texture:file`, resolved against its layer, if authored.
+    pub texture_file: Option<String>,
+    /// `inputs:texture:format` (`automatic`, `latlong`, …).
+    pub texture_format: String,
+}
+
+/// UsdLuxSphereLight: a sphere of `radius` at the light's origin, emitting outwards.
+#[derive(Clone, Debug)]
+pub struct SphereLight {
+    pub prim_path: String,
+    pub light_to_world: DMat4,
+    pub intensity: f64,
+    pub exposure: f64,
+    pub color: [f64; 3],
+    pub normalize: bool,
+    pub color_temperature: Option<f64>,
+    /// `inputs:radius` (local units).
+    pub radius: f64,
+    /// `treatAsPoint`.
+    pub treat_as_point: bool,
+}
+
+/// UsdLuxRectLight: a `width` × `height` rectangle in the light's local XY plane,
+/// emitting from one side along its local −Z.
+#[derive(Clone, Debug)]
+pub struct RectLight {
+    pub prim_path: String,
+    pub light_to_world: DMat4,
+    pub intensity: f64,
+    pub exposure: f64,
+    pub color: [f64; 3],
+    pub normalize: bool,
+    pub color_temperature: Option<f64>,
+    /// `inputs:width` (local X) and `inputs:height` (local Y).
+    pub width: f64,
+    pub height: f64,
+}
+
+/// A UsdVolVolume with Nimbus' volume parameters resolved (schema fallbacks applied).
+#[derive(Clone, Debug)]
+pub struct Volume {
+    pub prim_path: String,
+    /// Volume → world (the prim's local-to-world transform at the scene's time).
+    pub volume_to_world: DMat4,
+    /// The field the density is read from (the relationship `field:<density_field>`).
+    pub density: Field,
+    /// `nimbus:densityScale`: extinction per unit density is scaled by this.
+    pub density_scale: f64,
+    /// σa per unit density, per channel (`nimbus:absorption`).
+    pub absorption: [f64; 3],
+    /// σs per unit density, per channel (`nimbus:scattering`).
+    pub scattering: [f64; 3],
+    /// Henyey–Greenstein g (`nimbus:anisotropy`).
+    pub anisotropy: f64,
+    /// All `field:*` relationships of the volume, for `nimbus info`.
+    pub fields: Vec<(String, Field)>,
+    /// Emission (`nimbus:temperatureField`, `nimbus:emissionField` and their
+    /// parameters); `VolumeEmission::default()` (no fields) when the volume emits nothing.
+    pub emission: VolumeEmission,
+    /// `nimbus:albedoField`: the relationship name and its field, if set (a Vec3s or
+    /// float grid, an albedo multiplier c ∈ [0,1]³: σs → c·σs, σa → σa + (1 − c)·σs).
+    /// `None` = constant albedo; a `Cd` field is not used unless named.
+    pub albedo: Option<(String, Field)>,
+    /// When the parameters come from a bound material (no `NimbusVolumeAPI`): the
+    /// volume shader read, as "prim path (info:id)".
+    pub material_shader: Option<String>,
+}
+
+/// The emission configuration of a volume, as authored (schema fallbacks applied; the
+/// numbers are checked when the medium is built). Emitted radiance at x is
+///
+/// Le(x) = blackbodyIntensity · (T/1000 K)⁴ · rgb(T) + emissionScale · emissionColor · e(x),
+/// T = temperatureScale · temperature(x),
+///
+/// with rgb(T) UsdLux's colour-temperature colour (luminance 1); the source term of the
+/// radiative transfer equation is μa(x)·Le(x), so nothing emits where the density is 0.
+#[derive(Clone, Debug, PartialEq)]
+pub struct VolumeEmission {
+    /// `nimbus:temperatureField`: the relationship name and its field, if set.
+    pub temperature: Option<(String, Field)>,
+    /// `nimbus:temperatureScale` (Kelvin per grid unit).
+    pub temperature_scale: f64,
+    /// `nimbus:blackbodyIntensity`.
+    pub blackbody_intensity: f64,
+    /// `nimbus:emissionField`: the relationship name and its field, if set.
+    pub emission: Option<(String, Field)>,
+    /// `nimbus:emissionColor`.
+    pub emission_color: [f64; 3],
+    /// `nimbus:emissionScale`.
+    pub emission_scale: f64,
+}
+
+impl Default for VolumeEmission {
+    /// No fields; the parameters at the schema's fallbacks ([`EmissionParams`]).
+    fn default() -> Self {
+        let p = EmissionParams::default();
+        VolumeEmission {
+            temperature: None,
+            temperature_scale: p.temperature_scale,
+            blackbody_intensity: p.blackbody_intensity,
+            emission: None,
+            emission_color: p.emission_color,
+            emission_scale: p.emission_scale,
+        }
+    }
+}
+
+impl VolumeEmission {
+    /// The emission model's parameters.
+    pub fn params(&self) -> EmissionParams {
+        EmissionParams {
+            temperature_scale: self.temperature_scale,
+            blackbody_intensity: self.blackbody_intensity,
+            emission_color: self.emission_color,
+            emission_scale: self.emission_scale,
+        }
+    }
+
+    /// Whether any emission field is configured.
+    pub fn is_emissive(&self) -> bool {
+        self.temperature.is_some() || self.emission.is_some()
+    }
+}
+
+/// A UsdVolOpenVDBAsset prim, resolved.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Field {
+    pub prim_path: String,
+    /// The resolved file path (absolute or relative to the working directory).
+    /// For assets inside a .usdz, the package path and the member path.
+    pub file: AssetLocation,
+    /// `fieldName` (the grid name), empty when not authored.
+    pub field_name: String,
+    /// `fieldIndex`, when authored: which of the grids with that name (or, with no
+    /// name, which grid of the file).
+    pub field_index: Option<i32>,
+}
+
+/// Render settings: UsdRenderSettings plus Nimbus' render-settings schema.
+#[derive(Clone, Debug)]
+pub struct RenderSettings {
+    /// The UsdRenderSettings prim these came from, if any.
+    pub prim_path: Option<String>,
+    pub resolution: (u32, u32),
+    /// Samples per pixel (`nimbus:samples`).
+    pub samples: u32,
+    /// Maximum scattering depth (`nimbus:maxDepth`).
+    pub max_depth: u32,
+    /// Random seed (`nimbus:seed`).
+    pub seed: u64,
+    /// Render products with their render vars (AOVs).
+    pub products: Vec<RenderProduct>,
+    /// `nimbus:tracker`, `nimbus:scheme`, `nimbus:transmittance` (token names as the
+    /// CLI spells them) and `nimbus:control`, when the stage sets them.
+    pub tracker: Option<String>,
+    pub scheme: Option<String>,
+    pub transmittance: Option<String>,
+    pub control: Option<f64>,
+    /// `nimbus:octreeDepth` when the stage sets it (0 = the flat majorant grid).
+    pub octree_depth: Option<i64>,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        RenderSettings {
+            prim_path: None,
+            resolution: (640, 480),
+            samples: 16,
+            max_depth: 64,
+            seed: 0,
+            products: Vec::new(),
+            tracker: None,
+            scheme: None,
+            transmittance: None,
+            control: None,
+            octree_depth: None,
+        }
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct RenderProduct {
+    pub prim_path: String,
+    /// `productName`, when authored.
+    pub product_name: Option<String>,
+    /// `nimbus:previewName`, when authored: a tone-mapped sRGB PNG of the beauty to
+    /// write beside the EXR.
+    pub preview_name: Option<String>,
+    pub vars: Vec<RenderVar>,
+}
+
+#[derive(Clone, Debug)]
+pub struct RenderVar {
+    pub prim_path: String,
+    /// `sourceName` (e.g. "color", "lookups").
+    pub source_name: String,
+    pub data_type: String,
+}

@@ -1,0 +1,306 @@
+//! Tracker selection: the [`TrackerKind`], [`SchemeKind`] and [`TransmittanceKind`] a
+//! render asks for, the [`TrackerSettings`] that parameterise them, and [`dispatch`],
+//! the one place where that choice becomes concrete estimator types (static dispatch:
+//! the integrator is instantiated once per render, the collision loops see no enum).
+
+use super::free_path::{FreePathSampler, TransmittanceEstimator};
+use super::{decomposition, delta, grey, ratio, scheme, spectral};
+
+/// A closed set of named options (a tracker, a scheme, a shadow-ray estimator, a clock):
+/// the names the CLI, the schema's tokens and the stats share, with a line of help each.
+pub trait Choice: Copy + PartialEq + 'static {
+    /// Every option, in the order help lists them.
+    const ALL: &'static [Self];
+    /// The option's name (a CLI value, a schema token, a stats string).
+    fn name(self) -> &'static str;
+    /// One line saying what the option does.
+    fn help(self) -> &'static str;
+
+    /// The option called `name`, if any.
+    fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.iter().copied().find(|k| k.name() == name)
+    }
+
+    /// Every name, comma-separated (for messages listing what is known).
+    fn names() -> String {
+        Self::ALL
+            .iter()
+            .map(|k| k.name())
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+}
+
+/// The trackers a render can use (`--tracker`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum TrackerKind {
+    /// One channel per path, analog delta tracking in it, 3× that channel (the paper's ND).
+    NaiveDelta,
+    /// Delta tracking, achromatic majorant, avg event probabilities.
+    Delta,
+    /// Delta tracking tolerating non-bounding majorants (signed weights).
+    WeightedDelta,
+    /// Analog decomposition tracking: control = the cell's minimum.
+    Decomposition,
+    /// Decomposition with the control above the minimum (`--control`), weighted residual.
+    DecompositionWeighted,
+    /// Spectral tracking with `--scheme`.
+    Spectral,
+    /// Spectral tracking of an achromatic control and a chromatic residual.
+    SpectralDecomposition,
+}
+
+impl Choice for TrackerKind {
+    const ALL: &'static [Self] = &[
+        TrackerKind::NaiveDelta,
+        TrackerKind::Delta,
+        TrackerKind::WeightedDelta,
+        TrackerKind::Decomposition,
+        TrackerKind::DecompositionWeighted,
+        TrackerKind::Spectral,
+        TrackerKind::SpectralDecomposition,
+    ];
+
+    fn help(self) -> &'static str {
+        match self {
+            TrackerKind::NaiveDelta => "One channel per path, analog delta tracking in it, 3× that channel (the paper's ND)",
+            TrackerKind::Delta => "Delta tracking, achromatic majorant, avg event probabilities",
+            TrackerKind::WeightedDelta => "Delta tracking tolerating non-bounding majorants (signed weights)",
+            TrackerKind::Decomposition => "Analog decomposition tracking: control = the cell's minimum",
+            TrackerKind::DecompositionWeighted => "Decomposition with the control above the minimum (`--control`), weighted residual",
+            TrackerKind::Spectral => "Spectral tracking with `--scheme`",
+            TrackerKind::SpectralDecomposition => "Spectral tracking of an achromatic control and a chromatic residual",
+        }
+    }
+
+    fn name(self) -> &'static str {
+        TrackerKind::name(self)
+    }
+}
+
+impl TrackerKind {
+    /// The option's name (a CLI value, a schema token, a stats string).
+    pub fn name(self) -> &'static str {
+        match self {
+            TrackerKind::NaiveDelta => "naive-delta",
+            TrackerKind::Delta => "delta",
+            TrackerKind::WeightedDelta => "weighted-delta",
+            TrackerKind::Decomposition => "decomposition",
+            TrackerKind::DecompositionWeighted => "decomposition-weighted",
+            TrackerKind::Spectral => "spectral",
+            TrackerKind::SpectralDecomposition => "spectral-decomposition",
+        }
+    }
+}
+
+impl TrackerKind {
+    /// Whether `--scheme` matters for this tracker.
+    pub fn uses_scheme(self) -> bool {
+        matches!(
+            self,
+            TrackerKind::Spectral | TrackerKind::SpectralDecomposition
+        )
+    }
+}
+
+/// Spectral probability schemes (`--scheme`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SchemeKind {
+    Max,
+    Avg,
+    HistMax,
+    HistAvg,
+}
+
+impl Choice for SchemeKind {
+    const ALL: &'static [Self] = &[
+        SchemeKind::Max,
+        SchemeKind::Avg,
+        SchemeKind::HistMax,
+        SchemeKind::HistAvg,
+    ];
+
+    fn help(self) -> &'static str {
+        match self {
+            SchemeKind::Max => "Event probabilities from the largest channel",
+            SchemeKind::Avg => "Event probabilities from the channel average",
+            SchemeKind::HistMax => {
+                "History-aware: the largest channel of throughput × coefficients"
+            }
+            SchemeKind::HistAvg => "History-aware: the average of throughput × coefficients",
+        }
+    }
+
+    fn name(self) -> &'static str {
+        SchemeKind::name(self)
+    }
+}
+
+impl SchemeKind {
+    /// The option's name (a CLI value, a schema token, a stats string).
+    pub fn name(self) -> &'static str {
+        match self {
+            SchemeKind::Max => "max",
+            SchemeKind::Avg => "avg",
+            SchemeKind::HistMax => "hist-max",
+            SchemeKind::HistAvg => "hist-avg",
+        }
+    }
+}
+
+/// Shadow-ray estimators (`--transmittance`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum TransmittanceKind {
+    Ratio,
+    ResidualRatio,
+}
+
+impl Choice for TransmittanceKind {
+    const ALL: &'static [Self] = &[TransmittanceKind::Ratio, TransmittanceKind::ResidualRatio];
+
+    fn help(self) -> &'static str {
+        match self {
+            TransmittanceKind::Ratio => "Ratio tracking: the product of null-collision probabilities",
+            TransmittanceKind::ResidualRatio => "Residual ratio tracking: a control's closed form times ratio tracking of the residual",
+        }
+    }
+
+    fn name(self) -> &'static str {
+        TransmittanceKind::name(self)
+    }
+}
+
+impl TransmittanceKind {
+    /// The option's name (a CLI value, a schema token, a stats string).
+    pub fn name(self) -> &'static str {
+        match self {
+            TransmittanceKind::Ratio => "ratio",
+            TransmittanceKind::ResidualRatio => "residual-ratio",
+        }
+    }
+}
+
+/// Everything that selects and parameterises the estimators of a render.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TrackerSettings {
+    pub tracker: TrackerKind,
+    pub scheme: SchemeKind,
+    pub transmittance: TransmittanceKind,
+    /// Control position for `decomposition-weighted`: 0 = cell minimum, 1 = maximum.
+    pub control: f32,
+    pub options: scheme::SchemeOptions,
+    pub majorant_scale: f32,
+    /// Time density lookups, majorant traversal and tracker queries (`--profile`).
+    pub profile: bool,
+}
+
+impl TrackerSettings {
+    /// Whether the trackers pay lookups for the residual `dmax − dmin` of a cell (the
+    /// decomposition family, residual ratio tracking) rather than for `dmax`.
+    pub fn pays_residual(&self) -> bool {
+        matches!(
+            self.tracker,
+            TrackerKind::Decomposition
+                | TrackerKind::DecompositionWeighted
+                | TrackerKind::SpectralDecomposition
+        ) || self.transmittance == TransmittanceKind::ResidualRatio
+    }
+}
+
+impl Default for TrackerSettings {
+    fn default() -> Self {
+        TrackerSettings {
+            tracker: TrackerKind::Delta,
+            scheme: SchemeKind::HistAvg,
+            transmittance: TransmittanceKind::Ratio,
+            control: 0.05,
+            options: scheme::SchemeOptions::default(),
+            majorant_scale: 1.0,
+            profile: false,
+        }
+    }
+}
+
+/// Calls `f` with the free-path sampler and transmittance estimator the settings
+/// select, as concrete types: the one place where the choice is turned into a type.
+pub fn dispatch<T>(s: &TrackerSettings, f: impl Dispatch<T>) -> T {
+    let o = s.options;
+    match s.transmittance {
+        TransmittanceKind::Ratio => dispatch_free_path(s, o, ratio::Ratio, f),
+        TransmittanceKind::ResidualRatio => dispatch_free_path(s, o, ratio::ResidualRatio, f),
+    }
+}
+
+/// [`dispatch`] with the specialised trackers of the scene analysis: for a grey medium
+/// (`grey`, checked against the cross-sections by the caller) delta tracking and
+/// analog decomposition tracking, with ratio or residual ratio tracking for shadow
+/// rays, run single-channel ([`grey`]); every other choice runs as [`dispatch`].
+pub fn dispatch_specialised<T>(s: &TrackerSettings, grey: bool, f: impl Dispatch<T>) -> T {
+    if !single_channel(s, grey) {
+        return dispatch(s, f);
+    }
+    use grey::{GreyDecomposition, GreyDelta, GreyRatio, GreyResidualRatio};
+    use TransmittanceKind::{Ratio, ResidualRatio};
+    match (s.tracker == TrackerKind::Delta, s.transmittance) {
+        (true, Ratio) => f.run(GreyDelta, GreyRatio),
+        (true, ResidualRatio) => f.run(GreyDelta, GreyResidualRatio),
+        (false, Ratio) => f.run(GreyDecomposition, GreyRatio),
+        (false, ResidualRatio) => f.run(GreyDecomposition, GreyResidualRatio),
+    }
+}
+
+/// Whether [`dispatch_specialised`] runs the single-channel trackers: on grey media,
+/// for the trackers that are analog there and have a single-channel twin — delta
+/// tracking, and decomposition tracking with the cell minimum as control and the avg
+/// scheme (`decomposition`, or `spectral-decomposition --scheme avg`) without the
+/// scheme options, which put weights other than 1 into the throughput.
+pub fn single_channel(s: &TrackerSettings, grey: bool) -> bool {
+    let analog = s.options == scheme::SchemeOptions::default();
+    grey && match s.tracker {
+        TrackerKind::Delta => true,
+        TrackerKind::Decomposition => analog,
+        TrackerKind::SpectralDecomposition => analog && s.scheme == SchemeKind::Avg,
+        _ => false,
+    }
+}
+
+fn dispatch_free_path<T, E: TransmittanceEstimator>(
+    s: &TrackerSettings,
+    o: scheme::SchemeOptions,
+    e: E,
+    f: impl Dispatch<T>,
+) -> T {
+    use decomposition::Decomposition;
+    use scheme::{Avg, HistAvg, HistMax, Max};
+    use spectral::Spectral;
+    match s.tracker {
+        TrackerKind::NaiveDelta | TrackerKind::Delta => f.run(delta::Delta, e),
+        TrackerKind::WeightedDelta => f.run(Spectral::<Avg>::new(o), e),
+        TrackerKind::Decomposition => f.run(Decomposition::<Avg>::new(0.0, o), e),
+        TrackerKind::DecompositionWeighted => f.run(Decomposition::<Avg>::new(s.control, o), e),
+        TrackerKind::Spectral => match s.scheme {
+            SchemeKind::Max => f.run(Spectral::<Max>::new(o), e),
+            SchemeKind::Avg => f.run(Spectral::<Avg>::new(o), e),
+            SchemeKind::HistMax => f.run(Spectral::<HistMax>::new(o), e),
+            SchemeKind::HistAvg => f.run(Spectral::<HistAvg>::new(o), e),
+        },
+        TrackerKind::SpectralDecomposition => match s.scheme {
+            SchemeKind::Max => f.run(Decomposition::<Max>::new(0.0, o), e),
+            SchemeKind::Avg => f.run(Decomposition::<Avg>::new(0.0, o), e),
+            SchemeKind::HistMax => f.run(Decomposition::<HistMax>::new(0.0, o), e),
+            SchemeKind::HistAvg => f.run(Decomposition::<HistAvg>::new(0.0, o), e),
+        },
+    }
+}
+
+/// A computation generic over the estimators (a closure cannot be generic).
+pub trait Dispatch<T> {
+    fn run<F: FreePathSampler, E: TransmittanceEstimator>(
+        self,
+        free_path: F,
+        transmittance: E,
+    ) -> T;
+}
