@@ -225,25 +225,27 @@ pub fn run(args: InfoArgs) -> Result<()> {
             }
         }
     }
-    print_analysis(&scene, args.octree_depth.clamp(1, MAX_DEPTH));
+    print_analysis(&args, &scene, args.octree_depth.clamp(1, MAX_DEPTH));
     Ok(())
 }
 
 /// The scene analysis and what `--tracker auto` would pick (at the stage's resolution).
-fn print_analysis(scene: &crate::scene::Scene, depth: u32) {
-    use crate::render::analysis::Analysis;
-    use crate::render::camera::CameraRays;
-    use crate::render::job::media_for_scene_with;
-    use crate::render::lights::Lights;
+fn print_analysis(args: &InfoArgs, scene: &crate::scene::Scene, depth: u32) {
+    use crate::render::session::{Overrides, Session};
     use crate::track::select::TrackerSettings;
-    let size = scene.settings.resolution;
-    let analysed = media_for_scene_with(scene, MajorantSpec::Octree { depth }).and_then(|m| {
-        let lights = Lights::from_scene(scene)?;
-        let camera = CameraRays::new(&scene.camera, size.0.max(1), size.1.max(1));
-        Ok(Analysis::of_media(&m, &lights, &camera, size))
-    });
-    match analysed {
-        Ok(a) => {
+    // The session loads the grids and analyses as `render` does (a stage without a
+    // camera or lights gets the defaults `render` would give it).
+    let overrides = Overrides {
+        frame: args.frame,
+        octree_depth: Some(depth),
+        ..Overrides::default()
+    };
+    match Session::open(&args.stage, &overrides) {
+        Ok(session) => {
+            for w in &session.warnings {
+                println!("note: render would warn: {w}");
+            }
+            let a = &session.analysis;
             println!(
                 "analysis: volumes {}, grey {}, emissive {}, constant albedo {}{}, homogeneous {}, empty leaves {:.1}% (depth {depth}), isotropic {}, max albedo {:.3}, lights emitting {} of {}, volume visible {}",
                 a.volumes,

@@ -3,7 +3,8 @@
 
 use super::choice;
 use crate::output::check_writable;
-use crate::output::products::{frame_path, requested_aovs, OutputRequest, Outputs, RunFacts};
+use crate::output::products::{frame_path, requested_aovs, OutputRequest, Outputs};
+use crate::output::stats::RunFacts;
 use crate::render::progressive::Clock;
 use crate::render::session::{Overrides, Session, DEFAULT_OCTREE_PRUNE};
 use crate::track::select::{SchemeKind, TrackerKind, TransmittanceKind};
@@ -16,7 +17,8 @@ use std::time::Instant;
 
 #[derive(Args, Debug)]
 pub struct RenderArgs {
-    /// The USD stage (.usda, .usdc, .usdz).
+    /// The USD stage (.usda, .usdc, .usdz), or a .vdb file to render directly (its
+    /// first float grid as density, a default camera, sun and sky).
     pub stage: PathBuf,
     /// Output EXR path. Replaces the path (`productName`) of the stage's first
     /// RenderProduct; needed when the stage has none.
@@ -24,6 +26,10 @@ pub struct RenderArgs {
     pub output: Option<PathBuf>,
     #[command(flatten)]
     pub sampling: SamplingArgs,
+    /// The density grid when STAGE is a .vdb file rendered directly (default: its first
+    /// float grid).
+    #[arg(long)]
+    pub grid: Option<String>,
     /// Camera prim path (overrides the render settings' camera).
     #[arg(long)]
     pub camera: Option<String>,
@@ -210,6 +216,7 @@ impl RenderArgs {
             profile: self.profile,
             no_specialise: self.no_specialise,
             time_limit: self.time_limit,
+            grid: self.grid.clone(),
             ..self.sampling.overrides(&self.majorants)
         }
     }

@@ -5,7 +5,7 @@
 
 use super::exr::{write_exr, ExrMetadata};
 use super::preview::write_preview;
-use super::stats::RenderStats;
+use super::stats::{RenderStats, RunFacts};
 use super::{check_writable, write_atomically, OutputError};
 use crate::render::film::{Aov, Film};
 use crate::render::progressive::Progress;
@@ -156,16 +156,6 @@ impl Outputs {
         }
         Ok(())
     }
-}
-
-/// Facts of the run the stats report that the session and the film do not hold.
-#[derive(Clone, Copy, Debug)]
-pub struct RunFacts {
-    /// Seconds since the render was asked for (loading included).
-    pub wall_seconds: f64,
-    pub threads: usize,
-    /// Whether counting ran (the counters are zero otherwise).
-    pub counting: bool,
 }
 
 /// Writes `value` as pretty JSON, atomically.

@@ -87,7 +87,7 @@ impl RenderStats {
         session: &crate::render::session::Session,
         film: &crate::render::film::Film,
         p: &crate::render::progressive::Progress,
-        run: &super::products::RunFacts,
+        run: &RunFacts,
     ) -> RenderStats {
         use crate::volume::majorant::MajorantSpec;
         let (totals, _samples, nonfinite) = film.totals();
@@ -160,4 +160,14 @@ impl RenderStats {
             },
         }
     }
+}
+
+/// Facts of the run the stats report that the session and the film do not hold.
+#[derive(Clone, Copy, Debug)]
+pub struct RunFacts {
+    /// Seconds since the render was asked for (loading included).
+    pub wall_seconds: f64,
+    pub threads: usize,
+    /// Whether counting ran (the counters are zero otherwise).
+    pub counting: bool,
 }

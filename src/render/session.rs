@@ -13,11 +13,14 @@ use crate::render::film::{Film, Region};
 use crate::render::job::{media_for_scene_with, RenderJob};
 use crate::render::lights::Lights;
 use crate::render::progressive::{render_progressive, Budget, Clock, Progress};
-use crate::scene::{load_stage, LoadOptions, RenderSettings, Scene};
+use crate::scene::defaults::{add_default_lights, frame_box, has_no_lights, DEFAULT_CAMERA};
+use crate::scene::{load_stage, Field, LoadOptions, RenderSettings, Scene, Volume, VolumeEmission};
 use crate::track::scheme::SchemeOptions;
 use crate::track::select::{Choice, SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
+use crate::volume::asset::AssetLocation;
 use crate::volume::majorant::{MajorantSpec, MAX_DEPTH};
 use crate::volume::medium::Medium;
+use crate::volume::vdb;
 use anyhow::{anyhow, bail, Context, Result};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
@@ -72,6 +75,9 @@ pub struct Overrides {
     pub no_specialise: bool,
     /// Seconds of rendering to spend; without `spp` the budget alone decides.
     pub time_limit: Option<f64>,
+    /// The density grid of a VDB file rendered directly (default: its first float
+    /// grid); an error for a stage.
+    pub grid: Option<String>,
 }
 
 /// A loaded, validated, analysed stage ready to render, with every setting resolved.
@@ -116,7 +122,27 @@ impl Session {
             frame: o.frame,
             camera: o.camera.clone(),
         };
-        let scene = load_stage(stage, &opts)?;
+        let mut warnings = Vec::new();
+        let mut scene = if is_vdb(stage) {
+            warnings.push(format!(
+                "{}: a VDB file, not a stage: rendering its grid as the density of one volume with the schema's fallback coefficients",
+                stage.display()
+            ));
+            scene_for_vdb(stage, o.grid.as_deref())?
+        } else {
+            if let Some(g) = &o.grid {
+                bail!(
+                    "--grid {g}: only for a VDB file rendered directly; a stage names its fields"
+                );
+            }
+            load_stage(stage, &opts)?
+        };
+        if has_no_lights(&scene) {
+            add_default_lights(&mut scene);
+            warnings.push(
+                "the stage has no lights: lighting it with a default sun and sky".to_string(),
+            );
+        }
         let settings = &scene.settings;
         let request = tracker_request(o, settings)?;
         let (width, height) = o.res.unwrap_or(settings.resolution);
@@ -148,6 +174,19 @@ impl Session {
         let mut spec = majorant_spec(o, settings)?;
         let mut media = media_for_scene_with(&scene, spec)?;
         let load_seconds = start.elapsed().as_secs_f64();
+        if scene.camera.prim_path == DEFAULT_CAMERA {
+            let bounds = media
+                .iter()
+                .filter_map(|m| m.world_bounds())
+                .reduce(|a, b| (a.0.min(b.0), a.1.max(b.1)));
+            let (lo, hi) = bounds.unwrap_or((glam::DVec3::splat(-1.0), glam::DVec3::splat(1.0)));
+            scene.camera = frame_box(lo, hi, width as f64 / height as f64);
+            warnings.push(format!(
+                "no camera named and none on the stage: framing the volumes ({:.3?} to {:.3?}) with a default camera looking down -Z",
+                lo.to_array(),
+                hi.to_array()
+            ));
+        }
         let lights = Lights::from_scene(&scene)?;
         check_camera(&scene)?;
         let camera = CameraRays::new(&scene.camera, width, height);
@@ -171,7 +210,6 @@ impl Session {
                 spec = majorants;
             }
         }
-        let mut warnings = Vec::new();
         if !analysis.volume_visible {
             warnings.push(format!(
                 "no camera ray of a 16x16 probe grid reaches the volume {}: only light it scatters or shadows could show",
@@ -518,4 +556,78 @@ fn available_memory_bytes() -> Option<u64> {
     let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
     let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kib * 1024)
+}
+
+/// Whether `path` names a VDB file (rendered directly) rather than a stage.
+fn is_vdb(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("vdb"))
+}
+
+/// The scene of a VDB file rendered directly: one volume whose density is the grid
+/// `grid` (default: the file's first float grid) with the schema's fallback
+/// coefficients, the default render settings, and no camera or light (the session adds
+/// its defaults).
+fn scene_for_vdb(path: &Path, grid: Option<&str>) -> Result<Scene> {
+    let loc = AssetLocation::File(path.to_path_buf());
+    let grids = vdb::list_grids(&loc)?;
+    let is_float = |t: &str| t.contains("float") && !t.contains("vec3");
+    let chosen = match grid {
+        Some(name) => grids.iter().find(|g| g.name == name).ok_or_else(|| {
+            anyhow!(
+                "{}: no grid named '{name}'; grids: {}",
+                path.display(),
+                grids
+                    .iter()
+                    .map(|g| format!("{} ({})", g.name, g.value_type))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )
+        })?,
+        None => grids
+            .iter()
+            .find(|g| is_float(&g.value_type.to_ascii_lowercase()))
+            .ok_or_else(|| {
+                anyhow!(
+                    "{}: no float grid to render as density (grids: {}); name one with --grid",
+                    path.display(),
+                    grids
+                        .iter()
+                        .map(|g| format!("{} ({})", g.name, g.value_type))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )
+            })?,
+    };
+    let field = Field {
+        prim_path: format!("{}:{}", path.display(), chosen.name),
+        file: loc,
+        field_name: chosen.name.clone(),
+        field_index: None,
+    };
+    let volume = Volume {
+        prim_path: format!("/{}", chosen.name),
+        volume_to_world: glam::DMat4::IDENTITY,
+        density: field.clone(),
+        // NimbusVolumeAPI's fallbacks (schemas/schema.usda).
+        density_scale: 1.0,
+        absorption: [0.1; 3],
+        scattering: [0.9; 3],
+        anisotropy: 0.0,
+        fields: vec![(chosen.name.clone(), field)],
+        emission: VolumeEmission::default(),
+        albedo: None,
+        material_shader: None,
+    };
+    Ok(Scene {
+        stage_path: path.to_path_buf(),
+        time: f64::NAN,
+        camera: crate::scene::defaults::placeholder_camera(),
+        distant_lights: Vec::new(),
+        dome_lights: Vec::new(),
+        sphere_lights: Vec::new(),
+        rect_lights: Vec::new(),
+        volumes: vec![volume],
+        settings: RenderSettings::default(),
+    })
 }

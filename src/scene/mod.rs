@@ -7,6 +7,7 @@
 //! codeless schema (see `schemas/`) is registered by [`schema`].
 
 mod attrs;
+pub mod defaults;
 pub mod description;
 mod lights;
 pub mod schema;

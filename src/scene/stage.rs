@@ -8,6 +8,7 @@
 //! (or the bytes of a .usdz member).
 
 use super::attrs::*;
+use super::defaults;
 use super::description::*;
 use super::lights;
 use super::schema::{self, tokens};
@@ -123,8 +124,11 @@ impl Loader<'_> {
             Some(prim) => self.render_settings(prim)?,
             None => RenderSettings::default(),
         };
-        let camera_prim = self.choose_camera(opts, settings_prim.as_ref(), &inventory, path)?;
-        let camera = self.camera(&camera_prim)?;
+        let camera = match self.choose_camera(opts, settings_prim.as_ref(), &inventory)? {
+            Some(prim) => self.camera(&prim)?,
+            // No camera named and none on the stage: the session frames the volumes.
+            None => defaults::placeholder_camera(),
+        };
         let volumes = self.visible(&inventory.volumes)?;
         let lights = self.lights(&inventory)?;
         Ok(Scene {
@@ -218,14 +222,15 @@ impl Loader<'_> {
         opts: &LoadOptions,
         settings: Option<&Prim>,
         inventory: &Inventory,
-        path: &Path,
-    ) -> Result<Prim, SceneError> {
+    ) -> Result<Option<Prim>, SceneError> {
         if let Some(requested) = &opts.camera {
             let prim = self
                 .stage
                 .prim(requested.as_str())
                 .map_err(|e| prim_error_str(requested, format!("invalid camera path: {e}")))?;
-            return self.require_type(&prim, types::CAMERA, "requested camera");
+            return self
+                .require_type(&prim, types::CAMERA, "requested camera")
+                .map(Some);
         }
         if let Some(settings) = settings {
             if let Some(target) = first_target(settings, "camera")? {
@@ -233,14 +238,12 @@ impl Loader<'_> {
                     .stage
                     .prim(target)
                     .map_err(|e| prim_error(settings.path(), e))?;
-                return self.require_type(&prim, types::CAMERA, "render settings camera");
+                return self
+                    .require_type(&prim, types::CAMERA, "render settings camera")
+                    .map(Some);
             }
         }
-        inventory
-            .cameras
-            .first()
-            .cloned()
-            .ok_or_else(|| stage_error(path, "no Camera prim in the stage (and none requested)"))
+        Ok(inventory.cameras.first().cloned())
     }
 
     fn camera(&mut self, prim: &Prim) -> Result<Camera, SceneError> {

@@ -114,6 +114,12 @@ pub struct Medium {
 }
 
 impl Medium {
+    /// The world-space box around the majorant region (padded), `None` for an empty
+    /// grid.
+    pub fn world_bounds(&self) -> Option<(DVec3, DVec3)> {
+        self.world_box
+    }
+
     /// Builds a medium. `cell_voxels` is the edge of a majorant cell in voxels
     /// (0 = one cell for the whole volume, i.e. a global majorant).
     #[allow(clippy::too_many_arguments)]
