@@ -1,19 +1,20 @@
 //! The preview PNG (`--preview`, a RenderProduct's `nimbus:previewName`): the beauty
 //! tone-mapped for a screen, so a user can look at a render without an EXR viewer.
 //! Reinhard on luminance (hue kept; no exposure to choose), then the sRGB transfer
-//! curve, 8 bits, alpha as rendered.
+//! curve, 8 bits. Opaque: the beauty already holds what the camera sees behind the
+//! volume (the dome), which an alpha channel would hide in most viewers.
 
 use super::{write_atomically, OutputError};
 use crate::color::luminance;
 use crate::render::film::{Aov, Film};
 use std::path::Path;
 
-/// Writes `film`'s beauty as an 8-bit sRGB RGBA PNG, atomically.
+/// Writes `film`'s beauty as an 8-bit sRGB RGB PNG, atomically.
 pub fn write_preview(path: &Path, film: &Film) -> Result<(), OutputError> {
     let rgba = tone_map(film);
     write_atomically(path, |f| {
         let mut encoder = png::Encoder::new(f, film.width, film.height);
-        encoder.set_color(png::ColorType::Rgba);
+        encoder.set_color(png::ColorType::Rgb);
         encoder.set_depth(png::BitDepth::Eight);
         encoder.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
         let mut writer = encoder.write_header().map_err(|e| e.to_string())?;
@@ -22,10 +23,10 @@ pub fn write_preview(path: &Path, film: &Film) -> Result<(), OutputError> {
     })
 }
 
-/// The film's pixels as 8-bit sRGB RGBA, row-major, y down.
+/// The film's pixels as 8-bit sRGB RGB, row-major, y down.
 pub fn tone_map(film: &Film) -> Vec<u8> {
-    let [r, g, b, a] = [Aov::R, Aov::G, Aov::B, Aov::A].map(|c| film.channel(c));
-    let mut out = Vec::with_capacity(r.len() * 4);
+    let [r, g, b] = [Aov::R, Aov::G, Aov::B].map(|c| film.channel(c));
+    let mut out = Vec::with_capacity(r.len() * 3);
     for i in 0..r.len() {
         let c = [r[i] as f64, g[i] as f64, b[i] as f64].map(|v| {
             if v.is_finite() {
@@ -40,7 +41,6 @@ pub fn tone_map(film: &Film) -> Vec<u8> {
         for v in c {
             out.push(encode_srgb(v * scale));
         }
-        out.push((a[i].clamp(0.0, 1.0) * 255.0 + 0.5) as u8);
     }
     out
 }
