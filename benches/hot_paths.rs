@@ -178,7 +178,7 @@ fn full_path(c: &mut Criterion) {
         let it = Integrator {
             free_path: Delta,
             transmittance: Ratio,
-            single_channel: false,
+            channel_per_path: false,
             majorant_scale: 1.0,
             count: true,
             profile: false,

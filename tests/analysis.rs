@@ -191,10 +191,10 @@ fn auto_is_the_default_and_is_reported() {
     assert_eq!(cloud["tracker"], "delta");
     // The grey cloud runs the single-channel trackers unless told not to; the stats
     // need the counts, so counting is on.
-    assert_eq!(cloud["code_paths"]["single_channel"], true);
+    assert_eq!(cloud["code_paths"]["grey_tracking"], true);
     assert_eq!(cloud["code_paths"]["counting"], true);
     let general = run("cloud", &["--no-specialise"]);
-    assert_eq!(general["code_paths"]["single_channel"], false);
+    assert_eq!(general["code_paths"]["grey_tracking"], false);
     assert_eq!(cloud["analysis"]["grey"], true);
     assert!(cloud["tracker_auto_reason"]
         .as_str()
@@ -205,7 +205,7 @@ fn auto_is_the_default_and_is_reported() {
     assert_eq!(chromatic["scheme"], "hist-avg");
     assert_eq!(chromatic["no_absorption_events"], true);
     assert_eq!(chromatic["analysis"]["grey"], false);
-    assert_eq!(chromatic["code_paths"]["single_channel"], false);
+    assert_eq!(chromatic["code_paths"]["grey_tracking"], false);
     let named = run("chromatic", &["--tracker", "delta"]);
     assert_eq!(named["tracker"], "delta");
     assert!(named["tracker_auto_reason"].is_null());

@@ -606,14 +606,14 @@ fn auto_is_not_overruled_by_schema_fallbacks() {
         (Some("delta"), Some("ratio"))
     );
     assert_eq!(j["majorant_cells"], 1);
-    assert_eq!(j["code_paths"]["single_channel"], true);
+    assert_eq!(j["code_paths"]["grey_tracking"], true);
     let j = render("octree.usda", "int nimbus:octreeDepth = 5");
     assert_eq!(
         (j["tracker"].as_str(), j["transmittance"].as_str()),
         (Some("decomposition"), Some("residual-ratio"))
     );
     assert_eq!(j["octree_depth"], 5);
-    assert_eq!(j["code_paths"]["single_channel"], true);
+    assert_eq!(j["code_paths"]["grey_tracking"], true);
     let j = render(
         "named.usda",
         "int nimbus:octreeDepth = 5\n        token nimbus:transmittance = \"ratio\"",

@@ -794,7 +794,7 @@ fn check_grey_emission<F: FreePathSampler, E: TransmittanceEstimator>(
     let it = Integrator {
         free_path,
         transmittance,
-        single_channel: false,
+        channel_per_path: false,
         majorant_scale: 1.0,
         count: true,
         profile: false,

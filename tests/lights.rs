@@ -381,7 +381,7 @@ fn samples(
     let it = Integrator {
         free_path: Delta,
         transmittance: Ratio,
-        single_channel: false,
+        channel_per_path: false,
         majorant_scale: 1.0,
         count: true,
         profile: false,

@@ -42,7 +42,7 @@ fn integrator<'a>(
     Integrator {
         free_path: Delta,
         transmittance: Ratio,
-        single_channel: false,
+        channel_per_path: false,
         majorant_scale: 1.0,
         count: true,
         profile: false,

@@ -395,7 +395,7 @@ fn render(
             let it = Integrator {
                 free_path,
                 transmittance,
-                single_channel: false,
+                channel_per_path: false,
                 majorant_scale: 1.0,
                 count: false,
                 profile: false,

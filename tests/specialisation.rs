@@ -97,7 +97,7 @@ fn auto(s: &Scene) -> TrackerSettings {
 fn assert_same_decisions(s: &Scene, t: TrackerSettings, what: &str) {
     let spec = job(s, t, SPECIALISED, 8, 3);
     let gen = job(s, t, GENERAL, 8, 3);
-    assert!(spec.single_channel() && !gen.single_channel(), "{what}");
+    assert!(spec.grey_tracking() && !gen.grey_tracking(), "{what}");
     let (a, b) = (spec.render(&|| {}), gen.render(&|| {}));
     // Same events from the same numbers: every count is equal.
     let (ca, cb) = (totals(&a), totals(&b));
@@ -216,7 +216,7 @@ fn weighted_choices_keep_the_general_path_on_grey_media() {
         },
     ];
     for t in weighted {
-        assert!(!job(&s, t, SPECIALISED, 1, 1).single_channel(), "{t:?}");
+        assert!(!job(&s, t, SPECIALISED, 1, 1).grey_tracking(), "{t:?}");
     }
 }
 
@@ -229,7 +229,7 @@ fn chromatic_media_keep_the_general_path() {
             ..TrackerSettings::default()
         };
         let spec = job(&s, t, SPECIALISED, 2, 5);
-        assert!(!spec.single_channel());
+        assert!(!spec.grey_tracking());
         let gen = job(&s, t, GENERAL, 2, 5);
         assert_eq!(rgba(&spec.render(&|| {})), rgba(&gen.render(&|| {})));
     }

@@ -106,7 +106,7 @@ pub fn run(args: PathsArgs) -> Result<()> {
         tracking.scheme.name(),
         tracking.transmittance.name()
     );
-    if !job(VARIANTS[2].1).single_channel() {
+    if !job(VARIANTS[2].1).grey_tracking() {
         println!("note: the medium is not grey (or the tracker has no single-channel twin), so the specialised and general trackers are the same code");
     }
     let mut seconds = vec![Vec::new(); VARIANTS.len()];

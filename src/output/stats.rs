@@ -67,7 +67,7 @@ pub struct RenderStats {
     pub tracker_auto_reason: Option<String>,
     /// The scene analysis the render was planned from.
     pub analysis: crate::render::analysis::Analysis,
-    /// The specialised code paths the render ran (`single_channel`: grey media tracked
+    /// The specialised code paths the render ran (`grey_tracking`: grey media tracked
     /// with one channel).
     pub code_paths: CodePathsUsed,
 }
@@ -78,7 +78,7 @@ pub struct CodePathsUsed {
     /// Lookups and collisions were counted (always, when stats are written).
     pub counting: bool,
     /// Grey medium tracked single-channel (`track::grey`).
-    pub single_channel: bool,
+    pub grey_tracking: bool,
 }
 
 impl RenderStats {
@@ -156,7 +156,7 @@ impl RenderStats {
             analysis: session.analysis.clone(),
             code_paths: CodePathsUsed {
                 counting: job.paths.count,
-                single_channel: job.single_channel(),
+                grey_tracking: job.grey_tracking(),
             },
         }
     }

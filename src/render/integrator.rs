@@ -22,11 +22,46 @@ use rayon::prelude::*;
 /// Path Russian roulette starts after this many scattering events.
 const RR_DEPTH: u32 = 3;
 
+/// The cross-sections a path tracks: every channel at once (the spectral trackers; a
+/// grey medium's single-channel trackers are this too, with equal channels), or one
+/// channel chosen per path (naive delta tracking).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Tracked {
+    AllChannels,
+    Channel(usize),
+}
+
+impl Tracked {
+    /// The cross-sections of `medium` this path tracks.
+    #[inline(always)]
+    fn sigma(self, medium: &Medium) -> Sigma {
+        match self {
+            Tracked::AllChannels => medium.sigma,
+            Tracked::Channel(c) => medium.sigma.channel(c),
+        }
+    }
+}
+
+/// What a path carries from vertex to vertex.
+struct PathState {
+    tracked: Tracked,
+    /// Per-channel throughput (collision weights, albedo, roulette).
+    throughput: [f32; 3],
+    /// Scattering events so far.
+    depth: u32,
+    /// Henyey–Greenstein g of the medium of the last scattering vertex (its phase
+    /// function, for MIS).
+    g: f64,
+    /// Cosine of the last phase-sampled turn, for the MIS weight of an escaping ray.
+    last_cos: f64,
+}
+
 pub struct Integrator<'a, F: FreePathSampler, E: TransmittanceEstimator> {
     pub free_path: F,
     pub transmittance: E,
-    /// Naive delta tracking: one channel per path, chosen uniformly, weighted 3×.
-    pub single_channel: bool,
+    /// Naive delta tracking: each path tracks one channel, chosen uniformly, weighted
+    /// 3× ([`Tracked::Channel`]); otherwise every path tracks all channels at once.
+    pub channel_per_path: bool,
     /// Multiplies every majorant (1 = the medium's bounds).
     pub majorant_scale: f32,
     /// Count lookups, collisions and cells into each pixel's counters (for the cost
@@ -144,34 +179,37 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             }
         }
         // Naive delta: track one channel's grey medium, and carry 3× in that channel only.
-        let (channel, mut throughput) = if self.single_channel {
+        let (tracked, throughput) = if self.channel_per_path {
             let ch = ((rng.gen::<u32>() as u64 * 3) >> 32) as usize;
             let mut w = [0f32; 3];
             w[ch] = 3.0;
-            (Some(ch), w)
+            (Tracked::Channel(ch), w)
         } else {
-            (None, [1f32; 3])
+            (Tracked::AllChannels, [1f32; 3])
+        };
+        let mut path = PathState {
+            tracked,
+            throughput,
+            depth: 0,
+            g: 0.0,
+            last_cos: 1.0,
         };
         let mut radiance = [0f64; 3];
         let mut alpha = 0.0;
-        let mut depth = 0u32;
-        // Cosine of the last phase-sampled turn, for the MIS weight of an escaping ray.
-        let mut last_cos = 1.0f64;
-        // The medium of the last scattering vertex (its phase function, for MIS).
-        let mut g = 0.0f64;
         loop {
             let t0 = counters.tracker_start();
             let (event, id) =
-                self.with_queries(origin, dir, tmin, tmax, channel, |qs, ids| match qs {
+                self.with_queries(origin, dir, tmin, tmax, path.tracked, |qs, ids| match qs {
                     [] => (FreePath::Escape, 0),
                     [q] => (
-                        self.free_path.sample(q, &mut throughput, rng, counters),
+                        self.free_path
+                            .sample(q, &mut path.throughput, rng, counters),
                         ids[0],
                     ),
                     _ => {
                         let (event, lane) =
                             self.free_path
-                                .sample_race(qs, &mut throughput, rng, counters);
+                                .sample_race(qs, &mut path.throughput, rng, counters);
                         (event, ids[lane])
                     }
                 });
@@ -180,40 +218,40 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             let medium = &self.media[id];
             match event {
                 FreePath::Escape => {
-                    if depth == 0 {
-                        alpha = 1.0 - crate::track::free_path::avg(throughput) as f64;
+                    if path.depth == 0 {
+                        alpha = 1.0 - crate::track::free_path::avg(path.throughput) as f64;
                         if self.lights.has_environment() {
                             let le = self.lights.environment_radiance(dir);
-                            self.add(&mut radiance, throughput, le, 1.0);
+                            self.add(&mut radiance, path.throughput, le, 1.0);
                         }
                     } else if self.lights.has_environment() {
                         // MIS with environment NEE; the phase sample's weight
                         // phase/pdf is 1.
-                        let pdf_phase = hg(g, last_cos);
+                        let pdf_phase = hg(path.g, path.last_cos);
                         let w = power_heuristic(pdf_phase, self.lights.environment_pdf(dir));
                         let le = self.lights.environment_radiance(dir);
-                        self.add(&mut radiance, throughput, le, w);
+                        self.add(&mut radiance, path.throughput, le, w);
                     }
                     break;
                 }
                 FreePath::Absorb { t } => {
-                    if depth == 0 {
+                    if path.depth == 0 {
                         alpha = 1.0;
                     }
                     // Emission is collected at absorption events: the tracker has
-                    // applied the absorption weight μa(λ)/(μ̄·Pa), so throughput × Le is
+                    // applied the absorption weight μa(λ)/(μ̄·Pa), so path.throughput × Le is
                     // the collision estimate of ∫ T·μa·Le (the source term μa·Le).
                     if let Some(emission) = &medium.emission {
                         let le = emission.radiance(origin + dir * t as f64, counters);
-                        self.add(&mut radiance, throughput, le, 1.0);
+                        self.add(&mut radiance, path.throughput, le, 1.0);
                     }
                     break;
                 }
                 FreePath::Scatter { t } => {
-                    if depth == 0 {
+                    if path.depth == 0 {
                         alpha = 1.0;
                     }
-                    depth += 1;
+                    path.depth += 1;
                     let p = origin + dir * t as f64;
                     // Albedo multiplier c(x) (nimbus:albedoField): the trackers ran
                     // with c = 1 (μt is unchanged); weighting the scatter event by
@@ -221,25 +259,26 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                     // (1 − c) part is absorbed (see volume::albedo).
                     if let Some(albedo) = &medium.albedo {
                         let c = albedo.sample(p, counters);
-                        for (w, c) in throughput.iter_mut().zip(c) {
+                        for (w, c) in path.throughput.iter_mut().zip(c) {
                             *w *= c;
                         }
                     }
-                    g = medium.g as f64;
-                    self.next_event(p, dir, g, channel, throughput, &mut radiance, rng, counters);
-                    if depth >= self.max_depth {
+                    path.g = medium.g as f64;
+                    self.next_event(p, dir, &path, &mut radiance, rng, counters);
+                    if path.depth >= self.max_depth {
                         break;
                     }
-                    if depth >= RR_DEPTH {
+                    if path.depth >= RR_DEPTH {
                         // Weighted trackers make throughputs signed: survive by magnitude.
-                        let q = crate::track::free_path::max3(throughput.map(f32::abs)).min(1.0);
+                        let q =
+                            crate::track::free_path::max3(path.throughput.map(f32::abs)).min(1.0);
                         if !(rng.gen::<f32>() < q) {
                             break;
                         }
-                        throughput = throughput.map(|v| v / q);
+                        path.throughput = path.throughput.map(|v| v / q);
                     }
-                    let new_dir = sample_hg(g, dir, rng.gen(), rng.gen());
-                    last_cos = dir.dot(new_dir);
+                    let new_dir = sample_hg(path.g, dir, rng.gen(), rng.gen());
+                    path.last_cos = dir.dot(new_dir);
                     origin = p;
                     dir = new_dir;
                     tmin = 0.0;
@@ -259,23 +298,22 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         }
     }
 
-    /// Next-event estimation from scattering vertex `p` (arrived along `dir`, phase
-    /// function asymmetry `g`).
+    /// Next-event estimation from scattering vertex `p` (arrived along `dir`; the
+    /// path's phase function, tracked channels and throughput).
     #[allow(clippy::too_many_arguments)]
     fn next_event<C: Tally>(
         &self,
         p: DVec3,
         dir: DVec3,
-        g: f64,
-        channel: Option<usize>,
-        throughput: [f32; 3],
+        path: &PathState,
         radiance: &mut [f64; 3],
         rng: &mut Sampler,
         counters: &mut C,
     ) {
+        let (g, tracked, throughput) = (path.g, path.tracked, path.throughput);
         for sun in &self.lights.suns {
             let wi = sun.sample_direction(rng.gen(), rng.gen());
-            let tr = self.shadow(p, wi, f32::INFINITY, channel, rng, counters);
+            let tr = self.shadow(p, wi, f32::INFINITY, tracked, rng, counters);
             let f = hg(g, dir.dot(wi));
             for c in 0..3 {
                 radiance[c] += (throughput[c] * tr[c]) as f64 * sun.irradiance[c] * f;
@@ -283,18 +321,18 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         }
         for sphere in &self.lights.spheres {
             let s = sphere.sample(p, rng.gen(), rng.gen());
-            self.add_light_sample(s, p, dir, g, channel, throughput, radiance, rng, counters);
+            self.add_light_sample(s, p, dir, path, radiance, rng, counters);
         }
         for rect in &self.lights.rects {
             let s = rect.sample(p, rng.gen(), rng.gen());
-            self.add_light_sample(s, p, dir, g, channel, throughput, radiance, rng, counters);
+            self.add_light_sample(s, p, dir, path, radiance, rng, counters);
         }
         if self.lights.has_environment() {
             let (wi, le, pdf) = self.lights.sample_environment(rng.gen(), rng.gen());
             if pdf > 0.0 {
                 let f = hg(g, dir.dot(wi));
                 let w = power_heuristic(pdf, f);
-                let tr = self.shadow(p, wi, f32::INFINITY, channel, rng, counters);
+                let tr = self.shadow(p, wi, f32::INFINITY, tracked, rng, counters);
                 for c in 0..3 {
                     radiance[c] += (throughput[c] * tr[c]) as f64 * le[c] * f / pdf * w;
                 }
@@ -310,9 +348,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         sample: Option<LightSample>,
         p: DVec3,
         dir: DVec3,
-        g: f64,
-        channel: Option<usize>,
-        throughput: [f32; 3],
+        path: &PathState,
         radiance: &mut [f64; 3],
         rng: &mut Sampler,
         counters: &mut C,
@@ -320,8 +356,9 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         let Some(s) = sample else {
             return;
         };
+        let (g, throughput) = (path.g, path.throughput);
         let f = hg(g, dir.dot(s.wi));
-        let tr = self.shadow(p, s.wi, s.distance as f32, channel, rng, counters);
+        let tr = self.shadow(p, s.wi, s.distance as f32, path.tracked, rng, counters);
         for c in 0..3 {
             radiance[c] += (throughput[c] * tr[c]) as f64 * s.weight[c] * f;
         }
@@ -332,12 +369,12 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         p: DVec3,
         wi: DVec3,
         tmax: f32,
-        channel: Option<usize>,
+        tracked: Tracked,
         rng: &mut Sampler,
         counters: &mut C,
     ) -> Spectrum {
         let t0 = counters.tracker_start();
-        let tr = self.with_queries(p, wi, 0.0, tmax, channel, |qs, _| {
+        let tr = self.with_queries(p, wi, 0.0, tmax, tracked, |qs, _| {
             if let [q] = qs {
                 self.transmittance.transmittance(q, rng, counters)
             } else {
@@ -360,11 +397,11 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         dir: DVec3,
         tmin: f32,
         tmax: f32,
-        channel: Option<usize>,
+        tracked: Tracked,
         f: impl FnOnce(&[Query], &[usize]) -> T,
     ) -> T {
         if self.media.len() == 1 {
-            return self.queries::<1, T>(origin, dir, tmin, tmax, channel, &[0], f);
+            return self.queries::<1, T>(origin, dir, tmin, tmax, tracked, &[0], f);
         }
         let mut ids = [0usize; MAX_MEDIA];
         let mut k = 0;
@@ -379,11 +416,11 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         // repeats one of them), so a ray through two volumes of a large stage does not
         // build sixty-four queries.
         match k {
-            0..=2 => self.queries::<2, T>(origin, dir, tmin, tmax, channel, ids, f),
-            3..=4 => self.queries::<4, T>(origin, dir, tmin, tmax, channel, ids, f),
-            5..=8 => self.queries::<8, T>(origin, dir, tmin, tmax, channel, ids, f),
-            9..=16 => self.queries::<16, T>(origin, dir, tmin, tmax, channel, ids, f),
-            _ => self.queries::<MAX_MEDIA, T>(origin, dir, tmin, tmax, channel, ids, f),
+            0..=2 => self.queries::<2, T>(origin, dir, tmin, tmax, tracked, ids, f),
+            3..=4 => self.queries::<4, T>(origin, dir, tmin, tmax, tracked, ids, f),
+            5..=8 => self.queries::<8, T>(origin, dir, tmin, tmax, tracked, ids, f),
+            9..=16 => self.queries::<16, T>(origin, dir, tmin, tmax, tracked, ids, f),
+            _ => self.queries::<MAX_MEDIA, T>(origin, dir, tmin, tmax, tracked, ids, f),
         }
     }
 
@@ -397,17 +434,14 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         dir: DVec3,
         tmin: f32,
         tmax: f32,
-        channel: Option<usize>,
+        tracked: Tracked,
         ids: &[usize],
         f: impl FnOnce(&[Query], &[usize]) -> T,
     ) -> T {
         let k = ids.len().min(N);
         let medium = |i: usize| &self.media[if i < k { ids[i] } else { 0 }];
         let rays: [IndexRay; N] = std::array::from_fn(|i| medium(i).index_ray(origin, dir));
-        let sigmas: [Sigma; N] = std::array::from_fn(|i| match channel {
-            Some(ch) => medium(i).sigma.channel(ch),
-            None => medium(i).sigma,
-        });
+        let sigmas: [Sigma; N] = std::array::from_fn(|i| tracked.sigma(medium(i)));
         let qs: [Query; N] = std::array::from_fn(|i| Query {
             medium: medium(i),
             sigma: &sigmas[i],

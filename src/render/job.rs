@@ -50,8 +50,8 @@ impl RenderJob<'_> {
     }
 
     /// Whether the render runs the single-channel trackers of grey media.
-    pub fn single_channel(&self) -> bool {
-        crate::track::select::single_channel(&self.tracking, self.grey())
+    pub fn grey_tracking(&self) -> bool {
+        crate::track::select::grey_tracking(&self.tracking, self.grey())
     }
 
     /// An empty film for this job (its size, pixel streams seeded from its seed), of
@@ -80,7 +80,7 @@ impl RenderJob<'_> {
                 Integrator {
                     free_path,
                     transmittance,
-                    single_channel: j.tracking.tracker == TrackerKind::NaiveDelta,
+                    channel_per_path: j.tracking.tracker == TrackerKind::NaiveDelta,
                     majorant_scale: j.tracking.majorant_scale,
                     count: j.paths.count,
                     profile: j.tracking.profile,

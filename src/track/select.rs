@@ -239,7 +239,7 @@ pub fn dispatch<T>(s: &TrackerSettings, f: impl Dispatch<T>) -> T {
 /// analog decomposition tracking, with ratio or residual ratio tracking for shadow
 /// rays, run single-channel ([`grey`]); every other choice runs as [`dispatch`].
 pub fn dispatch_specialised<T>(s: &TrackerSettings, grey: bool, f: impl Dispatch<T>) -> T {
-    if !single_channel(s, grey) {
+    if !grey_tracking(s, grey) {
         return dispatch(s, f);
     }
     use grey::{GreyDecomposition, GreyDelta, GreyRatio, GreyResidualRatio};
@@ -257,7 +257,7 @@ pub fn dispatch_specialised<T>(s: &TrackerSettings, grey: bool, f: impl Dispatch
 /// tracking, and decomposition tracking with the cell minimum as control and the avg
 /// scheme (`decomposition`, or `spectral-decomposition --scheme avg`) without the
 /// scheme options, which put weights other than 1 into the throughput.
-pub fn single_channel(s: &TrackerSettings, grey: bool) -> bool {
+pub fn grey_tracking(s: &TrackerSettings, grey: bool) -> bool {
     let analog = s.options == scheme::SchemeOptions::default();
     grey && match s.tracker {
         TrackerKind::Delta => true,

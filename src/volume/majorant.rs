@@ -179,9 +179,6 @@ pub struct MajorantTree {
     build_seconds: f64,
 }
 
-/// The old name: the flat grid is the one-level case of the tree.
-pub type MajorantGrid = MajorantTree;
-
 impl MajorantTree {
     /// Builds the structure over `grid`'s active region. Octree leaves take the min/max
     /// over the exact support of the trilinear reconstruction in the cell (voxels

@@ -153,7 +153,7 @@ impl Dispatch<Output> for Run<'_, '_> {
         let it = Integrator {
             free_path,
             transmittance,
-            single_channel: self.settings.tracker == TrackerKind::NaiveDelta,
+            channel_per_path: self.settings.tracker == TrackerKind::NaiveDelta,
             majorant_scale: self.settings.majorant_scale,
             count: true,
             profile: false,
