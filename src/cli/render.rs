@@ -71,7 +71,7 @@ pub struct RenderArgs {
     pub transmittance: Option<TransmittanceKind>,
     /// Control of `decomposition-weighted`, from 0 (cell minimum) to 1 (cell maximum)
     /// (overrides nimbus:control; default 0.05: higher controls make the signed residual weights
-    /// grow geometrically, see the README).
+    /// grow geometrically, see docs/trackers.md).
     #[arg(long)]
     pub control: Option<f32>,
     /// Reduced termination rates: scattering and null take their maximum proportions,

@@ -93,7 +93,8 @@ impl Analysis {
     }
 
     /// `--tracker auto`: the tracker, scheme and options for this scene, and why.
-    /// Measured with `nimbus bench error` (README, "Scene analysis and `auto`"):
+    /// Each rule is measured with `nimbus bench error`; the figures are in
+    /// `docs/trackers.md` ("Scene analysis and `--tracker auto`") and the CSVs in `benches/auto/`:
     /// - homogeneous media with no majorant structure named: one global majorant
     ///   ([`Analysis::majorants`]) and the tracker of their colour below;
     /// - homogeneous media in a named structure of cells: the decomposition family with
@@ -104,12 +105,13 @@ impl Analysis {
     ///   single-channel;
     /// - grey media: `delta` — every spectral scheme reduces to it, and it ties
     ///   spectral tracking without absorption events while beating decomposition with
-    ///   the default flat majorant grid (1.09–1.13× lower relMSE on the example cloud);
+    ///   the default flat majorant grid (`benches/auto/cloud.csv`);
     ///   it runs single-channel ([`CodePaths::specialise`]);
     /// - chromatic, non-emissive media: `spectral-decomposition` with history-aware avg
     ///   (throughput bounded by Theorem 2 at any albedo) and no absorption events (the
     ///   absorption lives in the weights; legal only without emission), the best at equal
-    ///   time on both chromatic benchmarks (9–11× below naive delta on the example).
+    ///   time on both chromatic benchmarks (`benches/error/chromatic.csv`,
+    ///   `benches/error/smoke_chromatic.csv`).
     ///
     /// `given`: what the user set (a named scheme or shadow-ray estimator is kept).
     pub fn choose(&self, base: TrackerSettings, given: Given) -> (TrackerSettings, String) {
@@ -157,8 +159,8 @@ impl Analysis {
     /// structure (`given.majorants`), one global majorant. It is tight everywhere but
     /// at the rim, so every tentative collision inside is real and no cell is crossed;
     /// measured against the default flat grid of 8-voxel cells (with the closed-form
-    /// decomposition there) on a 64³ cube of optical thickness 0.6, 6 and 60 across:
-    /// 1.33×, 1.36× and 1.24× lower relMSE at equal time (README).
+    /// decomposition there) on cubes of optical thickness 0.6, 6 and 60 across
+    /// (`docs/trackers.md`, "Scene analysis and `--tracker auto`").
     pub fn majorants(&self, given: Given) -> Option<MajorantSpec> {
         (self.homogeneous && !given.majorants).then_some(MajorantSpec::Uniform { cell_voxels: 0 })
     }

@@ -9,7 +9,7 @@
 //!   exporters): `absorption` and `scattering` coefficients and `anisotropy`, reached
 //!   from the material through `volumematerial` / `volume` nodes.
 //!
-//! Both map exactly onto Nimbus' per-unit-density σa, σs and g; see the README for
+//! Both map exactly onto Nimbus' per-unit-density σa, σs and g; see `docs/usd.md` for
 //! the inputs read and their defaults. Only constant inputs (values, or connections to
 //! the material's own interface inputs) are read: an input driven by another shader
 //! is refused with an error naming it, not silently replaced by a default.
