@@ -756,15 +756,24 @@ fn missing_sublayer() {
     );
 }
 
+/// A stage without a camera loads with the placeholder the session replaces by a
+/// default camera framing the volumes (usdrecord's convention); one that names a camera
+/// that is not there is still an error naming it.
 #[test]
 fn no_camera() {
     let dir = tempfile::tempdir().unwrap();
     let path = write(dir.path(), "nocam.usda", "#usda 1.0\ndef Xform \"A\" {}\n");
-    let msg = load_err(&path).to_string();
-    assert!(
-        msg.contains("nocam.usda") && msg.contains("Camera"),
-        "{msg}"
+    let scene = load_stage(&path, &LoadOptions::default()).unwrap();
+    assert_eq!(
+        scene.camera.prim_path,
+        nimbus::scene::defaults::DEFAULT_CAMERA
     );
+    let opts = LoadOptions {
+        camera: Some("/Missing".into()),
+        ..LoadOptions::default()
+    };
+    let msg = load_stage(&path, &opts).unwrap_err().to_string();
+    assert!(msg.contains("/Missing"), "{msg}");
 }
 
 #[test]

@@ -8,6 +8,7 @@ mod bench_paths;
 mod choice;
 mod error_plot;
 mod info;
+mod merge;
 mod reference;
 mod render;
 // `compare` is declared apart from the other modules to keep merges with parallel
@@ -34,6 +35,9 @@ pub enum Command {
     Render(render::RenderArgs),
     /// Compare two EXRs per channel: MSE, relative MSE (second image = reference), RMSE.
     Compare(compare::CompareArgs),
+    /// Assemble the tiles of a frame (`render --tile I/N`) into the frame, or their
+    /// stats JSONs into one; refuses missing, duplicated, partial or mismatched tiles.
+    Merge(merge::MergeArgs),
     /// Describe a stage: volumes, fields, grids, camera, lights, render settings.
     Info(info::InfoArgs),
     /// Benchmarks (`bench octree`: trackers at several majorant octree depths; `bench
@@ -68,6 +72,7 @@ pub fn main() -> ExitCode {
         Command::Render(a) => render::run(a),
         Command::Compare(a) => compare::run(a),
         Command::Info(a) => info::run(a),
+        Command::Merge(a) => merge::run(a),
         Command::Bench(c) => bench::run(c),
     };
     match result {

@@ -5,8 +5,10 @@ use super::choice;
 use crate::output::check_writable;
 use crate::output::products::{frame_path, requested_aovs, OutputRequest, Outputs};
 use crate::output::stats::RunFacts;
+use crate::render::film::Region;
 use crate::render::progressive::Clock;
 use crate::render::session::{Overrides, Session, DEFAULT_OCTREE_PRUNE};
+use crate::render::tiles::{parse_region, Tile};
 use crate::track::select::{SchemeKind, TrackerKind, TransmittanceKind};
 use anyhow::{bail, Result};
 use clap::Args;
@@ -45,6 +47,15 @@ pub struct RenderArgs {
     /// viewer); a RenderProduct asks for one with nimbus:previewName.
     #[arg(long, value_name = "OUT.png")]
     pub preview: Option<PathBuf>,
+    /// Render only tile I of N (0-based; the frame split into an N-tile grid, as square
+    /// as N allows) for a farm task: every output name gets `.tileI` before its
+    /// extension, and `nimbus merge` assembles the tiles into the frame.
+    #[arg(long, value_name = "I/N", value_parser = Tile::parse, conflicts_with = "region")]
+    pub tile: Option<Tile>,
+    /// Render only the pixels X0..X1 x Y0..Y1 of the full frame (the EXR's data window
+    /// inside the full display window).
+    #[arg(long, value_name = "X0,Y0,X1,Y1", value_parser = parse_region)]
+    pub region: Option<Region>,
     /// Write render statistics as JSON to this file.
     #[arg(long)]
     pub stats: Option<PathBuf>,
@@ -233,6 +244,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
         aovs: requested_aovs(&args.aovs)?,
         stats: args.stats.clone(),
         preview: args.preview.clone(),
+        tile: args.tile,
+        region: args.region.is_some(),
     };
     let interrupted = install_interrupt_handler();
     let Some(range) = args.frames else {
@@ -295,13 +308,29 @@ fn render_frame(
     for w in &session.warnings {
         eprintln!("nimbus: warning: {w}");
     }
+    let region = match (args.tile, args.region) {
+        (Some(t), _) => Some(
+            t.region(session.width, session.height)
+                .map_err(|e| anyhow::anyhow!("--tile {}/{}: {e}", t.index, t.count))?,
+        ),
+        (None, Some(r)) if !r.fits(session.width, session.height) => bail!(
+            "--region {},{},{},{} does not lie inside the {}x{} frame",
+            r.x0,
+            r.y0,
+            r.x1,
+            r.y1,
+            session.width,
+            session.height
+        ),
+        (None, r) => r,
+    };
     let job = session.job(outputs.need_counts());
     let pool = session.pool(0)?;
     let (width, height, spp) = (session.width, session.height, session.spp);
     let bar = if spp == u32::MAX {
         indicatif::ProgressBar::new_spinner()
     } else {
-        indicatif::ProgressBar::new(spp as u64 * height as u64)
+        indicatif::ProgressBar::new(spp as u64 * region.map_or(height, |r| r.height()) as u64)
     };
     bar.set_style(
         indicatif::ProgressStyle::with_template(
@@ -313,10 +342,11 @@ fn render_frame(
         wall_seconds: wall.elapsed().as_secs_f64(),
         threads: pool.current_num_threads(),
         counting: job.paths.count,
+        tile: args.tile,
     };
     let (film, p) = session.render(
         &job,
-        None,
+        region,
         &pool,
         Clock::Wall,
         args.checkpoint,
@@ -358,13 +388,26 @@ fn render_frame(
     let lookups = match job.paths.count {
         true => format!(
             ", {:.1} lookups/sample",
-            totals.density_lookups as f64 / (width as f64 * height as f64 * p.spp as f64)
+            totals.density_lookups as f64 / (film.width as f64 * film.height as f64 * p.spp as f64)
         ),
         false => String::new(),
     };
+    let tile = match (args.tile, region) {
+        (Some(t), Some(r)) => format!(
+            ", tile {}/{} = pixels {},{}..{},{} of {width}x{height}",
+            t.index, t.count, r.x0, r.y0, r.x1, r.y1
+        ),
+        (None, Some(r)) => format!(
+            ", region {},{}..{},{} of {width}x{height}",
+            r.x0, r.y0, r.x1, r.y1
+        ),
+        _ => String::new(),
+    };
     eprintln!(
-        "nimbus: wrote {} ({width}x{height}, {} spp in {} passes, {:.2} s{lookups})",
+        "nimbus: wrote {} ({}x{}, {} spp in {} passes, {:.2} s{lookups}{tile})",
         outputs.list(),
+        film.width,
+        film.height,
         p.spp,
         p.passes,
         p.seconds,

@@ -6,6 +6,7 @@ use exr::prelude::*;
 use std::path::Path;
 
 /// Metadata recorded in the EXR header.
+#[derive(Clone, Debug)]
 pub struct ExrMetadata {
     pub stage: String,
     pub tracker: String,
@@ -17,6 +18,18 @@ pub struct ExrMetadata {
     pub time: f64,
     /// The RenderProduct prim this image is, if any.
     pub product: Option<String>,
+    /// What a farm's `merge` checks: the seed, the samples per pixel asked for (`None`:
+    /// a time limit alone), the session's settings hash, and the tile this image is.
+    pub farm: Option<FarmMetadata>,
+}
+
+/// The header attributes of a tile (or of a frame a farm renders).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FarmMetadata {
+    pub seed: u64,
+    pub spp_cap: Option<u32>,
+    pub settings_hash: u64,
+    pub tile: Option<crate::render::tiles::Tile>,
 }
 
 pub fn write_exr(
@@ -25,12 +38,29 @@ pub fn write_exr(
     aovs: &[Aov],
     meta: &ExrMetadata,
 ) -> std::result::Result<(), OutputError> {
-    let size = (film.width as usize, film.height as usize);
-    let channels: Vec<AnyChannel<FlatSamples>> = aovs
+    let channels = aovs
         .iter()
-        .map(|&a| AnyChannel::new(a.channel_name(), FlatSamples::F32(film.channel(a))))
+        .map(|&a| (a.channel_name().to_string(), film.channel(a)))
+        .collect();
+    write_channels(path, film.full, film.region, channels, meta)
+}
+
+/// Writes f32 `channels` of the pixels `region` of a `full` frame: the data window is
+/// the region, the display window the full frame (a whole frame has them equal).
+pub fn write_channels(
+    path: &Path,
+    full: (u32, u32),
+    region: crate::render::film::Region,
+    channels: Vec<(String, Vec<f32>)>,
+    meta: &ExrMetadata,
+) -> std::result::Result<(), OutputError> {
+    let size = (region.width() as usize, region.height() as usize);
+    let channels: Vec<AnyChannel<FlatSamples>> = channels
+        .into_iter()
+        .map(|(name, v)| AnyChannel::new(name.as_str(), FlatSamples::F32(v)))
         .collect();
     let mut attrs = LayerAttributes::default();
+    attrs.layer_position = Vec2(region.x0 as i32, region.y0 as i32);
     attrs.software_name = Some(Text::from(
         format!("nimbus {}", env!("CARGO_PKG_VERSION")).as_str(),
     ));
@@ -60,13 +90,35 @@ pub fn write_exr(
         "nimbus:renderSeconds",
         AttributeValue::F32(meta.render_seconds as f32),
     );
+    if let Some(f) = &meta.farm {
+        put("nimbus:seed", text(&f.seed.to_string()));
+        put(
+            "nimbus:settingsHash",
+            text(&format!("{:016x}", f.settings_hash)),
+        );
+        if let Some(cap) = f.spp_cap {
+            put(
+                "nimbus:sppCap",
+                AttributeValue::I32(cap.min(i32::MAX as u32) as i32),
+            );
+        }
+        if let Some(t) = f.tile {
+            put("nimbus:tile", text(&format!("{}/{}", t.index, t.count)));
+        }
+        put(
+            "nimbus:fullResolution",
+            AttributeValue::IntVec2(Vec2(full.0 as i32, full.1 as i32)),
+        );
+    }
     let layer = Layer::new(
         size,
         attrs,
         Encoding::FAST_LOSSLESS,
         AnyChannels::sort(channels.into()),
     );
-    let image = Image::from_layer(layer);
+    let mut image = Image::from_layer(layer);
+    image.attributes.display_window =
+        IntegerBounds::new((0, 0), (full.0 as usize, full.1 as usize));
     write_atomically(path, |file| {
         image
             .write()

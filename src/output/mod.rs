@@ -3,6 +3,7 @@
 //! render never leaves a partial file or clobbers an existing one.
 
 pub mod exr;
+pub mod merge;
 pub mod preview;
 pub mod products;
 pub mod stats;

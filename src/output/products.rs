@@ -3,13 +3,14 @@
 //! PNGs; their names for a frame of a sequence; and writing them all for the samples
 //! done so far (after the last pass, and at every checkpoint).
 
-use super::exr::{write_exr, ExrMetadata};
+use super::exr::{write_exr, ExrMetadata, FarmMetadata};
 use super::preview::write_preview;
 use super::stats::{RenderStats, RunFacts};
 use super::{check_writable, write_atomically, OutputError};
 use crate::render::film::{Aov, Film};
 use crate::render::progressive::Progress;
 use crate::render::session::Session;
+use crate::render::tiles::Tile;
 use crate::scene::{RenderSettings, RenderVar};
 use anyhow::{bail, Context, Result};
 use std::path::{Path, PathBuf};
@@ -31,6 +32,10 @@ pub struct ProductOutput {
 pub struct Outputs {
     pub products: Vec<ProductOutput>,
     pub stats: Option<PathBuf>,
+    /// The tile these files are (`None` for a whole frame).
+    pub tile: Option<Tile>,
+    /// Whether the EXRs carry the farm metadata (tiles and explicit regions).
+    pub farm: bool,
 }
 
 /// What the caller asks to write beyond the stage's products.
@@ -43,6 +48,11 @@ pub struct OutputRequest {
     pub stats: Option<PathBuf>,
     /// A preview PNG of the first product.
     pub preview: Option<PathBuf>,
+    /// Tile of a farm task: every file name gets `.tileII`, and the EXRs the tile's
+    /// metadata (`merge` assembles them).
+    pub tile: Option<Tile>,
+    /// An explicit pixel region (`--region`): the EXRs record the farm metadata too.
+    pub region: bool,
 }
 
 impl Outputs {
@@ -57,10 +67,17 @@ impl Outputs {
         sequence: bool,
     ) -> Result<Outputs> {
         let single = frame.filter(|t| t.fract() == 0.0 && t.abs() < 1e15);
-        let name = |p: &PathBuf| match (sequence, single) {
+        let frame_name = |p: &PathBuf| match (sequence, single) {
             (true, Some(f)) => frame_path(p, f as i64),
             (false, Some(t)) if p.to_string_lossy().contains('#') => frame_path(p, t as i64),
             _ => p.clone(),
+        };
+        let name = |p: &PathBuf| {
+            let p = frame_name(p);
+            match (request.tile, p.file_name()) {
+                (Some(t), Some(n)) => p.with_file_name(t.file_name(&n.to_string_lossy())),
+                _ => p,
+            }
         };
         let stats = request.stats.as_ref().map(name);
         if let Some(s) = &stats {
@@ -75,7 +92,12 @@ impl Outputs {
                 ..o
             })
             .collect();
-        let outputs = Outputs { products, stats };
+        let outputs = Outputs {
+            products,
+            stats,
+            tile: request.tile,
+            farm: request.tile.is_some() || request.region,
+        };
         outputs.check_distinct()?;
         for o in &outputs.products {
             check_writable(&o.path)?;
@@ -118,6 +140,12 @@ impl Outputs {
                     render_seconds: p.seconds,
                     time: session.frame.unwrap_or(f64::NAN),
                     product: o.prim_path.clone(),
+                    farm: self.farm.then(|| FarmMetadata {
+                        seed: session.seed,
+                        spp_cap: (session.spp != u32::MAX).then_some(session.spp),
+                        settings_hash: session.settings_hash(),
+                        tile: self.tile,
+                    }),
                 },
             )?;
             if let Some(preview) = &o.preview {

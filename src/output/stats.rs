@@ -15,8 +15,15 @@ pub struct RenderStats {
     pub time_limit_seconds: Option<f64>,
     /// Stopped by Ctrl-C / SIGTERM before the cap or budget was reached.
     pub interrupted: bool,
+    /// The pixels rendered: the frame's, or the tile's.
     pub width: u32,
     pub height: u32,
+    /// The frame's resolution (a tile's stats hold the tile's width and height above).
+    pub full_resolution: (u32, u32),
+    /// The tile rendered, `I/N` (null for a whole frame).
+    pub tile: Option<String>,
+    /// The session's settings hash (`Session::settings_hash`, hex), which `merge` checks.
+    pub settings_hash: String,
     pub wall_seconds: f64,
     pub load_seconds: f64,
     pub render_seconds: f64,
@@ -107,6 +114,9 @@ impl RenderStats {
             interrupted: p.interrupted,
             width: film.width,
             height: film.height,
+            full_resolution: film.full,
+            tile: run.tile.map(|t| format!("{}/{}", t.index, t.count)),
+            settings_hash: format!("{:016x}", session.settings_hash()),
             wall_seconds: run.wall_seconds,
             load_seconds: session.load_seconds,
             render_seconds: p.seconds,
@@ -170,4 +180,6 @@ pub struct RunFacts {
     pub threads: usize,
     /// Whether counting ran (the counters are zero otherwise).
     pub counting: bool,
+    /// The tile rendered, if any.
+    pub tile: Option<crate::render::tiles::Tile>,
 }

@@ -11,3 +11,4 @@ pub mod phase;
 pub mod progressive;
 pub mod sampler;
 pub mod session;
+pub mod tiles;

@@ -363,6 +363,39 @@ impl Session {
         render_progressive(job, region, pool, &budget, stop, on_samples, after_pass)
     }
 
+    /// A hash of everything that decides the image: the stage file's bytes, the scene
+    /// as evaluated (this covers sublayers, references and resolved asset paths), the
+    /// resolved settings and the Nimbus version — not the thread count or the tile.
+    /// Tiles of one frame carry it so `merge` can refuse tiles of another render.
+    pub fn settings_hash(&self) -> u64 {
+        use std::hash::Hasher;
+        let mut h = fnv::FnvHasher::default();
+        let mut put = |s: &str| {
+            h.write(s.as_bytes());
+            h.write(&[0xff]);
+        };
+        match std::fs::read(&self.stage_path) {
+            Ok(bytes) => put(&String::from_utf8_lossy(&bytes)),
+            Err(e) => put(&format!("unreadable stage: {e}")),
+        }
+        put(&format!("{:?}", self.scene));
+        put(&format!(
+            "{}x{} spp {} depth {} seed {} time limit {:?} {:?} {:?} prune {} specialise {} nimbus {}",
+            self.width,
+            self.height,
+            self.spp,
+            self.max_depth,
+            self.seed,
+            self.time_limit,
+            self.tracking,
+            self.spec,
+            self.octree_prune,
+            self.specialise,
+            env!("CARGO_PKG_VERSION")
+        ));
+        h.finish()
+    }
+
     /// One line saying what `auto` chose and why (`None` when the tracker was named).
     pub fn auto_summary(&self) -> Option<String> {
         let reason = self.auto_reason.as_ref()?;
