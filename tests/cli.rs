@@ -1,6 +1,8 @@
 //! End-to-end tests of the `nimbus` binary: rendering the shipped scenes, the same stage
 //! in .usda/.usdc/.usdz, a stage authored with Pixar's USD, and bad input.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -44,14 +46,6 @@ fn channel<'a>(chans: &'a [(String, Vec<f32>)], name: &str) -> &'a [f32] {
         .find(|c| c.0 == name)
         .unwrap_or_else(|| panic!("no channel {name}"))
         .1
-}
-
-fn has_pxr() -> bool {
-    Command::new("python3")
-        .args(["-c", "import pxr"])
-        .output()
-        .map(|o| o.status.success())
-        .unwrap_or(false)
 }
 
 #[test]
@@ -251,8 +245,7 @@ fn python(script: &str, args: &[&str]) {
 /// and rendering is deterministic.
 #[test]
 fn usda_usdc_usdz_render_identically() {
-    if !has_pxr() {
-        eprintln!("SKIP: python3 cannot import pxr (pip install usd-core)");
+    if !common::pxr_python() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -287,8 +280,7 @@ fn usda_usdc_usdz_render_identically() {
 /// schemas/, renders with nimbus; the schema's fallbacks are what pxr reports.
 #[test]
 fn stage_authored_with_pxr_and_nimbus_schema_renders() {
-    if !has_pxr() {
-        eprintln!("SKIP: python3 cannot import pxr (pip install usd-core)");
+    if !common::pxr_python() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -932,16 +924,6 @@ fn cloud_stage_with(dir: &Path, file_path: &str, grid: &str, extra: &str) -> Pat
     path
 }
 
-fn shared_data() -> Option<PathBuf> {
-    let dir = root().join("../shared/data");
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        eprintln!("SKIPPED: {} is absent", dir.display());
-        None
-    }
-}
-
 /// The cloud stage with its density replaced by a VDB sequence of the EmberGen fire
 /// (`(frame, path)` time samples on `filePath`, `temperature` as density), scaled into
 /// the camera's view.
@@ -977,9 +959,10 @@ fn fire_stage(d: &Path, samples: &[(i32, String)]) -> PathBuf {
 /// a temporary file that is removed afterwards), and `info` lists the packaged grids.
 #[test]
 fn usdz_packaged_vdb_sequence_renders_like_loose_files() {
-    let Some(data) = shared_data() else { return };
-    if !has_pxr() {
-        eprintln!("SKIP: python3 cannot import pxr (pip install usd-core)");
+    let Some(data) = common::shared_data() else {
+        return;
+    };
+    if !common::pxr_python() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -1043,7 +1026,9 @@ fn usdz_packaged_vdb_sequence_renders_like_loose_files() {
 /// to a single `--frame` render.
 #[test]
 fn frames_render_a_vdb_time_sequence() {
-    let Some(data) = shared_data() else { return };
+    let Some(data) = common::shared_data() else {
+        return;
+    };
     let fire = data.join("embergen_fire_a");
     let samples: Vec<(i32, String)> = [10, 20, 30]
         .iter()
@@ -1360,13 +1345,7 @@ fn malformed_usdz_is_a_clear_error() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     // Python's zipfile writes the packages (USDZ members are stored, not deflated).
-    if !Command::new("python3")
-        .args(["-c", "import zipfile"])
-        .output()
-        .map(|o| o.status.success())
-        .unwrap_or(false)
-    {
-        eprintln!("python3 not available: skipping the zip-built cases");
+    if !common::python_imports(&["zipfile"], "the zip-built cases need python3") {
         return;
     }
     let good = d.join("good.usdz");

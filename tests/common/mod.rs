@@ -1,6 +1,13 @@
-//! Shared pieces of the stress tests: statistics helpers (the same definitions as in
-//! tests/tracking.rs), a 1-D analytic medium and a renderer over every tracker setting.
+//! Shared pieces of the integration tests: statistics helpers, a 1-D analytic medium and
+//! a renderer over every tracker setting (the stress tests), and in submodules the
+//! inputs from outside the repository (`data`: the shared data and Python's `pxr`, with
+//! the `NIMBUS_REQUIRE_DATA` switch).
 #![allow(dead_code)]
+
+pub mod data;
+
+#[allow(unused_imports)] // not every test binary uses each
+pub use data::{missing, pxr_fixtures, pxr_python, python_imports, repo, shared_data, shared_file};
 
 use glam::{DMat4, DVec3};
 use nimbus::render::camera::CameraRays;
