@@ -4,6 +4,7 @@
 //! the `NIMBUS_REQUIRE_DATA` switch).
 #![allow(dead_code)]
 
+pub mod cli;
 pub mod data;
 
 #[allow(unused_imports)] // not every test binary uses each
