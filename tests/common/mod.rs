@@ -90,6 +90,15 @@ pub fn label(s: &TrackerSettings) -> String {
     )
 }
 
+/// No sun; a constant environment of radiance `env`.
+pub fn sky(env: [f64; 3]) -> Lights {
+    Lights {
+        suns: vec![],
+        environment: env,
+        ..Lights::default()
+    }
+}
+
 /// A pinhole camera placed by `camera_to_world` (looking down its −Z), with a square
 /// aperture `aperture` over focal length `focal`.
 pub fn camera(camera_to_world: DMat4, focal: f64, aperture: f64, w: u32, h: u32) -> CameraRays {
