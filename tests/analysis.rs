@@ -1,10 +1,12 @@
 //! The scene analysis classifies generated scenes correctly, and `--tracker auto`
 //! picks what its rules say and reports it.
 
+mod common;
+
+use common::sky;
 use glam::{DMat4, DVec3};
 use nimbus::render::analysis::{Analysis, Given};
 use nimbus::render::camera::CameraRays;
-use nimbus::render::lights::Lights;
 use nimbus::scene::Camera;
 use nimbus::track::select::{SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
 use nimbus::volume::grid::Grid;
@@ -48,14 +50,6 @@ fn camera(away: bool) -> CameraRays {
         clipping_range: (0.1, 1e6),
     };
     CameraRays::new(&cam, 32, 24)
-}
-
-fn sky(env: [f64; 3]) -> Lights {
-    Lights {
-        suns: vec![],
-        environment: env,
-        ..Lights::default()
-    }
 }
 
 #[test]

@@ -3,25 +3,17 @@
 //! and identical when passed with `--reference`), and clean failures on bad input. No
 //! timing is asserted: budgets only bound how long the test takes.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn nimbus(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_nimbus"))
-        .args(args)
-        .output()
-        .expect("run nimbus")
-}
+use common::cli::{nimbus, stderr};
+use std::path::{Path, PathBuf};
+use std::process::Output;
 
 fn stage() -> String {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("scenes/chromatic/chromatic.usda")
         .display()
         .to_string()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
 fn assert_ok(o: &Output) {

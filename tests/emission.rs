@@ -602,19 +602,6 @@ fn info_prints_emission() {
 
 // ----- real data ---------------------------------------------------------------------------------
 
-fn shared_data() -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/embergen_fire_a");
-    if p.join("embergen_fire_a_50.vdb").is_file() {
-        Some(p)
-    } else {
-        eprintln!(
-            "SKIPPED: {} is absent (the EmberGen fire from ../shared/data)",
-            p.display()
-        );
-        None
-    }
-}
-
 /// The EmberGen fire (frame 50: grids `flames` and `temperature`, no density) with
 /// `temperature` as the density field and `flames` as the emission field, unlit (no
 /// lights, black environment): everything the camera sees is emission. It renders with
@@ -625,10 +612,9 @@ fn embergen_fire_emits() {
     use nimbus::render::analysis::Analysis;
     use nimbus::render::camera::CameraRays;
     use nimbus::render::job::RenderJob;
-    let Some(data) = shared_data() else {
+    let Some(vdb) = common::shared_file("embergen_fire_a/embergen_fire_a_50.vdb") else {
         return;
     };
-    let vdb = data.join("embergen_fire_a_50.vdb");
     let dir = tempfile::tempdir().unwrap();
     let stage = dir.path().join("fire.usda");
     std::fs::write(

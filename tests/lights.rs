@@ -5,8 +5,7 @@
 mod common;
 
 use std::f64::consts::PI;
-use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::path::Path;
 
 use glam::{DMat4, DVec3};
 use nimbus::render::camera::CameraRays;
@@ -22,43 +21,17 @@ use nimbus::volume::medium::Medium;
 use rand::{Rng, SeedableRng};
 use serde_json::Value;
 
-fn repo() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
 // ----- loading, against pxr ------------------------------------------------------------
-
-fn pxr_available() -> bool {
-    Command::new("python3")
-        .args(["-c", "import pxr, OpenEXR, numpy"])
-        .output()
-        .map(|o| o.status.success())
-        .unwrap_or(false)
-}
 
 /// Runs the fixture generator into a fresh temp dir; `None` (with a message) when
 /// Pixar's USD or OpenEXR's Python bindings are not installed.
 fn generate_fixtures() -> Option<(tempfile::TempDir, Value)> {
-    if !pxr_available() {
-        eprintln!("SKIPPED: `python3 -c 'import pxr, OpenEXR, numpy'` failed; install usd-core, OpenEXR and numpy to run the pxr light tests");
-        return None;
-    }
-    let dir = tempfile::tempdir().expect("temp dir");
-    let output = Command::new("python3")
-        .arg(repo().join("tests/fixtures/make_light_stages.py"))
-        .arg(dir.path())
-        .output()
-        .expect("run make_light_stages.py");
-    assert!(
-        output.status.success(),
-        "make_light_stages.py failed:\n{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
-    let text = std::fs::read_to_string(dir.path().join("expected.json")).expect("expected.json");
-    Some((
-        dir,
-        serde_json::from_str(&text).expect("expected.json parses"),
-    ))
+    common::pxr_fixtures(
+        "make_light_stages.py",
+        &["pxr", "OpenEXR", "numpy"],
+        "install usd-core, OpenEXR and numpy to run the pxr light tests",
+        false,
+    )
 }
 
 /// Values authored as float are widened exactly by both sides; derived quantities

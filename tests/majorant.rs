@@ -2,6 +2,8 @@
 //! exactly once with the right bounds, and the trackers give the same answers at every
 //! depth.
 
+mod common;
+
 use glam::{DMat4, DVec3, Vec3};
 use nimbus::track::decomposition::Decomposition;
 use nimbus::track::delta::Delta;
@@ -17,7 +19,6 @@ use nimbus::volume::procedural::grid_from_fn;
 use proptest::prelude::*;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg32;
-use std::path::PathBuf;
 
 /// A lumpy sparse field: random blobs with empty space between them, a constant
 /// plateau (so lossless merging is exercised) and sharp edges.
@@ -57,12 +58,9 @@ fn blob_grid(seed: u64, dims: i32) -> Grid {
     Grid::from_raw(&raw).unwrap()
 }
 
-fn data_dir() -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data"))
-}
-
 /// The real grids the bounds are checked on, or none (with a message) if the shared
-/// data is absent.
+/// data is absent; under `NIMBUS_REQUIRE_DATA=1` a file that is absent or does not
+/// read fails the test.
 fn real_grids() -> Vec<(String, Grid)> {
     let files = [
         ("openvdb_samples/smoke.vdb", "density"),
@@ -71,14 +69,12 @@ fn real_grids() -> Vec<(String, Grid)> {
     ];
     let mut out = Vec::new();
     for (f, grid) in files {
-        let path = data_dir().join(f);
-        if !path.exists() {
-            eprintln!("skipping {f}: {} not found", path.display());
+        let Some(path) = common::shared_file(f) else {
             continue;
-        }
+        };
         match nimbus::volume::vdb::read_float_grid(&AssetLocation::File(path), grid, None) {
             Ok(raw) => out.push((f.to_string(), Grid::from_raw(&raw).unwrap())),
-            Err(e) => eprintln!("skipping {f}: {e}"),
+            Err(e) => common::missing(&format!("{f} does not read: {e}")).unwrap_or(()),
         }
     }
     out

@@ -66,14 +66,6 @@ fn sun_and_sky() -> Lights {
     }
 }
 
-fn sky(env: [f64; 3]) -> Lights {
-    Lights {
-        suns: vec![],
-        environment: env,
-        ..Lights::default()
-    }
-}
-
 /// Density scales from 1e-6 to 1e6 per unit length (the cube is one unit across), for
 /// every tracker setting: no pixel or AOV is ever NaN/Inf and no sample is dropped.
 /// References: at 1e-6 the cube is transparent (alpha < 1e-4 in every pixel, every

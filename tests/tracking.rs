@@ -6,6 +6,9 @@
 //! optical depth is exactly the trapezoid rule over the voxel samples, which gives the
 //! analytic answer even for fields (sine) that trilinear filtering does not reproduce.
 
+mod common;
+
+use common::{mean_se, optical_depth};
 use glam::{DMat4, DVec3};
 use nimbus::track::decomposition::Decomposition;
 use nimbus::track::delta::Delta;
@@ -45,21 +48,6 @@ fn medium_from(
     .unwrap()
 }
 
-/// Optical depth of the piecewise-linear interpolant of `f` sampled at integer x, from
-/// x = a to x = b (exact trapezoid integration per voxel interval, clipped).
-fn optical_depth(f: &dyn Fn(f64) -> f64, a: f64, b: f64) -> f64 {
-    let mut tau = 0.0;
-    let mut x0 = a;
-    while x0 < b {
-        let i = x0.floor();
-        let x1 = (i + 1.0).min(b);
-        let lerp = |x: f64| f(i) + (f(i + 1.0) - f(i)) * (x - i);
-        tau += 0.5 * (lerp(x0) + lerp(x1)) * (x1 - x0);
-        x0 = x1;
-    }
-    tau
-}
-
 type Field = Box<dyn Fn(f64) -> f64 + Sync>;
 
 fn fields() -> Vec<(&'static str, Field)> {
@@ -80,14 +68,6 @@ fn fields() -> Vec<(&'static str, Field)> {
         ),
         ("sine", Box::new(|x| 0.6 + 0.5 * (x * 0.7).sin())),
     ]
-}
-
-/// Mean and standard error of samples.
-fn mean_se(v: &[f64]) -> (f64, f64) {
-    let n = v.len() as f64;
-    let m = v.iter().sum::<f64>() / n;
-    let var = v.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / (n - 1.0);
-    (m, (var / n).sqrt())
 }
 
 fn query<'a>(m: &'a Medium, ray: &'a nimbus::volume::medium::IndexRay, scale: f32) -> Query<'a> {

@@ -2,8 +2,9 @@
 //! are loaded with `nimbus::scene::load_stage` and compared against the values pxr
 //! computes for them. Bad-input tests need no pxr.
 
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use glam::{DMat4, DVec3};
 use nimbus::scene::{load_stage, Field, LoadOptions, Scene, SceneError};
@@ -12,40 +13,15 @@ use serde_json::Value;
 
 const REL_TOL: f64 = 1e-9;
 
-fn repo() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn pxr_available() -> bool {
-    Command::new("python3")
-        .args(["-c", "import pxr"])
-        .output()
-        .map(|o| o.status.success())
-        .unwrap_or(false)
-}
-
 /// Runs the fixture generator into a fresh temp dir; `None` (with a message)
 /// when Pixar's USD is not installed.
 fn generate_fixtures() -> Option<(tempfile::TempDir, Value)> {
-    if !pxr_available() {
-        eprintln!("SKIPPED: `python3 -c 'import pxr'` failed; install usd-core to run the pxr comparison tests");
-        return None;
-    }
-    let dir = tempfile::tempdir().expect("temp dir");
-    let output = Command::new("python3")
-        .arg(repo().join("tests/fixtures/make_stages.py"))
-        .arg(dir.path())
-        .env("PXR_PLUGINPATH_NAME", repo().join("schemas"))
-        .output()
-        .expect("run make_stages.py");
-    assert!(
-        output.status.success(),
-        "make_stages.py failed:\n{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
-    let text = std::fs::read_to_string(dir.path().join("expected.json")).expect("expected.json");
-    let expected = serde_json::from_str(&text).expect("expected.json parses");
-    Some((dir, expected))
+    common::pxr_fixtures(
+        "make_stages.py",
+        &["pxr"],
+        "install usd-core to run the pxr comparison tests",
+        true,
+    )
 }
 
 // ----- comparison helpers -----------------------------------------------------------------

@@ -4,6 +4,8 @@
 //! Run with `cargo test --release --test vdb_readers`. Tests that need OpenVDB check
 //! `Reader::OpenVdb.available()`; CI builds with `NIMBUS_OPENVDB=require`.
 
+mod common;
+
 use glam::{DMat4, DVec3};
 use nimbus::volume::asset::AssetLocation;
 use nimbus::volume::grid::{RawGrid, RawLeaf, RawTile};
@@ -258,19 +260,6 @@ fn writer_rejects_what_it_cannot_write() {
         .contains("overlaps"));
 }
 
-fn shared_data() -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        println!(
-            "SKIP: {} is absent; real-file reader tests not run",
-            dir.display()
-        );
-        None
-    }
-}
-
 fn vdb_files(dir: &Path, out: &mut Vec<PathBuf>) {
     let Ok(entries) = std::fs::read_dir(dir) else {
         return;
@@ -288,7 +277,9 @@ fn vdb_files(dir: &Path, out: &mut Vec<PathBuf>) {
 
 #[test]
 fn real_files_cross_check() {
-    let Some(dir) = shared_data() else { return };
+    let Some(dir) = common::shared_data() else {
+        return;
+    };
     let mut files = Vec::new();
     vdb_files(&dir, &mut files);
     assert!(!files.is_empty(), "no .vdb files under {}", dir.display());
@@ -387,7 +378,9 @@ fn real_files_cross_check() {
 
 #[test]
 fn smoke_legacy_layout_matches() {
-    let Some(dir) = shared_data() else { return };
+    let Some(dir) = common::shared_data() else {
+        return;
+    };
     if !Reader::OpenVdb.available() {
         println!("SKIP: built without OpenVDB");
         return;
@@ -600,12 +593,10 @@ fn vec3s_grid_is_a_type_error() {
 
 #[test]
 fn real_file_truncated_and_corrupted() {
-    let Some(dir) = shared_data() else { return };
-    let src = dir.join("openusd_blender_smoke/densityAndHeat.vdb");
-    let Ok(good) = std::fs::read(&src) else {
-        println!("SKIP: {} missing", src.display());
+    let Some(src) = common::shared_file("openusd_blender_smoke/densityAndHeat.vdb") else {
         return;
     };
+    let good = std::fs::read(&src).unwrap();
     let tmp = tempfile::tempdir().unwrap();
     for cut in [0, 7, 50, 300, good.len() / 2, good.len() - 1] {
         let p = tmp.path().join(format!("cut{cut}.vdb"));
@@ -811,11 +802,10 @@ fn multi_grid_file_with_duplicate_names() {
 /// a crash (vdb-rs sizes buffers from blosc headers, so validation checks them).
 #[test]
 fn corrupted_real_file_never_crashes() {
-    let Some(dir) = shared_data() else { return };
-    let Ok(good) = std::fs::read(dir.join("openusd_blender_smoke/densityAndHeat.vdb")) else {
-        println!("SKIP: densityAndHeat.vdb missing");
+    let Some(src) = common::shared_file("openusd_blender_smoke/densityAndHeat.vdb") else {
         return;
     };
+    let good = std::fs::read(src).unwrap();
     let tmp = tempfile::tempdir().unwrap();
     let mut state = 0x0dd_ba11_cafe_f00du64;
     let mut next = || {

@@ -1,6 +1,14 @@
-//! Shared pieces of the stress tests: statistics helpers (the same definitions as in
-//! tests/tracking.rs), a 1-D analytic medium and a renderer over every tracker setting.
+//! Shared pieces of the integration tests: statistics helpers, a 1-D analytic medium and
+//! a renderer over every tracker setting (the stress tests), and in submodules the
+//! inputs from outside the repository (`data`: the shared data and Python's `pxr`, with
+//! the `NIMBUS_REQUIRE_DATA` switch).
 #![allow(dead_code)]
+
+pub mod cli;
+pub mod data;
+
+#[allow(unused_imports)] // not every test binary uses each
+pub use data::{missing, pxr_fixtures, pxr_python, python_imports, repo, shared_data, shared_file};
 
 use glam::{DMat4, DVec3};
 use nimbus::render::camera::CameraRays;
@@ -81,6 +89,15 @@ pub fn label(s: &TrackerSettings) -> String {
         s.transmittance.name(),
         s.majorant_scale
     )
+}
+
+/// No sun; a constant environment of radiance `env`.
+pub fn sky(env: [f64; 3]) -> Lights {
+    Lights {
+        suns: vec![],
+        environment: env,
+        ..Lights::default()
+    }
 }
 
 /// A pinhole camera placed by `camera_to_world` (looking down its −Z), with a square

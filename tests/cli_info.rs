@@ -1,0 +1,101 @@
+//! End-to-end tests of `nimbus info` (a VDB file, a stage) and of bad voxels as counted
+//! by `info` and by render statistics.
+
+mod common;
+
+use common::cli::{
+    assert_clean_error, channels, nimbus, render_args, root, stage_with_field, stats_json, stderr,
+};
+use std::process::Command;
+
+/// `nimbus info FILE.vdb` lists the grids with their types, counts and active value
+/// ranges (the example cloud: one float grid, 0 < density ≤ 1), and a missing file is a
+/// clean error naming it.
+#[test]
+fn info_describes_a_vdb_file() {
+    let vdb = root().join("scenes/cloud/cloud.vdb");
+    let o = nimbus(&["info", vdb.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let s = String::from_utf8_lossy(&o.stdout);
+    assert!(s.contains("(1 grids)"), "{s}");
+    assert!(s.contains("grid 'density' type Tree_float_5_4_3"), "{s}");
+    let range = s
+        .split("active values ")
+        .nth(1)
+        .and_then(|r| r.split(',').next())
+        .expect("a value range");
+    let (lo, hi) = range.split_once(" .. ").expect("lo .. hi");
+    let (lo, hi): (f32, f32) = (lo.parse().unwrap(), hi.parse().unwrap());
+    assert!(lo > 0.0 && hi <= 1.0 && lo < hi, "range {lo} .. {hi}");
+    let missing = root().join("scenes/cloud/missing.vdb");
+    assert_clean_error(&nimbus(&["info", missing.to_str().unwrap()]), "missing.vdb");
+}
+
+#[test]
+fn info_describes_the_stage() {
+    let o = Command::new(env!("CARGO_BIN_EXE_nimbus"))
+        .args([
+            "info",
+            root().join("scenes/cloud/cloud.usda").to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let s = String::from_utf8_lossy(&o.stdout);
+    for needle in [
+        "/World/Cloud",
+        "/World/Camera",
+        "/World/Sun",
+        "/World/Sky",
+        "vdb reader",
+        "density",
+        "320x240",
+    ] {
+        assert!(s.contains(needle), "info lacks {needle}: {s}");
+    }
+}
+
+/// NaN, ±Inf and negative voxels in a VDB: `nimbus info` and `--stats` count them, and
+/// the render is finite with no sample dropped.
+#[test]
+fn bad_voxels_are_counted_by_info_and_stats() {
+    use nimbus::volume::procedural::grid_from_fn;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut raw = grid_from_fn(
+        "density",
+        [8, 8, 8],
+        glam::DVec3::splat(-0.5),
+        0.125,
+        |_| 1.0,
+    );
+    for (i, v) in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -2.0]
+        .into_iter()
+        .enumerate()
+    {
+        raw.leaves[0].values[i * 100] = v;
+    }
+    nimbus::volume::vdb::write_float_grid(&d.join("bad.vdb"), &raw).unwrap();
+    let stage = stage_with_field(d, "bad.vdb", "density");
+    let o = nimbus(&["info", stage.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("sanitized voxels 4"), "{out}");
+    let exr = d.join("out.exr");
+    let stats = d.join("stats.json");
+    let mut args = render_args(stage.to_str().unwrap(), exr.to_str().unwrap());
+    args.extend([
+        "--stats",
+        stats.to_str().unwrap(),
+        "--aovs",
+        "max_throughput,variance,null_collisions",
+    ]);
+    let o = nimbus(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j = stats_json(&stats);
+    assert_eq!(j["sanitized_voxels"], 4);
+    assert_eq!(j["nonfinite_samples"], 0);
+    for (name, values) in channels(&exr) {
+        assert!(values.iter().all(|v| v.is_finite()), "channel {name}");
+    }
+}

@@ -1,0 +1,142 @@
+//! Inputs from outside the repository: the real data in `../shared/data` and Python
+//! with Pixar's USD (`pxr`). A test that needs one asks here; when it is absent the test
+//! is skipped with a message, unless `NIMBUS_REQUIRE_DATA=1` is set (as in `.ci/run`),
+//! in which case the test fails naming what is missing: no test passes by skipping
+//! where its inputs should exist.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// The repository root (`CARGO_MANIFEST_DIR`).
+pub fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Whether `NIMBUS_REQUIRE_DATA=1`: a missing input fails the test instead of skipping it.
+pub fn data_required() -> bool {
+    std::env::var("NIMBUS_REQUIRE_DATA").is_ok_and(|v| v == "1")
+}
+
+/// Reports a missing input `what`: panics under `NIMBUS_REQUIRE_DATA=1`, otherwise prints
+/// `SKIPPED: …` and returns `None` so the caller returns early.
+pub fn missing<T>(what: &str) -> Option<T> {
+    if data_required() {
+        panic!("NIMBUS_REQUIRE_DATA=1 but {what}");
+    }
+    eprintln!("SKIPPED: {what}");
+    None
+}
+
+/// Where the shared data is looked for: `NIMBUS_SHARED_DATA` if set, otherwise
+/// `../shared/data` beside the repository.
+pub fn shared_data_location() -> PathBuf {
+    match std::env::var_os("NIMBUS_SHARED_DATA") {
+        Some(p) => PathBuf::from(p),
+        None => repo().join("../shared/data"),
+    }
+}
+
+/// The shared data directory, or `None` (skip) when it is absent; fails the test under
+/// `NIMBUS_REQUIRE_DATA=1`.
+pub fn shared_data() -> Option<PathBuf> {
+    let dir = shared_data_location();
+    if dir.is_dir() {
+        Some(dir)
+    } else {
+        missing(&format!(
+            "{} is absent (the shared data; NIMBUS_SHARED_DATA overrides the location)",
+            dir.display()
+        ))
+    }
+}
+
+/// The file `rel` under the shared data, or `None` (skip) when it or the directory is
+/// absent; fails the test under `NIMBUS_REQUIRE_DATA=1`.
+pub fn shared_file(rel: impl AsRef<Path>) -> Option<PathBuf> {
+    let path = shared_data()?.join(rel);
+    if path.is_file() {
+        Some(path)
+    } else {
+        missing(&format!(
+            "{} is absent from the shared data",
+            path.display()
+        ))
+    }
+}
+
+/// Whether `python3` imports every module of `modules`. When one does not import, the
+/// test is skipped with a message naming the modules (`install` says what to install),
+/// or fails under `NIMBUS_REQUIRE_DATA=1`.
+pub fn python_imports(modules: &[&str], install: &str) -> bool {
+    let script = [
+        "import importlib, sys",
+        "missing = []",
+        "for m in sys.argv[1:]:",
+        "    try:",
+        "        importlib.import_module(m)",
+        "    except Exception as e:",
+        "        missing.append('%s (%s)' % (m, e))",
+        "print(', '.join(missing))",
+    ]
+    .join("\n");
+    let missing_modules = match Command::new("python3")
+        .arg("-c")
+        .arg(script)
+        .args(modules)
+        .output()
+    {
+        Ok(o) if o.status.success() => String::from_utf8_lossy(&o.stdout).trim().to_string(),
+        Ok(o) => format!(
+            "python3 failed: {}",
+            String::from_utf8_lossy(&o.stderr).trim()
+        ),
+        Err(e) => format!("python3 does not run ({e})"),
+    };
+    if missing_modules.is_empty() {
+        return true;
+    }
+    missing::<()>(&format!(
+        "`python3 -c 'import {}'` failed: {missing_modules}; {install}",
+        modules.join(", ")
+    ));
+    false
+}
+
+/// Whether `python3` imports Pixar's USD (`pxr`); see [`python_imports`].
+pub fn pxr_python() -> bool {
+    python_imports(&["pxr"], "pip install usd-core")
+}
+
+/// Runs the fixture generator `tests/fixtures/SCRIPT` (a Python script authoring stages
+/// with Pixar's USD and writing what pxr computes for them to `expected.json`) into a
+/// fresh temp dir, with Nimbus' schemas on pxr's plugin path when `schemas`. `None` (with
+/// a message; a failure under `NIMBUS_REQUIRE_DATA=1`) when Python lacks one of `modules`.
+pub fn pxr_fixtures(
+    script: &str,
+    modules: &[&str],
+    install: &str,
+    schemas: bool,
+) -> Option<(tempfile::TempDir, serde_json::Value)> {
+    if !python_imports(modules, install) {
+        return None;
+    }
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut command = Command::new("python3");
+    command
+        .arg(repo().join("tests/fixtures").join(script))
+        .arg(dir.path());
+    if schemas {
+        command.env("PXR_PLUGINPATH_NAME", repo().join("schemas"));
+    }
+    let output = command
+        .output()
+        .unwrap_or_else(|e| panic!("run {script}: {e}"));
+    assert!(
+        output.status.success(),
+        "{script} failed:\n{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let text = std::fs::read_to_string(dir.path().join("expected.json")).expect("expected.json");
+    let expected = serde_json::from_str(&text).expect("expected.json parses");
+    Some((dir, expected))
+}
