@@ -19,10 +19,13 @@
 //! samples, where the normal approximation holds. The tests still catch bias: delta with
 //! its majorant scaled by 0.3 (biased) fails (checked by hand with the config below).
 
+mod common;
+
+use common::medium_for_scene;
 use nimbus::render::analysis::CodePaths;
 use nimbus::render::camera::CameraRays;
 use nimbus::render::film::Film;
-use nimbus::render::job::{medium_for_scene, RenderJob};
+use nimbus::render::job::RenderJob;
 use nimbus::render::lights::Lights;
 use nimbus::scene::{load_stage, LoadOptions};
 use nimbus::track::select::{SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};

@@ -4,9 +4,9 @@
 
 mod common;
 
+use common::medium_for_scene;
 use common::{mean_se, paths, Setup};
 use glam::{DMat4, DVec3};
-use nimbus::render::job::medium_for_scene;
 use nimbus::render::lights::Lights;
 use nimbus::scene::{load_stage, LoadOptions};
 use nimbus::track::select::{SchemeKind, TrackerKind, TrackerSettings};
@@ -456,7 +456,7 @@ fn stage_albedo_reaches_the_medium() {
     let m = medium_for_scene(&scene, 8).unwrap();
     assert!(m.albedo.is_none());
     let cam = common::camera_on_z(10.0, 1000.0, 10.0, 9, 9);
-    let a = Analysis::of(&m, &Lights::default(), &cam, (9, 9));
+    let a = Analysis::of_media(std::slice::from_ref(&m), &Lights::default(), &cam, (9, 9));
     assert!(a.constant_albedo && a.albedo_field.is_none());
 
     let grey = albedo_stage(dir.path(), "    token nimbus:albedoField = \"grey\"");
@@ -495,7 +495,7 @@ fn stage_albedo_reaches_the_medium() {
     // The clamped corner voxel (index (0,0,0) at world −0.8125): 2 → 1, −1 → 0, NaN → 0.
     let corner = albedo.sample(DVec3::splat(-0.8125), &mut Counters::default());
     assert_eq!(corner, [1.0, 0.0, 0.0]);
-    let a = Analysis::of(&m, &Lights::default(), &cam, (9, 9));
+    let a = Analysis::of_media(std::slice::from_ref(&m), &Lights::default(), &cam, (9, 9));
     assert!(!a.constant_albedo);
     assert_eq!(a.albedo_field.as_deref(), Some("Cd"));
 }

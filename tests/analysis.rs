@@ -59,7 +59,12 @@ fn analysis_classifies_generated_scenes() {
     // A constant cube: homogeneous, grey, isotropic, no empty leaves inside... except
     // the one-voxel rim of the majorant region, where the field falls off.
     let cube = medium(|_| 0.5, grey, scat, 0.0);
-    let a = Analysis::of(&cube, &sky([1.0; 3]), &camera(false), (32, 24));
+    let a = Analysis::of_media(
+        std::slice::from_ref(&cube),
+        &sky([1.0; 3]),
+        &camera(false),
+        (32, 24),
+    );
     assert!(a.grey && a.homogeneous && a.isotropic && a.volume_visible);
     assert!(!a.emissive && a.constant_albedo);
     assert!((a.max_albedo - 0.9).abs() < 1e-6);
@@ -73,13 +78,23 @@ fn analysis_classifies_generated_scenes() {
         [1.1, 1.2, 1.0],
         0.4,
     );
-    let a = Analysis::of(&ball, &sky([0.0; 3]), &camera(false), (32, 24));
+    let a = Analysis::of_media(
+        std::slice::from_ref(&ball),
+        &sky([0.0; 3]),
+        &camera(false),
+        (32, 24),
+    );
     assert!(!a.grey && !a.homogeneous && !a.isotropic && a.volume_visible);
     assert!(a.empty_cell_fraction > 0.2, "{}", a.empty_cell_fraction);
     assert_eq!((a.lights_emitting, a.lights_total), (0, 1));
 
     // The camera turned away sees nothing of it.
-    let a = Analysis::of(&ball, &sky([1.0; 3]), &camera(true), (32, 24));
+    let a = Analysis::of_media(
+        std::slice::from_ref(&ball),
+        &sky([1.0; 3]),
+        &camera(true),
+        (32, 24),
+    );
     assert!(!a.volume_visible);
 }
 
@@ -89,7 +104,7 @@ fn auto_follows_its_rules() {
     // Heterogeneous (a linear ramp) unless said otherwise.
     let ramp = |p: DVec3| 0.5 + 0.25 * p.x;
     let grey = medium(ramp, [0.1; 3], [0.9; 3], 0.0);
-    let a = Analysis::of(&grey, &sky([1.0; 3]), &cam, (32, 24));
+    let a = Analysis::of_media(std::slice::from_ref(&grey), &sky([1.0; 3]), &cam, (32, 24));
     assert!(!a.homogeneous);
     let (t, _) = a.choose(TrackerSettings::default(), Given::default());
     assert_eq!(t.tracker, TrackerKind::Delta);
@@ -97,7 +112,12 @@ fn auto_follows_its_rules() {
     assert!(!t.options.no_absorption_events);
 
     let chroma = medium(ramp, [0.2, 0.3, 0.6], [1.1, 1.2, 1.0], 0.0);
-    let a = Analysis::of(&chroma, &sky([1.0; 3]), &cam, (32, 24));
+    let a = Analysis::of_media(
+        std::slice::from_ref(&chroma),
+        &sky([1.0; 3]),
+        &cam,
+        (32, 24),
+    );
     let base = TrackerSettings {
         scheme: SchemeKind::Max,
         ..TrackerSettings::default()
@@ -120,7 +140,7 @@ fn auto_follows_its_rules() {
     // Homogeneous media with no majorant structure named: one global majorant (tight
     // inside), and the tracker of their colour.
     let cube = medium(|_| 0.5, [0.1; 3], [0.9; 3], 0.0);
-    let a = Analysis::of(&cube, &sky([1.0; 3]), &cam, (32, 24));
+    let a = Analysis::of_media(std::slice::from_ref(&cube), &sky([1.0; 3]), &cam, (32, 24));
     let (t, reason) = a.choose(TrackerSettings::default(), Given::default());
     assert_eq!(
         (t.tracker, t.transmittance),
@@ -142,7 +162,12 @@ fn auto_follows_its_rules() {
     let (t, _) = a.choose(TrackerSettings::default(), named);
     assert_eq!(t.transmittance, TransmittanceKind::Ratio);
     let chroma_cube = medium(|_| 0.5, [0.2, 0.3, 0.6], [1.1, 1.2, 1.0], 0.0);
-    let a = Analysis::of(&chroma_cube, &sky([1.0; 3]), &cam, (32, 24));
+    let a = Analysis::of_media(
+        std::slice::from_ref(&chroma_cube),
+        &sky([1.0; 3]),
+        &cam,
+        (32, 24),
+    );
     let (t, _) = a.choose(TrackerSettings::default(), cells);
     assert_eq!(t.tracker, TrackerKind::SpectralDecomposition);
     assert_eq!(t.transmittance, TransmittanceKind::ResidualRatio);
@@ -153,7 +178,7 @@ fn auto_follows_its_rules() {
     );
     assert!(t.options.no_absorption_events);
     // Heterogeneous media keep the structure they were loaded with.
-    let a = Analysis::of(&grey, &sky([1.0; 3]), &cam, (32, 24));
+    let a = Analysis::of_media(std::slice::from_ref(&grey), &sky([1.0; 3]), &cam, (32, 24));
     assert_eq!(a.majorants(Given::default()), None);
 }
 

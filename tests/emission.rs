@@ -339,8 +339,9 @@ fn bad_emission_parameters_are_errors() {
 
 // ----- stages ------------------------------------------------------------------------------------
 
-use nimbus::render::job::medium_for_scene;
+use nimbus::render::job::media_for_scene_with;
 use nimbus::scene::{load_stage, LoadOptions};
+use nimbus::volume::majorant::MajorantSpec;
 
 fn write_vdb(path: &Path, grids: &[RawGrid]) {
     nimbus::volume::vdb::write_float_grids(path, grids).expect("write vdb");
@@ -391,7 +392,9 @@ fn stage_emission_reaches_the_medium() {
     assert_eq!(v.emission.temperature.as_ref().unwrap().0, "temperature");
     assert_eq!(v.emission.emission.as_ref().unwrap().0, "flames");
     assert_eq!(v.emission.emission_color, [0.25, 0.5, 1.0]);
-    let m = medium_for_scene(&scene, 8).unwrap();
+    let m = media_for_scene_with(&scene, MajorantSpec::Uniform { cell_voxels: 8 })
+        .unwrap()
+        .remove(0);
     let e = m.emission.as_ref().expect("emissive");
     let got = e.radiance(DVec3::ZERO, &mut Counters::default());
     let bb = blackbody_radiance(3000.0, 0.1);
@@ -406,7 +409,13 @@ fn stage_emission_reaches_the_medium() {
     let plain = fire_stage(dir.path(), "");
     let scene = load_stage(&plain, &LoadOptions::default()).unwrap();
     assert!(!scene.volumes[0].emission.is_emissive());
-    assert!(medium_for_scene(&scene, 8).unwrap().emission.is_none());
+    assert!(
+        media_for_scene_with(&scene, MajorantSpec::Uniform { cell_voxels: 8 })
+            .unwrap()
+            .remove(0)
+            .emission
+            .is_none()
+    );
 }
 
 /// A field name with no relationship: the error names the prim, the attribute and the
@@ -648,12 +657,14 @@ def Volume "Fire" (apiSchemas = ["NimbusVolumeAPI"]) {{
     )
     .unwrap();
     let scene = load_stage(&stage, &LoadOptions::default()).unwrap();
-    let medium = medium_for_scene(&scene, 8).unwrap();
+    let medium = media_for_scene_with(&scene, MajorantSpec::Uniform { cell_voxels: 8 })
+        .unwrap()
+        .remove(0);
     assert!(medium.emission.is_some());
     let lights = Lights::from_scene(&scene).unwrap();
     let (w, h) = (32, 32);
     let camera = CameraRays::new(&scene.camera, w, h);
-    let analysis = Analysis::of(&medium, &lights, &camera, (w, h));
+    let analysis = Analysis::of_media(std::slice::from_ref(&medium), &lights, &camera, (w, h));
     assert!(analysis.emissive && analysis.volume_visible);
     let (auto, _) = analysis.choose(TrackerSettings::default(), Given::default());
     assert!(!auto.options.no_absorption_events);
@@ -699,13 +710,13 @@ fn analysis_of_emissive_media_keeps_absorption_events() {
     let cam = common::camera_on_z(10.0, 1000.0, 10.0, 9, 9);
     let lights = Lights::default();
     let mut m = common::unit_cube(1.0, [0.2, 0.3, 0.6], [1.1, 1.2, 1.0], 0.0);
-    let a = Analysis::of(&m, &lights, &cam, (9, 9));
+    let a = Analysis::of_media(std::slice::from_ref(&m), &lights, &cam, (9, 9));
     assert!(!a.emissive);
     let (t, _) = a.choose(TrackerSettings::default(), Given::default());
     assert!(t.options.no_absorption_events);
     let (e, _) = both_sources();
     m.set_emission(Some(e));
-    let a = Analysis::of(&m, &lights, &cam, (9, 9));
+    let a = Analysis::of_media(std::slice::from_ref(&m), &lights, &cam, (9, 9));
     assert!(a.emissive && !a.grey);
     let (t, reason) = a.choose(TrackerSettings::default(), Given::default());
     assert_eq!(
@@ -724,7 +735,9 @@ fn example_fire_scene_emits() {
     use nimbus::render::job::RenderJob;
     let stage = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes/fire/fire.usda");
     let scene = load_stage(&stage, &LoadOptions::default()).unwrap();
-    let medium = medium_for_scene(&scene, 8).unwrap();
+    let medium = media_for_scene_with(&scene, MajorantSpec::Uniform { cell_voxels: 8 })
+        .unwrap()
+        .remove(0);
     assert!(medium.emission.as_ref().unwrap().temperature.is_some());
     // No lights: only emission shows.
     let lights = Lights::default();

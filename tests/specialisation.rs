@@ -7,11 +7,14 @@
 //!   family with residual ratio tracking) has the same image mean as delta tracking
 //!   (a z-test) for a fraction of the lookups.
 
+mod common;
+
+use common::medium_for_scene;
 use glam::{DMat4, DVec3};
 use nimbus::render::analysis::{Analysis, CodePaths, Given};
 use nimbus::render::camera::CameraRays;
 use nimbus::render::film::{Aov, Film};
-use nimbus::render::job::{medium_for_scene, RenderJob};
+use nimbus::render::job::RenderJob;
 use nimbus::render::lights::Lights;
 use nimbus::scene::{load_stage, Camera, LoadOptions};
 use nimbus::track::scheme::SchemeOptions;

@@ -45,10 +45,6 @@ pub struct Analysis {
 }
 
 impl Analysis {
-    pub fn of(medium: &Medium, lights: &Lights, camera: &CameraRays, size: (u32, u32)) -> Self {
-        Self::of_media(std::slice::from_ref(medium), lights, camera, size)
-    }
-
     /// The analysis of a stage with several volumes (one medium each).
     pub fn of_media(
         media: &[Medium],

@@ -109,21 +109,6 @@ impl RenderJob<'_> {
     }
 }
 
-/// Loads the density grid of the scene's only volume and builds its medium with a
-/// flat majorant grid of `cell_voxels` cells (an error when the stage has several:
-/// see [`media_for_scene_with`]).
-pub fn medium_for_scene(scene: &Scene, cell_voxels: u32) -> anyhow::Result<Medium> {
-    let mut media = media_for_scene_with(scene, MajorantSpec::Uniform { cell_voxels })?;
-    if media.len() > 1 {
-        bail!(
-            "{}: the stage has {} volumes, expected one",
-            scene.stage_path.display(),
-            media.len()
-        );
-    }
-    Ok(media.remove(0))
-}
-
 /// Loads the density grid (and emission grids) of every volume of the scene and
 /// builds one medium per volume, each with its own majorant structure `spec`. Where
 /// volumes overlap their coefficients add: the trackers race the media's collision

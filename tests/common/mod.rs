@@ -329,7 +329,6 @@ def Volume "V" (apiSchemas = ["NimbusVolumeAPI"]) {
 
 /// The error of loading `stage` and building its medium (which must fail), as printed.
 pub fn load_message(stage: &std::path::Path) -> String {
-    use nimbus::render::job::medium_for_scene;
     use nimbus::scene::{load_stage, LoadOptions};
     let msg = match load_stage(stage, &LoadOptions::default()) {
         Err(e) => e.to_string(),
@@ -340,4 +339,21 @@ pub fn load_message(stage: &std::path::Path) -> String {
     };
     eprintln!("{msg}");
     msg
+}
+
+/// The medium of a scene's only volume, with a flat majorant grid of `cell_voxels`
+/// cells (an error when the stage has several).
+pub fn medium_for_scene(scene: &nimbus::scene::Scene, cell_voxels: u32) -> anyhow::Result<Medium> {
+    let mut media = nimbus::render::job::media_for_scene_with(
+        scene,
+        nimbus::volume::majorant::MajorantSpec::Uniform { cell_voxels },
+    )?;
+    if media.len() > 1 {
+        anyhow::bail!(
+            "{}: the stage has {} volumes, expected one",
+            scene.stage_path.display(),
+            media.len()
+        );
+    }
+    Ok(media.remove(0))
 }
