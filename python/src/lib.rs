@@ -78,7 +78,9 @@ fn to_py(e: anyhow::Error) -> PyErr {
     if e.chain().any(|c| c.downcast_ref::<SceneError>().is_some()) {
         return StageError::new_err(msg);
     }
-    if e.chain().any(|c| c.downcast_ref::<LibOutputError>().is_some()) {
+    if e.chain()
+        .any(|c| c.downcast_ref::<LibOutputError>().is_some())
+    {
         return OutputError::new_err(msg);
     }
     SettingsError::new_err(msg)
@@ -168,7 +170,14 @@ fn warn_all(py: Python<'_>, warnings: &[String]) -> PyResult<()> {
     }
     let w = py.import("warnings")?;
     for msg in warnings {
-        w.call_method1("warn", (format!("nimbus: {msg}"), py.get_type::<pyo3::exceptions::PyUserWarning>(), 2))?;
+        w.call_method1(
+            "warn",
+            (
+                format!("nimbus: {msg}"),
+                py.get_type::<pyo3::exceptions::PyUserWarning>(),
+                2,
+            ),
+        )?;
     }
     Ok(())
 }
@@ -253,14 +262,18 @@ fn info_json(s: &Session) -> Value {
         .collect();
     let mut lights = Vec::new();
     for l in &scene.distant_lights {
-        lights.push(json!({"type": "distant", "prim_path": l.prim_path, "direction": l.direction,
+        lights.push(
+            json!({"type": "distant", "prim_path": l.prim_path, "direction": l.direction,
             "intensity": l.intensity, "exposure": l.exposure, "color": l.color,
-            "normalize": l.normalize, "angle": l.angle_degrees}));
+            "normalize": l.normalize, "angle": l.angle_degrees}),
+        );
     }
     for l in &scene.dome_lights {
-        lights.push(json!({"type": "dome", "prim_path": l.prim_path, "intensity": l.intensity,
+        lights.push(
+            json!({"type": "dome", "prim_path": l.prim_path, "intensity": l.intensity,
             "exposure": l.exposure, "color": l.color, "texture_file": l.texture_file,
-            "texture_format": l.texture_format}));
+            "texture_format": l.texture_format}),
+        );
     }
     for l in &scene.sphere_lights {
         lights.push(json!({"type": "sphere", "prim_path": l.prim_path,
@@ -502,14 +515,14 @@ fn render(
     };
     // Files are written only when asked for (unlike the CLI, which always writes the
     // stage's products): resolve them before rendering so a bad path fails at once.
-    let outputs = if request.output.is_some() || request.stats.is_some() || request.preview.is_some()
-    {
-        Some(guarded(|| {
-            Outputs::resolve(&path, &session.scene.settings, &request, frame, false)
-        })?)
-    } else {
-        None
-    };
+    let outputs =
+        if request.output.is_some() || request.stats.is_some() || request.preview.is_some() {
+            Some(guarded(|| {
+                Outputs::resolve(&path, &session.scene.settings, &request, frame, false)
+            })?)
+        } else {
+            None
+        };
     warn_all(py, &session.warnings)?;
 
     // r.stats is always filled, so the counters always run (as `--stats` makes them).
@@ -549,7 +562,11 @@ fn render(
     let rx = std::sync::Mutex::new(rx);
     let mut reported = u64::MAX;
     let rendered = loop {
-        match py.allow_threads(|| rx.lock().map_or(Err(RecvTimeoutError::Disconnected), |r| r.recv_timeout(POLL))) {
+        match py.allow_threads(|| {
+            rx.lock().map_or(Err(RecvTimeoutError::Disconnected), |r| {
+                r.recv_timeout(POLL)
+            })
+        }) {
             Ok(r) => break r?,
             Err(RecvTimeoutError::Timeout) => {
                 // Ctrl-C (or any signal handler raising): stop the render and return at
@@ -626,7 +643,9 @@ fn render(
 }
 
 /// An image argument of `compare`: an EXR path, or an array (H, W, C) / (H, W).
-fn image_channels(obj: &Bound<'_, PyAny>) -> PyResult<(String, usize, usize, Vec<(String, Vec<f32>)>)> {
+fn image_channels(
+    obj: &Bound<'_, PyAny>,
+) -> PyResult<(String, usize, usize, Vec<(String, Vec<f32>)>)> {
     if let Ok(path) = obj.extract::<PathBuf>() {
         let (w, h, chans) = read_all_channels(&path)
             .map_err(|e| Error::new_err(format!("{}: {e}", path.display())))?;
@@ -655,7 +674,12 @@ fn image_channels(obj: &Bound<'_, PyAny>) -> PyResult<(String, usize, usize, Vec
     let chans = names
         .iter()
         .enumerate()
-        .map(|(k, n)| (n.to_string(), data.iter().skip(k).step_by(c).copied().collect()))
+        .map(|(k, n)| {
+            (
+                n.to_string(),
+                data.iter().skip(k).step_by(c).copied().collect(),
+            )
+        })
         .collect();
     Ok(("<array>".into(), w, h, chans))
 }
@@ -705,7 +729,11 @@ fn channel_error(name: &str, a: &[f32], b: &[f32]) -> Value {
 /// Per-channel error of image `a` against reference `b` (`nimbus compare a b --json`):
 /// each is an EXR path or an array (H, W, C) whose channels are R, G, B, A.
 #[pyfunction]
-fn compare<'py>(py: Python<'py>, a: Bound<'py, PyAny>, b: Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
+fn compare<'py>(
+    py: Python<'py>,
+    a: Bound<'py, PyAny>,
+    b: Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, PyAny>> {
     let (na, wa, ha, ca) = image_channels(&a)?;
     let (nb, wb, hb, cb) = image_channels(&b)?;
     if (wa, ha) != (wb, hb) {
@@ -720,12 +748,19 @@ fn compare<'py>(py: Python<'py>, a: Bound<'py, PyAny>, b: Bound<'py, PyAny>) -> 
             _ if name == "A" => {}
             (x, _) => {
                 let which = if x.is_none() { &na } else { &nb };
-                return Err(SettingsError::new_err(format!("{which}: no channel {name}")));
+                return Err(SettingsError::new_err(format!(
+                    "{which}: no channel {name}"
+                )));
             }
         }
     }
     let rgb = &channels[..3];
-    let avg = |k: &str| rgb.iter().map(|c| c[k].as_f64().unwrap_or(f64::NAN)).sum::<f64>() / 3.0;
+    let avg = |k: &str| {
+        rgb.iter()
+            .map(|c| c[k].as_f64().unwrap_or(f64::NAN))
+            .sum::<f64>()
+            / 3.0
+    };
     let sum = |k: &str| rgb.iter().map(|c| c[k].as_u64().unwrap_or(0)).sum::<u64>();
     let rgb = json!({
         "channel": "RGB", "mse": avg("mse"), "relmse": avg("relmse"), "rmse": avg("rmse"),
@@ -822,7 +857,10 @@ fn _nimbus(m: &Bound<'_, PyModule>) -> PyResult<()> {
         ("OCTREE_DEPTH", tokens::OCTREE_DEPTH),
         ("PREVIEW_NAME", tokens::PREVIEW_NAME),
         ("VOLUME_API", nimbus::scene::schema::VOLUME_API),
-        ("RENDER_SETTINGS_API", nimbus::scene::schema::RENDER_SETTINGS_API),
+        (
+            "RENDER_SETTINGS_API",
+            nimbus::scene::schema::RENDER_SETTINGS_API,
+        ),
     ] {
         schema.set_item(k, v)?;
     }
