@@ -424,8 +424,27 @@ impl RenderResult {
 
 type Rendered = (Film, Progress, usize, bool);
 
-/// Renders a stage (a path, or usda text) with the CLI's overrides as keyword
-/// arguments; see the stub file for the parameters.
+/// Renders a stage and returns a RenderResult (rgba, aovs, stats, write()).
+///
+/// `stage` is a .usda/.usdc/.usdz path or a .vdb file; or give the usda text as
+/// `stage_text`, whose relative asset paths resolve against `base_dir` (default: the
+/// working directory; the text is written to a hidden temporary .usda there while the
+/// stage loads).
+///
+/// The other keyword arguments are `nimbus render`'s flags (`--max-depth` is
+/// `max_depth`, `--res 320x240` is `res=(320, 240)`) with the same meaning and
+/// defaults; None leaves the choice to the stage, and the stage's silence to the
+/// schema fallbacks. `tracker` is "auto" or one of tracker_names(). `output`, `stats`
+/// and `preview` write files as `-o`, `--stats` and `--preview` do; without them
+/// nothing is written (use RenderResult.write).
+///
+/// The GIL is released while the stage loads and renders. `progress(done, total)` is
+/// called on the calling thread as rows finish (total = spp * height; None with a
+/// time limit alone); an exception it raises stops the render and propagates. Ctrl-C
+/// stops the render and raises KeyboardInterrupt at once.
+///
+/// Raises StageError, VdbError, SettingsError or OutputError (all nimbus.Error),
+/// with the messages of the CLI.
 #[pyfunction]
 #[pyo3(signature = (
     stage=None, *, stage_text=None, base_dir=None,

@@ -90,3 +90,28 @@ def test_a_malformed_stage_raises_stage_error(tmp_path):
     bad.write_text("#usda 1.0\ndef Volume \"V\" {\n")
     with pytest.raises(nimbus.StageError):
         nimbus.info(bad)
+
+
+def test_session_warnings_become_python_warnings(stage_dir):
+    # A volume alone: the session frames it with a default camera and lights it with a
+    # default sun and sky, and says so.
+    text = """#usda 1.0
+def Volume "Cloud" (prepend apiSchemas = ["NimbusVolumeAPI"])
+{
+    rel field:density = </Cloud/density>
+    def OpenVDBAsset "density"
+    {
+        asset filePath = @./cloud.vdb@
+        token fieldName = "density"
+    }
+}
+"""
+    import warnings
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        r = nimbus.render(stage_text=text, base_dir=stage_dir, spp=1, res=(16, 12))
+    messages = [str(w.message) for w in caught if issubclass(w.category, UserWarning)]
+    assert any("no lights" in m for m in messages), messages
+    assert any("default camera" in m for m in messages), messages
+    assert any("default camera" in w for w in r.warnings)
+    assert r.rgba.shape == (12, 16, 4)
