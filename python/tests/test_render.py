@@ -84,21 +84,28 @@ def test_a_progress_callback_that_raises_stops_the_render(stage):
 
 def test_keyboard_interrupt_stops_a_long_render_within_a_second(stage):
     sent = []
+    timers = []
 
     def interrupt():
         sent.append(time.monotonic())
         os.kill(os.getpid(), signal.SIGINT)
 
-    timer = threading.Timer(0.5, interrupt)
+    def progress(done, total):
+        # Rows are finishing: the render is under way (the stage has loaded), so the
+        # signal lands in the middle of rendering.
+        if not timers:
+            timers.append(threading.Timer(0.3, interrupt))
+            timers[0].start()
+
     start = time.monotonic()
-    timer.start()
     with pytest.raises(KeyboardInterrupt):
-        nimbus.render(stage, spp=10_000_000, res=(96, 72))
+        nimbus.render(stage, spp=10_000_000, res=(96, 72), progress=progress)
     end = time.monotonic()
-    timer.join()
+    assert timers, "progress never came"
+    timers[0].join()
     assert sent, "the signal was never sent (the render ended first?)"
     assert end - sent[0] < 1.0, f"stopped {end - sent[0]:.2f} s after SIGINT"
-    assert end - start < 5.0
+    assert end - start < 30.0
     # The next render is not affected by the stopped one.
     r = nimbus.render(stage, spp=1)
     assert r.spp == 1
