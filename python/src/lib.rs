@@ -643,7 +643,7 @@ fn render(
         let arr = PyArray1::from_vec(py, film.channel(*a)).reshape([h, w])?;
         aov_dict.set_item(a.channel_name(), arr)?;
     }
-    let stats_value = RenderStats::new(&session, &film, &p, &facts);
+    let stats_value = guarded(|| Ok(RenderStats::new(&session, &film, &p, &facts)))?;
     let stats_py = json_to_py(py, &stats_value)?;
     let warnings = PyList::new(py, &session.warnings)?;
     let auto_summary = session.auto_summary();
