@@ -1,0 +1,169 @@
+"""nimbus.render against the CLI, progress, Ctrl-C, threads, stage text, write."""
+
+import os
+import signal
+import threading
+import time
+
+import numpy as np
+import OpenEXR
+import pytest
+
+import nimbus
+from conftest import RES, SPP, run_cli
+
+
+def exr_channels(path):
+    """Every channel of an EXR read with OpenEXR's own bindings (not Nimbus')."""
+    with OpenEXR.File(str(path), separate_channels=True) as f:
+        return {name: np.asarray(c.pixels, dtype=np.float32) for name, c in f.channels().items()}
+
+
+def same_bits(a, b):
+    a, b = np.ascontiguousarray(a, np.float32), np.ascontiguousarray(b, np.float32)
+    return a.shape == b.shape and np.array_equal(a.view(np.uint32), b.view(np.uint32))
+
+
+def test_render_equals_the_cli_bit_for_bit(stage, nimbus_bin, tmp_path):
+    cli_exr = tmp_path / "cli.exr"
+    run_cli(nimbus_bin, "render", stage, "-o", cli_exr, "--seed", 3, "--spp", 3)
+    r = nimbus.render(stage, seed=3, spp=3, aovs=["lookups"])
+    assert r.rgba.dtype == np.float32 and r.rgba.shape == (RES[1], RES[0], 4)
+    assert r.rgba[..., :3].max() > 0, "the cloud renders black"
+    cli = exr_channels(cli_exr)
+    for k, name in enumerate("RGBA"):
+        assert same_bits(r.rgba[..., k], cli[name]), f"channel {name} differs from the CLI's"
+    assert same_bits(r.aovs["lookups"], cli["lookups"])
+    # r.write writes the CLI's file: the same channels, the same values.
+    py_exr = tmp_path / "py.exr"
+    r.write(py_exr)
+    mine = exr_channels(py_exr)
+    assert sorted(mine) == sorted(cli)
+    for name in cli:
+        assert same_bits(mine[name], cli[name]), name
+    assert r.stats["samples_per_pixel"] == 3 and r.stats["seed"] == 3
+    assert r.stats["density_lookups"] > 0
+    assert r.spp == 3 and r.width == RES[0] and r.height == RES[1]
+
+
+def test_the_stage_decides_what_no_keyword_overrides(stage):
+    r = nimbus.render(stage)
+    assert r.spp == SPP and r.seed == 1 and r.rgba.shape == (RES[1], RES[0], 4)
+
+
+def test_arrays_are_not_copies_of_copies(stage):
+    r = nimbus.render(stage, spp=1, aovs=["lookups"])
+    # numpy views the buffer the module handed over: the array owns no other copy.
+    assert r.rgba.base is not None and r.rgba.flags["C_CONTIGUOUS"]
+    assert r.rgba is r.rgba  # the same object on every access, not rebuilt
+
+
+def test_progress_is_reported_on_the_calling_thread(stage):
+    calls = []
+    caller = threading.get_ident()
+
+    def progress(done, total):
+        calls.append((done, total, threading.get_ident()))
+
+    nimbus.render(stage, spp=4, progress=progress)
+    assert calls, "progress was never called"
+    total = 4 * RES[1]
+    assert all(t == total for _, t, _ in calls)
+    assert all(tid == caller for _, _, tid in calls)
+    dones = [d for d, _, _ in calls]
+    assert dones == sorted(dones) and dones[-1] == total
+
+
+def test_a_progress_callback_that_raises_stops_the_render(stage):
+    def progress(done, total):
+        raise RuntimeError("enough")
+
+    with pytest.raises(RuntimeError, match="enough"):
+        nimbus.render(stage, spp=100000, progress=progress)
+
+
+def test_keyboard_interrupt_stops_a_long_render_within_a_second(stage):
+    sent = []
+    timers = []
+
+    def interrupt():
+        sent.append(time.monotonic())
+        os.kill(os.getpid(), signal.SIGINT)
+
+    def progress(done, total):
+        # Rows are finishing: the render is under way (the stage has loaded), so the
+        # signal lands in the middle of rendering.
+        if not timers:
+            timers.append(threading.Timer(0.3, interrupt))
+            timers[0].start()
+
+    start = time.monotonic()
+    with pytest.raises(KeyboardInterrupt):
+        nimbus.render(stage, spp=10_000_000, res=(96, 72), progress=progress)
+    end = time.monotonic()
+    assert timers, "progress never came"
+    timers[0].join()
+    assert sent, "the signal was never sent (the render ended first?)"
+    assert end - sent[0] < 1.0, f"stopped {end - sent[0]:.2f} s after SIGINT"
+    assert end - start < 30.0
+    # The next render is not affected by the stopped one.
+    r = nimbus.render(stage, spp=1)
+    assert r.spp == 1
+
+
+def test_two_threads_render_what_sequential_renders_give(stage):
+    seeds = [11, 12]
+    sequential = [nimbus.render(stage, seed=s, spp=2).rgba for s in seeds]
+    results = {}
+    errors = []
+
+    def work(s):
+        try:
+            results[s] = nimbus.render(stage, seed=s, spp=2).rgba
+        except BaseException as e:  # noqa: BLE001 - reported below
+            errors.append(e)
+
+    threads = [threading.Thread(target=work, args=(s,)) for s in seeds]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert not errors, errors
+    for s, seq in zip(seeds, sequential):
+        assert same_bits(results[s], seq), f"seed {s}: threaded render differs"
+    assert not same_bits(sequential[0], sequential[1]), "seeds should change the image"
+
+
+def test_stage_text_renders_like_the_file(stage, stage_dir):
+    text = stage.read_text()
+    before = set(os.listdir(stage_dir))
+    r_text = nimbus.render(stage_text=text, base_dir=stage_dir, spp=2)
+    r_file = nimbus.render(stage, spp=2)
+    assert same_bits(r_text.rgba, r_file.rgba)
+    assert set(os.listdir(stage_dir)) == before, "the temporary stage was left behind"
+
+
+def test_output_keywords_write_like_the_cli(stage, nimbus_bin, tmp_path):
+    cli_exr, cli_stats = tmp_path / "cli.exr", tmp_path / "cli.json"
+    run_cli(nimbus_bin, "render", stage, "-o", cli_exr, "--spp", 2, "--stats", cli_stats,
+            "--aovs", "variance")
+    py_exr, py_stats = tmp_path / "py.exr", tmp_path / "py.json"
+    r = nimbus.render(stage, spp=2, output=py_exr, stats=py_stats, aovs=["variance"])
+    cli, mine = exr_channels(cli_exr), exr_channels(py_exr)
+    assert sorted(mine) == sorted(cli)
+    for name in cli:
+        assert same_bits(mine[name], cli[name]), name
+    import json
+    a, b = json.loads(py_stats.read_text()), json.loads(cli_stats.read_text())
+    for key in ["samples_per_pixel", "density_lookups", "real_collisions", "tracker", "analysis"]:
+        assert a[key] == b[key], key
+    assert r.stats["density_lookups"] == b["density_lookups"]
+
+
+def test_tracker_keywords(stage):
+    names = nimbus.tracker_names()
+    assert "spectral" in names or len(names) > 3
+    r = nimbus.render(stage, spp=1, tracker=names[0])
+    assert r.tracker == names[0] and r.auto_summary is None
+    r = nimbus.render(stage, spp=1, tracker="auto")
+    assert r.auto_summary and r.auto_summary.startswith("tracker auto:")
