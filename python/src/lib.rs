@@ -378,6 +378,7 @@ impl RenderResult {
             aovs: aov_list,
             stats,
             preview,
+            ..OutputRequest::default()
         };
         py.allow_threads(|| {
             guarded(|| {
@@ -531,6 +532,7 @@ fn render(
         aovs: aov_list.clone(),
         stats,
         preview,
+        ..OutputRequest::default()
     };
     // Files are written only when asked for (unlike the CLI, which always writes the
     // stage's products): resolve them before rendering so a bad path fails at once.
@@ -624,6 +626,7 @@ fn render(
         wall_seconds: wall.elapsed().as_secs_f64(),
         threads,
         counting,
+        tile: None,
     };
     if let Some(outputs) = &outputs {
         py.allow_threads(|| guarded(|| outputs.write(&session, &film, &facts, &p)))?;
