@@ -7,6 +7,7 @@
 
 pub mod cli;
 pub mod color;
+pub mod farm;
 pub mod output;
 pub mod render;
 pub mod scene;

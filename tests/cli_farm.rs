@@ -218,3 +218,128 @@ fn with_spp(from: &Path, to: &Path, spp: i32) {
         .insert(Text::from("nimbus:spp"), AttributeValue::I32(spp));
     image.write().to_file(to).unwrap();
 }
+
+/// Job files quote paths: a stage and output folder named with spaces, quotes, `$` and
+/// a command substitution render through the generated Slurm script (run by bash, as
+/// Slurm would, for task 0) and nothing the names spell is run.
+#[test]
+fn farm_scripts_quote_paths_and_tasks_render() {
+    let dir = tempfile::tempdir().unwrap();
+    let odd = dir.path().join("a b 'c' $(touch pwned) `touch pwned2`");
+    std::fs::create_dir(&odd).unwrap();
+    let repo = common::repo();
+    std::fs::copy(repo.join("scenes/cloud/cloud.usda"), odd.join("cloud.usda")).unwrap();
+    std::fs::copy(repo.join("scenes/cloud/cloud.vdb"), odd.join("cloud.vdb")).unwrap();
+    let stage = odd.join("cloud.usda").display().to_string();
+    let out = odd.join("shot.####.exr").display().to_string();
+    let job = odd.join("job").display().to_string();
+    let r = nimbus(&[
+        "farm", "slurm", &stage, "-o", &out, "--frames", "3-4", "--tiles", "2", "--dir", &job,
+        "--", "--res", "24x18", "--spp", "2",
+    ]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    let script = odd.join("job/render.sbatch");
+    let text = std::fs::read_to_string(&script).unwrap();
+    assert!(
+        text.contains("#SBATCH --array=0-3") && text.contains("#SBATCH --requeue"),
+        "{text}"
+    );
+    let merge = std::fs::read_to_string(odd.join("job/merge.sbatch")).unwrap();
+    assert!(merge.contains("#SBATCH --array=0-1"), "{merge}");
+    for task in ["0", "1"] {
+        let run = std::process::Command::new("bash")
+            .arg(&script)
+            .current_dir(odd.join("job"))
+            .env("SLURM_ARRAY_TASK_ID", task)
+            .output()
+            .unwrap();
+        assert!(run.status.success(), "task {task}: {}", stderr(&run));
+    }
+    // Idempotent: task 0 again finds its valid output and does not render.
+    let again = std::process::Command::new("bash")
+        .arg(&script)
+        .env("SLURM_ARRAY_TASK_ID", "0")
+        .output()
+        .unwrap();
+    assert!(again.status.success());
+    assert!(
+        stderr(&again).contains("not rendered"),
+        "{}",
+        stderr(&again)
+    );
+    let run = std::process::Command::new("bash")
+        .arg(odd.join("job/merge.sbatch"))
+        .env("SLURM_ARRAY_TASK_ID", "0")
+        .output()
+        .unwrap();
+    assert!(run.status.success(), "merge: {}", stderr(&run));
+    assert!(odd.join("shot.0003.exr").is_file());
+    // Frame 4's tiles were never rendered: its merge fails and names them.
+    let run = std::process::Command::new("bash")
+        .arg(odd.join("job/merge.sbatch"))
+        .env("SLURM_ARRAY_TASK_ID", "1")
+        .output()
+        .unwrap();
+    assert!(!run.status.success());
+    assert!(
+        stderr(&run).contains("re-run tiles 0, 1 (of 2)") || stderr(&run).contains("cannot read"),
+        "{}",
+        stderr(&run)
+    );
+    for p in [dir.path(), &odd, &odd.join("job"), &repo] {
+        assert!(
+            !p.join("pwned").exists() && !p.join("pwned2").exists(),
+            "a path was run as a command"
+        );
+    }
+}
+
+/// Farm errors a user meets: sbatch missing with --submit, a reserved render flag, a
+/// task index out of range.
+#[test]
+fn farm_errors_are_clear() {
+    let dir = tempfile::tempdir().unwrap();
+    let stage = cloud();
+    let out = dir.path().join("s.####.exr").display().to_string();
+    let job = dir.path().join("job").display().to_string();
+    let r = std::process::Command::new(env!("CARGO_BIN_EXE_nimbus"))
+        .args([
+            "farm", "slurm", &stage, "-o", &out, "--frames", "1-2", "--dir", &job, "--submit",
+        ])
+        .env("PATH", dir.path())
+        .output()
+        .unwrap();
+    assert!(!r.status.success());
+    assert!(stderr(&r).contains("cannot run sbatch"), "{}", stderr(&r));
+    let r = nimbus(&[
+        "farm", "openjd", &stage, "-o", &out, "--frames", "1-2", "--dir", &job, "--", "--tile",
+        "1/2",
+    ]);
+    assert!(!r.status.success());
+    assert!(
+        stderr(&r).contains("--tile is set by the farm job"),
+        "{}",
+        stderr(&r)
+    );
+    let r = nimbus(&[
+        "farm", "openjd", &stage, "-o", &out, "--frames", "1-2", "--dir", &job, "--", "--sp", "3",
+    ]);
+    assert!(!r.status.success());
+    assert!(
+        stderr(&r).contains("render flags do not parse"),
+        "{}",
+        stderr(&r)
+    );
+    let r = nimbus(&[
+        "farm", "openjd", &stage, "-o", &out, "--frames", "1-2", "--dir", &job,
+    ]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    let job_file = dir.path().join("job/job.json").display().to_string();
+    let r = nimbus(&["farm", "task", "--job", &job_file, "--index", "2"]);
+    assert!(!r.status.success());
+    assert!(
+        stderr(&r).contains("task 2 is out of range"),
+        "{}",
+        stderr(&r)
+    );
+}

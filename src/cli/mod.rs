@@ -7,6 +7,7 @@ mod bench_error;
 mod bench_paths;
 mod choice;
 mod error_plot;
+mod farm;
 mod info;
 mod merge;
 mod reference;
@@ -38,6 +39,10 @@ pub enum Command {
     /// Assemble the tiles of a frame (`render --tile I/N`) into the frame, or their
     /// stats JSONs into one; refuses missing, duplicated, partial or mismatched tiles.
     Merge(merge::MergeArgs),
+    /// Render farms: Slurm job arrays and Open Job Description templates over frames x
+    /// tiles, and the task commands they run.
+    #[command(subcommand)]
+    Farm(farm::FarmCommand),
     /// Describe a stage: volumes, fields, grids, camera, lights, render settings.
     Info(info::InfoArgs),
     /// Benchmarks (`bench octree`: trackers at several majorant octree depths; `bench
@@ -73,6 +78,7 @@ pub fn main() -> ExitCode {
         Command::Compare(a) => compare::run(a),
         Command::Info(a) => info::run(a),
         Command::Merge(a) => merge::run(a),
+        Command::Farm(c) => farm::run(c),
         Command::Bench(c) => bench::run(c),
     };
     match result {

@@ -56,6 +56,10 @@ pub struct RenderArgs {
     /// inside the full display window).
     #[arg(long, value_name = "X0,Y0,X1,Y1", value_parser = parse_region)]
     pub region: Option<Region>,
+    /// Do nothing (exit 0) when every EXR of this tile or region already exists,
+    /// complete and from the same settings: farm tasks are idempotent with it.
+    #[arg(long)]
+    pub skip_complete: bool,
     /// Write render statistics as JSON to this file.
     #[arg(long)]
     pub stats: Option<PathBuf>,
@@ -324,6 +328,13 @@ fn render_frame(
         ),
         (None, r) => r,
     };
+    if args.skip_complete && outputs.complete(&session) {
+        eprintln!(
+            "nimbus: {} complete with these settings; not rendered",
+            outputs.list()
+        );
+        return Ok(());
+    }
     let job = session.job(outputs.need_counts());
     let pool = session.pool(0)?;
     let (width, height, spp) = (session.width, session.height, session.spp);

@@ -206,3 +206,23 @@ pub fn read_i32_attribute(path: &Path, key: &str) -> std::result::Result<Option<
         _ => None,
     })
 }
+
+/// The text attribute `key` (e.g. `nimbus:settingsHash`) of an EXR's first layer or
+/// header.
+pub fn read_text_attribute(path: &Path, key: &str) -> std::result::Result<Option<String>, String> {
+    let meta = ::exr::meta::MetaData::read_from_file(path, false)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    let Some(h) = meta.headers.first() else {
+        return Ok(None);
+    };
+    let key = Text::from(key);
+    let v = h
+        .own_attributes
+        .other
+        .get(&key)
+        .or_else(|| h.shared_attributes.other.get(&key));
+    Ok(match v {
+        Some(AttributeValue::Text(t)) => Some(t.to_string()),
+        _ => None,
+    })
+}

@@ -108,6 +108,22 @@ impl Outputs {
         Ok(outputs)
     }
 
+    /// Whether every EXR this render writes already exists, complete (all the samples
+    /// asked for) and from the same settings (`nimbus:settingsHash`): a farm task
+    /// whose output is valid has nothing to do. Only for outputs with farm metadata.
+    pub fn complete(&self, session: &Session) -> bool {
+        let hash = format!("{:016x}", session.settings_hash());
+        self.farm
+            && self.products.iter().all(|o| {
+                let text = |k| super::exr::read_text_attribute(&o.path, k).ok().flatten();
+                let int = |k| super::exr::read_i32_attribute(&o.path, k).ok().flatten();
+                o.path.is_file()
+                    && text("nimbus:settingsHash").as_deref() == Some(hash.as_str())
+                    && int("nimbus:spp").is_some()
+                    && int("nimbus:spp") == int("nimbus:sppCap")
+            })
+    }
+
     /// Whether anything written reads the per-pixel counters (then counting runs).
     pub fn need_counts(&self) -> bool {
         self.stats.is_some()
