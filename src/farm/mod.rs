@@ -88,6 +88,12 @@ impl FarmJob {
                 bail!("{reserved} is set by the farm job itself; drop it from the render flags");
             }
         }
+        if render_args
+            .iter()
+            .any(|a| a == "--checkpoint" || a.starts_with("--checkpoint="))
+        {
+            bail!("--checkpoint would write partial images onto a task's final path; split the frame into more tiles instead");
+        }
         let nimbus = std::env::current_exe().context("cannot find the nimbus executable")?;
         Ok(FarmJob {
             nimbus,
