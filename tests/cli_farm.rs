@@ -322,6 +322,26 @@ fn farm_errors_are_clear() {
         stderr(&r)
     );
     let r = nimbus(&[
+        "farm",
+        "openjd",
+        &stage,
+        "-o",
+        &out,
+        "--frames",
+        "1-2",
+        "--dir",
+        &job,
+        "--",
+        "--checkpoint",
+        "5",
+    ]);
+    assert!(!r.status.success());
+    assert!(
+        stderr(&r).contains("--checkpoint would write partial images"),
+        "{}",
+        stderr(&r)
+    );
+    let r = nimbus(&[
         "farm", "openjd", &stage, "-o", &out, "--frames", "1-2", "--dir", &job, "--", "--sp", "3",
     ]);
     assert!(!r.status.success());
