@@ -335,3 +335,60 @@ fn preview_png_is_written_and_checked_first() {
     assert!(err.contains("p.png"), "{err}");
     assert!(!exr2.exists());
 }
+
+/// A RenderProduct's `nimbus:previewName` (NimbusRenderProductAPI) writes a preview PNG
+/// of that product beside its EXR, relative to the working directory like
+/// `productName`.
+#[test]
+fn render_product_preview_name_writes_a_png() {
+    let dir = tempfile::tempdir().unwrap();
+    let vdb = root().join("scenes/cloud/cloud.vdb");
+    let stage = dir.path().join("p.usda");
+    std::fs::write(
+        &stage,
+        format!(
+            r#"#usda 1.0
+(
+    renderSettingsPrimPath = "/Render/Settings"
+)
+def Volume "Cloud"
+{{
+    rel field:density = </Cloud/density>
+    def OpenVDBAsset "density"
+    {{
+        asset filePath = @{}@
+        token fieldName = "density"
+    }}
+}}
+def Scope "Render"
+{{
+    def RenderSettings "Settings"
+    {{
+        uniform int2 resolution = (20, 16)
+        rel products = </Render/Product>
+    }}
+    def RenderProduct "Product" (
+        prepend apiSchemas = ["NimbusRenderProductAPI"]
+    )
+    {{
+        uniform token productName = "out.exr"
+        string nimbus:previewName = "out_preview.png"
+    }}
+}}
+"#,
+            vdb.display()
+        ),
+    )
+    .unwrap();
+    let r = Command::new(env!("CARGO_BIN_EXE_nimbus"))
+        .args(["render", stage.to_str().unwrap(), "--spp", "1"])
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert!(dir.path().join("out.exr").is_file());
+    let png_path = dir.path().join("out_preview.png");
+    let decoder = png::Decoder::new(std::fs::File::open(&png_path).unwrap());
+    let info = decoder.read_info().unwrap().info().clone();
+    assert_eq!((info.width, info.height), (20, 16));
+}
