@@ -6,6 +6,7 @@
 
 use nimbus::render::analysis::CodePaths;
 use nimbus::render::film::{Aov, Film, Region};
+use nimbus::render::job::RenderJob;
 use nimbus::render::progressive::Clock;
 use nimbus::render::session::{Overrides, Session};
 use nimbus::track::select::{TrackerKind, TrackerSettings, TransmittanceKind};
@@ -13,20 +14,26 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::atomic::AtomicBool;
 
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
+mod common;
+
+use common::cli::nimbus;
+use common::repo as root;
 
 fn render(session: &Session, region: Option<Region>, count: bool) -> Film {
-    let pool = session.pool(2).unwrap();
     let job = session.job_with(CodePaths {
         count,
         specialise: true,
     });
+    render_job(session, &job, region)
+}
+
+/// Renders `job` (a job of `session`, possibly with other tracking) to a film.
+fn render_job(session: &Session, job: &RenderJob, region: Option<Region>) -> Film {
+    let pool = session.pool(2).unwrap();
     let never = AtomicBool::new(false);
     let (film, _) = session
         .render(
-            &job,
+            job,
             region,
             &pool,
             Clock::Wall,
@@ -93,18 +100,12 @@ fn a_region_renders_the_pixels_of_the_whole_frame() {
 #[test]
 fn retrack_prunes_as_a_render_with_that_tracker() {
     // The stage and depth of the issue: thick smoke (../shared/data), depth 16.
-    let path = root().join("benches/smoke_chromatic/smoke_chromatic.usda");
-    if !root()
-        .join("../shared/data/openvdb_samples/smoke.vdb")
-        .is_file()
-    {
-        assert!(
-            std::env::var_os("NIMBUS_REQUIRE_DATA").is_none(),
-            "NIMBUS_REQUIRE_DATA is set and ../shared/data/openvdb_samples/smoke.vdb is missing"
-        );
-        eprintln!("skipped: ../shared/data is not here");
+    // The smoke VDB the stage reads; absent, the test is skipped, or fails under
+    // NIMBUS_REQUIRE_DATA=1 (as in CI).
+    if common::shared_file("openvdb_samples/smoke.vdb").is_none() {
         return;
     }
+    let path = root().join("benches/smoke_chromatic/smoke_chromatic.usda");
     let mut o = Overrides {
         spp: Some(2),
         res: Some((24, 18)),
@@ -134,39 +135,19 @@ fn retrack_prunes_as_a_render_with_that_tracker() {
     o.tracker = Some("delta".into());
     o.transmittance = None;
     let pruned_for_delta = Session::open(&path, &o).unwrap();
-    let job = nimbus::render::job::RenderJob {
+    let job = RenderJob {
         tracking: decomposition,
         ..pruned_for_delta.job_with(CodePaths {
             count: true,
             specialise: true,
         })
     };
-    let pool = pruned_for_delta.pool(2).unwrap();
-    let never = AtomicBool::new(false);
-    let (c, _) = pruned_for_delta
-        .render(
-            &job,
-            None,
-            &pool,
-            Clock::Wall,
-            None,
-            &never,
-            &|_| {},
-            |_, _| Ok::<(), ()>(()),
-        )
-        .unwrap();
+    let c = render_job(&pruned_for_delta, &job, None);
     assert_ne!(
         c.totals().0.cells_visited,
         cb.cells_visited,
         "pruning did not depend on the tracker"
     );
-}
-
-fn nimbus(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_nimbus"))
-        .args(args)
-        .output()
-        .expect("run nimbus")
 }
 
 fn volume_only_stage(dir: &Path) -> PathBuf {

@@ -190,19 +190,8 @@ type ChannelsResult = std::result::Result<(usize, usize, Vec<(String, Vec<f32>)>
 
 /// The integer attribute `key` (e.g. `nimbus:spp`) of an EXR's first layer or header.
 pub fn read_i32_attribute(path: &Path, key: &str) -> std::result::Result<Option<i32>, String> {
-    let meta = ::exr::meta::MetaData::read_from_file(path, false)
-        .map_err(|e| format!("{}: {e}", path.display()))?;
-    let Some(h) = meta.headers.first() else {
-        return Ok(None);
-    };
-    let key = Text::from(key);
-    let v = h
-        .own_attributes
-        .other
-        .get(&key)
-        .or_else(|| h.shared_attributes.other.get(&key));
-    Ok(match v {
-        Some(AttributeValue::I32(i)) => Some(*i),
+    Ok(match read_attribute(path, key)? {
+        Some(AttributeValue::I32(i)) => Some(i),
         _ => None,
     })
 }
@@ -210,19 +199,23 @@ pub fn read_i32_attribute(path: &Path, key: &str) -> std::result::Result<Option<
 /// The text attribute `key` (e.g. `nimbus:settingsHash`) of an EXR's first layer or
 /// header.
 pub fn read_text_attribute(path: &Path, key: &str) -> std::result::Result<Option<String>, String> {
+    Ok(match read_attribute(path, key)? {
+        Some(AttributeValue::Text(t)) => Some(t.to_string()),
+        _ => None,
+    })
+}
+
+/// The attribute `key` of an EXR's first layer, else of its shared header.
+fn read_attribute(path: &Path, key: &str) -> std::result::Result<Option<AttributeValue>, String> {
     let meta = ::exr::meta::MetaData::read_from_file(path, false)
         .map_err(|e| format!("{}: {e}", path.display()))?;
     let Some(h) = meta.headers.first() else {
         return Ok(None);
     };
     let key = Text::from(key);
-    let v = h
-        .own_attributes
+    Ok(h.own_attributes
         .other
         .get(&key)
-        .or_else(|| h.shared_attributes.other.get(&key));
-    Ok(match v {
-        Some(AttributeValue::Text(t)) => Some(t.to_string()),
-        _ => None,
-    })
+        .or_else(|| h.shared_attributes.other.get(&key))
+        .cloned())
 }
