@@ -12,6 +12,56 @@ use anyhow::{anyhow, bail, Context, Result};
 use serde_json::{Map, Value};
 use std::path::{Path, PathBuf};
 
+/// What is wrong with a set of tiles, and which to re-run: collected over every tile so
+/// one error lists everything, then turned into that error (or nothing).
+struct Verdict {
+    count: u32,
+    problems: Vec<String>,
+    rerun: Vec<u32>,
+}
+
+impl Verdict {
+    fn new(count: u32) -> Verdict {
+        Verdict {
+            count,
+            problems: Vec::new(),
+            rerun: Vec::new(),
+        }
+    }
+
+    /// A problem; `rerun` names the tile that fixes it by being rendered again.
+    fn problem(&mut self, message: String, rerun: Option<u32>) {
+        self.problems.push(message);
+        self.rerun.extend(rerun);
+    }
+
+    /// Ok when there was no problem and every tile `present` says was seen is there;
+    /// else the error naming `out`, every problem and the tiles to re-run.
+    fn finish(mut self, out: &Path, present: impl Fn(usize) -> bool) -> Result<()> {
+        for i in 0..self.count {
+            if !present(i as usize) && !self.rerun.contains(&i) {
+                self.problem(format!("tile {i}/{} is missing", self.count), Some(i));
+            }
+        }
+        if self.problems.is_empty() {
+            return Ok(());
+        }
+        self.rerun.sort_unstable();
+        self.rerun.dedup();
+        let list: Vec<String> = self.rerun.iter().map(|i| i.to_string()).collect();
+        bail!(
+            "{} was not written: {}{}",
+            out.display(),
+            self.problems.join("; "),
+            if list.is_empty() {
+                String::new()
+            } else {
+                format!("; re-run tiles {} (of {})", list.join(", "), self.count)
+            }
+        );
+    }
+}
+
 /// One tile read back: its header facts and its channels.
 struct TileImage {
     path: PathBuf,
@@ -59,50 +109,55 @@ fn merge_images(out: &Path, inputs: &[PathBuf]) -> Result<Merged> {
     let first = &tiles[0];
     let count = first.tile.count;
     let (w, h) = first.full;
-    let mut problems = Vec::new();
-    let mut rerun = Vec::new();
+    let mut verdict = Verdict::new(count);
     let mut seen: Vec<Option<&TileImage>> = vec![None; count as usize];
     for t in &tiles {
         let name = t.path.display();
         if t.tile.count != count || t.full != first.full {
-            problems.push(format!(
-                "{name} is tile {}/{} of a {}x{} frame, {} is {}/{count} of {w}x{h}",
-                t.tile.index,
-                t.tile.count,
-                t.full.0,
-                t.full.1,
-                first.path.display(),
-                first.tile.index
-            ));
+            verdict.problem(
+                format!(
+                    "{name} is tile {}/{} of a {}x{} frame, {} is {}/{count} of {w}x{h}",
+                    t.tile.index,
+                    t.tile.count,
+                    t.full.0,
+                    t.full.1,
+                    first.path.display(),
+                    first.tile.index
+                ),
+                None,
+            );
             continue;
         }
         if t.hash != first.hash {
-            problems.push(format!(
+            verdict.problem(format!(
                 "{name} comes from other settings or another stage (settings hash {} against {} of {})",
                 t.hash,
                 first.hash,
                 first.path.display()
-            ));
-            rerun.push(t.tile.index);
+            ), Some(t.tile.index));
             continue;
         }
         let expected = t.tile.region(w, h).map_err(|e| anyhow!("{name}: {e}"))?;
         if t.window != expected {
-            problems.push(format!(
-                "{name}: data window {:?} is not tile {}/{count}'s {:?}",
-                t.window, t.tile.index, expected
-            ));
-            rerun.push(t.tile.index);
+            verdict.problem(
+                format!(
+                    "{name}: data window {:?} is not tile {}/{count}'s {:?}",
+                    t.window, t.tile.index, expected
+                ),
+                Some(t.tile.index),
+            );
             continue;
         }
         if t.spp_cap.is_none_or(|cap| t.spp < cap) {
-            problems.push(format!(
-                "{name} is partial: {} samples per pixel of {}",
-                t.spp,
-                t.spp_cap
-                    .map_or("a time limit".to_string(), |c| c.to_string())
-            ));
-            rerun.push(t.tile.index);
+            verdict.problem(
+                format!(
+                    "{name} is partial: {} samples per pixel of {}",
+                    t.spp,
+                    t.spp_cap
+                        .map_or("a time limit".to_string(), |c| c.to_string())
+                ),
+                Some(t.tile.index),
+            );
             continue;
         }
         if t.channels
@@ -110,43 +165,25 @@ fn merge_images(out: &Path, inputs: &[PathBuf]) -> Result<Merged> {
             .map(|c| &c.0)
             .ne(first.channels.iter().map(|c| &c.0))
         {
-            problems.push(format!(
-                "{name} has other channels than {}",
-                first.path.display()
-            ));
-            rerun.push(t.tile.index);
+            verdict.problem(
+                format!("{name} has other channels than {}", first.path.display()),
+                Some(t.tile.index),
+            );
             continue;
         }
         match &mut seen[t.tile.index as usize] {
-            Some(other) => problems.push(format!(
-                "tile {} is given twice: {} and {name}",
-                t.tile.index,
-                other.path.display()
-            )),
+            Some(other) => verdict.problem(
+                format!(
+                    "tile {} is given twice: {} and {name}",
+                    t.tile.index,
+                    other.path.display()
+                ),
+                None,
+            ),
             slot => *slot = Some(t),
         }
     }
-    for (i, s) in seen.iter().enumerate() {
-        if s.is_none() && !rerun.contains(&(i as u32)) {
-            problems.push(format!("tile {i}/{count} is missing"));
-            rerun.push(i as u32);
-        }
-    }
-    if !problems.is_empty() {
-        rerun.sort_unstable();
-        rerun.dedup();
-        let list: Vec<String> = rerun.iter().map(|i| i.to_string()).collect();
-        bail!(
-            "{} was not written: {}{}",
-            out.display(),
-            problems.join("; "),
-            if list.is_empty() {
-                String::new()
-            } else {
-                format!("; re-run tiles {} (of {count})", list.join(", "))
-            }
-        );
-    }
+    verdict.finish(out, |i| seen[i].is_some())?;
     let mut channels: Vec<(String, Vec<f32>)> = first
         .channels
         .iter()
@@ -316,49 +353,32 @@ fn merge_stats(out: &Path, inputs: &[PathBuf]) -> Result<Merged> {
     let (first_path, first_tile, first) = &stats[0];
     let count = first_tile.count;
     let hash = |m: &Map<String, Value>| m.get("settings_hash").cloned();
-    let mut problems = Vec::new();
+    let mut verdict = Verdict::new(count);
     let mut seen = vec![false; count as usize];
-    let mut rerun = Vec::new();
     for (p, t, m) in &stats {
         if t.count != count {
-            problems.push(format!(
-                "{} is a tile of {}, not {count}",
-                p.display(),
-                t.count
-            ));
+            verdict.problem(
+                format!("{} is a tile of {}, not {count}", p.display(), t.count),
+                None,
+            );
         } else if hash(m) != hash(first) {
-            problems.push(format!(
-                "{} comes from other settings than {}",
-                p.display(),
-                first_path.display()
-            ));
-            rerun.push(t.index);
+            verdict.problem(
+                format!(
+                    "{} comes from other settings than {}",
+                    p.display(),
+                    first_path.display()
+                ),
+                Some(t.index),
+            );
         } else if m.get("samples_per_pixel") != m.get("spp_cap")
             || m.get("interrupted") == Some(&Value::Bool(true))
         {
-            problems.push(format!("{} is partial", p.display()));
-            rerun.push(t.index);
+            verdict.problem(format!("{} is partial", p.display()), Some(t.index));
         } else if std::mem::replace(&mut seen[t.index as usize], true) {
-            problems.push(format!("tile {} is given twice", t.index));
+            verdict.problem(format!("tile {} is given twice", t.index), None);
         }
     }
-    for (i, s) in seen.iter().enumerate() {
-        if !s && !rerun.contains(&(i as u32)) {
-            problems.push(format!("tile {i}/{count} is missing"));
-            rerun.push(i as u32);
-        }
-    }
-    if !problems.is_empty() {
-        rerun.sort_unstable();
-        rerun.dedup();
-        let list: Vec<String> = rerun.iter().map(|i| i.to_string()).collect();
-        bail!(
-            "{} was not written: {}; re-run tiles {} (of {count})",
-            out.display(),
-            problems.join("; "),
-            list.join(", ")
-        );
-    }
+    verdict.finish(out, |i| seen[i])?;
     let mut merged = first.clone();
     let num = |m: &Map<String, Value>, k: &str| m.get(k).and_then(Value::as_f64);
     let pixels =
