@@ -65,6 +65,7 @@ fn render(s: &Setup, tracking: TrackerSettings, spp: u32, seed: u64) -> Film {
         max_depth: 64,
         seed,
         tracking,
+        extras: Default::default(),
     }
     .render(&|| {})
 }

@@ -684,6 +684,7 @@ def Volume "Fire" (apiSchemas = ["NimbusVolumeAPI"]) {{
             seed: 1,
             tracking,
             paths: CodePaths::default(),
+            extras: Default::default(),
         };
         let film = job.render(&|| {});
         common::assert_film_finite(tracking.tracker.name(), &film);
@@ -754,6 +755,7 @@ fn example_fire_scene_emits() {
         seed: 2,
         tracking: TrackerSettings::default(),
         paths: CodePaths::default(),
+        extras: Default::default(),
     };
     let film = job.render(&|| {});
     common::assert_film_finite("fire", &film);
@@ -805,6 +807,7 @@ fn check_grey_emission<F: FreePathSampler, E: TransmittanceEstimator>(
         spp: 1,
         max_depth: 64,
         seed: 5,
+        extras: Default::default(),
     };
     let mut rng = pixel_sampler(5, 0);
     let mut c = Counters::default();

@@ -366,6 +366,7 @@ fn samples(
         spp: 1,
         max_depth,
         seed,
+        extras: Default::default(),
     };
     let mut rng = pixel_sampler(seed, 40);
     let mut c = Counters::default();

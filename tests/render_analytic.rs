@@ -54,6 +54,7 @@ fn integrator<'a>(
         spp,
         max_depth,
         seed,
+        extras: Default::default(),
     }
 }
 

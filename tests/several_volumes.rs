@@ -407,6 +407,7 @@ fn render(
                 spp: 64,
                 max_depth: 16,
                 seed: self.seed,
+                extras: Default::default(),
             };
             let mut rng = nimbus::render::sampler::pixel_sampler(self.seed, 0);
             let mut out: [Vec<f64>; 3] = Default::default();

@@ -65,6 +65,7 @@ fn job(
         seed,
         tracking,
         paths,
+        extras: Default::default(),
     }
 }
 

@@ -3,7 +3,7 @@
 
 use super::choice;
 use crate::output::check_writable;
-use crate::output::products::{frame_path, requested_aovs, OutputRequest, Outputs};
+use crate::output::products::{frame_path, requested_outputs, OutputRequest, Outputs};
 use crate::output::stats::RunFacts;
 use crate::render::film::Region;
 use crate::render::progressive::Clock;
@@ -111,9 +111,20 @@ pub struct RenderArgs {
     #[arg(long)]
     pub no_specialise: bool,
     /// AOVs to write besides R, G, B, A (comma-separated): lookups, residual_lookups,
-    /// real_collisions, null_collisions, control_collisions, max_throughput, variance.
+    /// real_collisions, null_collisions, control_collisions, max_throughput, variance;
+    /// and the RGB splits of the beauty: emission (light reaching the camera unscattered),
+    /// direct (scattered once), indirect (twice or more), lightgroup:GROUP (the lights,
+    /// or emissive volumes, whose nimbus:lightGroup or prim path is GROUP).
     #[arg(long, value_delimiter = ',')]
     pub aovs: Vec<String>,
+    /// Also write a deep scanline EXR of the beauty (Z, ZBack, premultiplied RGBA per
+    /// sample): each path's radiance binned by the camera depth of its first real
+    /// collision. A RenderProduct asks for one with productType = "deepRaster".
+    #[arg(long, value_name = "OUT.exr")]
+    pub deep: Option<PathBuf>,
+    /// Deep samples per pixel at most (adjacent depth slabs are merged down to it).
+    #[arg(long, value_name = "N", default_value_t = 32, value_parser = clap::value_parser!(u16).range(1..=32))]
+    pub deep_samples: u16,
     /// Render in passes until this many seconds of rendering (loading excluded) are
     /// spent, then write; `--spp` caps the samples (without `--spp` there is no cap). The
     /// budget is kept to within one pass.
@@ -243,9 +254,13 @@ pub fn run(args: RenderArgs) -> Result<()> {
             bail!("--checkpoint must be a positive number of seconds, got {v}");
         }
     }
+    let (aovs, layers) = requested_outputs(&args.aovs)?;
     let request = OutputRequest {
         output: args.output.clone(),
-        aovs: requested_aovs(&args.aovs)?,
+        aovs,
+        layers,
+        deep: args.deep.clone(),
+        deep_samples: args.deep_samples as usize,
         stats: args.stats.clone(),
         preview: args.preview.clone(),
         tile: args.tile,
@@ -256,7 +271,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         return render_frame(&args, &request, args.frame, false, &interrupted);
     };
     // A folder that takes no files fails every frame the same way: stop at once.
-    for p in [&args.output, &args.stats, &args.preview]
+    for p in [&args.output, &args.stats, &args.preview, &args.deep]
         .into_iter()
         .flatten()
     {
@@ -335,7 +350,9 @@ fn render_frame(
         );
         return Ok(());
     }
-    let job = session.job(outputs.need_counts());
+    let extra = session.extra_outputs(outputs.split_layers(), outputs.deep())?;
+    let mut job = session.job(outputs.need_counts());
+    job.extras = extra.extras();
     let pool = session.pool(0)?;
     let (width, height, spp) = (session.width, session.height, session.spp);
     let bar = if spp == u32::MAX {

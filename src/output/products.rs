@@ -3,13 +3,14 @@
 //! PNGs; their names for a frame of a sequence; and writing them all for the samples
 //! done so far (after the last pass, and at every checkpoint).
 
-use super::exr::{write_exr, ExrMetadata, FarmMetadata};
+use super::exr::{write_channels, ExrMetadata, FarmMetadata};
 use super::preview::write_preview;
 use super::stats::{RenderStats, RunFacts};
 use super::{check_writable, write_atomically, OutputError};
 use crate::render::film::{Aov, Film};
 use crate::render::progressive::Progress;
 use crate::render::session::Session;
+use crate::render::splits::SplitLayer;
 use crate::render::tiles::Tile;
 use crate::scene::{RenderSettings, RenderVar};
 use anyhow::{bail, Context, Result};
@@ -23,8 +24,13 @@ pub struct ProductOutput {
     /// The RenderProduct prim, `None` for the `-o` image of a stage without products.
     pub prim_path: Option<String>,
     pub aovs: Vec<Aov>,
+    /// Split layers (light groups, path splits): RGB channels `name.R`, `.G`, `.B`.
+    pub layers: Vec<SplitLayer>,
     /// The product's preview PNG (`nimbus:previewName`, or `--preview` for the first).
     pub preview: Option<PathBuf>,
+    /// A deep scanline EXR (`productType = "deepRaster"`, or `--deep`): Z, ZBack and
+    /// premultiplied RGBA per sample instead of flat channels.
+    pub deep: bool,
 }
 
 /// Everything a render writes.
@@ -36,7 +42,12 @@ pub struct Outputs {
     pub tile: Option<Tile>,
     /// Whether the EXRs carry the farm metadata (tiles and explicit regions).
     pub farm: bool,
+    /// Deep samples per pixel at most.
+    pub deep_samples: usize,
 }
+
+/// Deep samples per pixel at most, unless asked otherwise.
+pub const DEFAULT_DEEP_SAMPLES: usize = 32;
 
 /// What the caller asks to write beyond the stage's products.
 #[derive(Clone, Debug, Default)]
@@ -45,6 +56,12 @@ pub struct OutputRequest {
     pub output: Option<PathBuf>,
     /// Extra AOVs for the first product.
     pub aovs: Vec<Aov>,
+    /// Extra split layers for the first product.
+    pub layers: Vec<SplitLayer>,
+    /// A deep EXR of the beauty to write too (`--deep`).
+    pub deep: Option<PathBuf>,
+    /// Deep samples per pixel at most (`--deep-samples`; 0: [`DEFAULT_DEEP_SAMPLES`]).
+    pub deep_samples: usize,
     pub stats: Option<PathBuf>,
     /// A preview PNG of the first product.
     pub preview: Option<PathBuf>,
@@ -97,6 +114,10 @@ impl Outputs {
             stats,
             tile: request.tile,
             farm: request.tile.is_some() || request.region,
+            deep_samples: match request.deep_samples {
+                0 => DEFAULT_DEEP_SAMPLES,
+                n => n,
+            },
         };
         outputs.check_distinct()?;
         for o in &outputs.products {
@@ -124,6 +145,23 @@ impl Outputs {
             })
     }
 
+    /// Every split layer some product writes, each once, in the order the film holds
+    /// them.
+    pub fn split_layers(&self) -> Vec<SplitLayer> {
+        let mut layers: Vec<SplitLayer> = Vec::new();
+        for l in self.products.iter().flat_map(|o| &o.layers) {
+            if !layers.contains(l) {
+                layers.push(l.clone());
+            }
+        }
+        layers
+    }
+
+    /// Whether some product is a deep EXR.
+    pub fn deep(&self) -> bool {
+        self.products.iter().any(|o| o.deep)
+    }
+
     /// Whether anything written reads the per-pixel counters (then counting runs).
     pub fn need_counts(&self) -> bool {
         self.stats.is_some()
@@ -142,28 +180,51 @@ impl Outputs {
         p: &Progress,
     ) -> Result<()> {
         let t = &session.tracking;
+        let all_layers = self.split_layers();
+        if film.layer_count != all_layers.len() {
+            bail!(
+                "the render did not compute the split AOVs {} (its job was made without them)",
+                all_layers
+                    .iter()
+                    .map(|l| l.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+        }
         for o in &self.products {
-            write_exr(
-                &o.path,
-                film,
-                &o.aovs,
-                &ExrMetadata {
-                    stage: session.stage_path.display().to_string(),
-                    tracker: t.tracker.name().into(),
-                    scheme: t.scheme.name().into(),
-                    transmittance: t.transmittance.name().into(),
-                    spp: p.spp,
-                    render_seconds: p.seconds,
-                    time: session.frame.unwrap_or(f64::NAN),
-                    product: o.prim_path.clone(),
-                    farm: self.farm.then(|| FarmMetadata {
-                        seed: session.seed,
-                        spp_cap: (session.spp != u32::MAX).then_some(session.spp),
-                        settings_hash: session.settings_hash(),
-                        tile: self.tile,
-                    }),
-                },
-            )?;
+            let meta = ExrMetadata {
+                stage: session.stage_path.display().to_string(),
+                tracker: t.tracker.name().into(),
+                scheme: t.scheme.name().into(),
+                transmittance: t.transmittance.name().into(),
+                spp: p.spp,
+                render_seconds: p.seconds,
+                time: session.frame.unwrap_or(f64::NAN),
+                product: o.prim_path.clone(),
+                farm: self.farm.then(|| FarmMetadata {
+                    seed: session.seed,
+                    spp_cap: (session.spp != u32::MAX).then_some(session.spp),
+                    settings_hash: session.settings_hash(),
+                    tile: self.tile,
+                }),
+            };
+            if o.deep {
+                write_deep(&o.path, film, self.deep_samples, &meta)?;
+                continue;
+            }
+            let mut channels: Vec<(String, Vec<f32>)> = o
+                .aovs
+                .iter()
+                .map(|&a| (a.channel_name().to_string(), film.channel(a)))
+                .collect();
+            for layer in &o.layers {
+                let i = all_layers.iter().position(|l| l == layer).unwrap_or(0);
+                let [r, g, b] = film.layer(i);
+                for (c, v) in ["R", "G", "B"].into_iter().zip([r, g, b]) {
+                    channels.push((format!("{}.{c}", layer.name), v));
+                }
+            }
+            write_channels(&o.path, film.full, film.region, channels, &meta)?;
             if let Some(preview) = &o.preview {
                 write_preview(preview, film)?;
             }
@@ -202,6 +263,12 @@ impl Outputs {
     }
 }
 
+/// Writes the film's beauty as a deep EXR of at most `limit` samples per pixel.
+fn write_deep(path: &Path, film: &Film, limit: usize, meta: &ExrMetadata) -> Result<()> {
+    let _ = (path, film, limit, meta);
+    bail!("deep output is not built yet")
+}
+
 /// Writes `value` as pretty JSON, atomically.
 pub fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<(), OutputError> {
     let json = serde_json::to_string_pretty(value).map_err(|e| OutputError::Write {
@@ -214,13 +281,52 @@ pub fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<(), Outp
     })
 }
 
+/// The AOVs and split layers `names` name (`--aovs`), without repeats: split names
+/// (`direct`, `indirect`, `emission`, `lightgroup:GROUP`) become layers named after them
+/// (`lightgroup:key` → `lightgroup_key`).
+pub fn requested_outputs(names: &[String]) -> Result<(Vec<Aov>, Vec<SplitLayer>)> {
+    let mut aovs = Vec::new();
+    let mut layers = Vec::new();
+    for n in names.iter().map(|n| n.trim()).filter(|n| !n.is_empty()) {
+        if Aov::from_name(n).is_none() {
+            if let Ok(l) = SplitLayer::parse(&layer_name(n), n, "raw") {
+                add_layers(&mut layers, "--aovs", l)?;
+                continue;
+            }
+        }
+        for a in requested_aovs(&[n.to_string()])? {
+            if !aovs.contains(&a) {
+                aovs.push(a);
+            }
+        }
+    }
+    Ok((aovs, layers))
+}
+
+/// An EXR layer name for a split shorthand: characters other than letters, digits
+/// and `_` become `_`.
+fn layer_name(name: &str) -> String {
+    name.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
 /// The AOVs `names` name (`--aovs`), without repeats.
 pub fn requested_aovs(names: &[String]) -> Result<Vec<Aov>> {
     let mut aovs = Vec::new();
     for n in names.iter().map(|n| n.trim()).filter(|n| !n.is_empty()) {
         let Some(a) = Aov::from_name(n) else {
             let known: Vec<_> = Aov::ALL.iter().map(|a| a.channel_name()).collect();
-            bail!("unknown AOV '{n}'; known AOVs: {}", known.join(", "));
+            bail!(
+                "unknown AOV '{n}'; known AOVs: {}, and the splits direct, indirect, emission, lightgroup:GROUP",
+                known.join(", ")
+            );
         };
         if !aovs.contains(&a) {
             aovs.push(a);
@@ -245,12 +351,16 @@ fn product_outputs(
         };
         let mut aovs = Aov::DEFAULT.to_vec();
         add_aovs(&mut aovs, &request.aovs);
-        return Ok(vec![ProductOutput {
+        let mut outputs = vec![ProductOutput {
             path: path.to_path_buf(),
             prim_path: None,
             aovs,
+            layers: request.layers.clone(),
             preview: request.preview.clone(),
-        }]);
+            deep: false,
+        }];
+        outputs.extend(deep_request(request));
+        return Ok(outputs);
     }
     let mut outputs = Vec::new();
     for (i, product) in settings.products.iter().enumerate() {
@@ -268,22 +378,77 @@ fn product_outputs(
             ),
         };
         let mut aovs = vec![Aov::R, Aov::G, Aov::B, Aov::A];
+        let mut layers = Vec::new();
         for var in &product.vars {
-            add_aovs(&mut aovs, &render_var_aovs(var)?);
+            match render_var_output(var)? {
+                VarOutput::Aovs(a) => add_aovs(&mut aovs, &a),
+                VarOutput::Layer(l) => add_layers(&mut layers, &var.prim_path, l)?,
+            }
         }
         let mut preview = product.preview_name.as_ref().map(PathBuf::from);
         if i == 0 {
             add_aovs(&mut aovs, &request.aovs);
+            for l in &request.layers {
+                add_layers(&mut layers, "--aovs", l.clone())?;
+            }
             preview = request.preview.clone().or(preview);
+        }
+        let deep = product.product_type == "deepRaster";
+        if deep {
+            // A deep image holds depth, colour and alpha per sample, nothing else.
+            let extra: Vec<&str> = aovs
+                .iter()
+                .filter(|a| !matches!(a, Aov::R | Aov::G | Aov::B | Aov::A))
+                .map(|a| a.channel_name())
+                .chain(layers.iter().map(|l| l.name.as_str()))
+                .collect();
+            if !extra.is_empty() {
+                bail!(
+                    "{}: a deepRaster product holds colour and alpha only; move {} to a raster product",
+                    product.prim_path,
+                    extra.join(", ")
+                );
+            }
         }
         outputs.push(ProductOutput {
             path,
             prim_path: Some(product.prim_path.clone()),
             aovs,
-            preview,
+            layers,
+            preview: preview.filter(|_| !deep),
+            deep,
         });
     }
+    outputs.extend(deep_request(request));
     Ok(outputs)
+}
+
+/// The `--deep` image, if asked for: a deep EXR of the beauty.
+fn deep_request(request: &OutputRequest) -> Option<ProductOutput> {
+    request.deep.as_ref().map(|path| ProductOutput {
+        path: path.clone(),
+        prim_path: None,
+        aovs: vec![Aov::R, Aov::G, Aov::B, Aov::A],
+        layers: Vec::new(),
+        preview: None,
+        deep: true,
+    })
+}
+
+/// Adds split layer `l` (from `what`) unless the same layer is there; two different
+/// layers of one name would write the same channels.
+fn add_layers(layers: &mut Vec<SplitLayer>, what: &str, l: SplitLayer) -> Result<()> {
+    match layers.iter().find(|x| x.name == l.name) {
+        Some(x) if *x == l => Ok(()),
+        Some(_) => bail!(
+            "{what}: two split AOVs named '{}' in one product (RenderVar names become EXR layer names)",
+            l.name
+        ),
+        None => {
+            layers.push(l);
+            Ok(())
+        }
+    }
 }
 
 fn add_aovs(aovs: &mut Vec<Aov>, more: &[Aov]) {
@@ -292,6 +457,32 @@ fn add_aovs(aovs: &mut Vec<Aov>, more: &[Aov]) {
             aovs.push(a);
         }
     }
+}
+
+/// What a RenderVar writes: film channels, or a split layer.
+enum VarOutput {
+    Aovs(Vec<Aov>),
+    Layer(SplitLayer),
+}
+
+/// A RenderVar's output. A light path expression (`sourceType = "lpe"`) or a split
+/// shorthand (`direct`, `indirect`, `emission`, `lightgroup:GROUP`) is a split layer
+/// named after the RenderVar prim (USD names an AOV by its RenderVar); anything else
+/// is one of the film's channels ([`render_var_aovs`]).
+fn render_var_output(var: &RenderVar) -> Result<VarOutput> {
+    let layer_name = var.prim_path.rsplit('/').next().unwrap_or(&var.prim_path);
+    let source = var.source_name.trim();
+    if var.source_type == "lpe" {
+        return SplitLayer::parse(layer_name, source, "lpe")
+            .map(VarOutput::Layer)
+            .map_err(|e| anyhow::anyhow!("{}: {e}", var.prim_path));
+    }
+    if Aov::from_name(source).is_none() {
+        if let Ok(l) = SplitLayer::parse(layer_name, source, "raw") {
+            return Ok(VarOutput::Layer(l));
+        }
+    }
+    render_var_aovs(var).map(VarOutput::Aovs)
 }
 
 /// The channels a RenderVar names: `color` (also `C`, `Ci`, `rgb`) is R, G, B;
@@ -306,7 +497,7 @@ fn render_var_aovs(var: &RenderVar) -> Result<Vec<Aov>> {
             None => {
                 let known: Vec<_> = Aov::ALL.iter().map(|a| a.channel_name()).collect();
                 bail!(
-                    "{}: sourceName \"{other}\" is not an AOV Nimbus knows; known: color, alpha, {}",
+                    "{}: sourceName \"{other}\" is not an AOV Nimbus knows; known: color, alpha, {}, the splits direct, indirect, emission, lightgroup:GROUP, or a light path expression with sourceType \"lpe\"",
                     var.prim_path,
                     known.join(", ")
                 );

@@ -21,6 +21,9 @@ pub struct PrimaryRay {
     pub dir: DVec3,
     pub tmin: f64,
     pub tmax: f64,
+    /// Camera depth per unit distance along the ray: the cosine between `dir` and the
+    /// camera's view axis (world −Z of the camera), so depth = t · `depth_per_t`.
+    pub depth_per_t: f64,
 }
 
 impl CameraRays {
@@ -58,11 +61,25 @@ impl CameraRays {
         let len = d_world.length();
         // Clipping planes are depths along the camera's −Z: the point at depth z lies at
         // parameter z/focal along d_cam, i.e. world distance (z/focal)·|d_world|.
+        let dir = d_world / len;
         PrimaryRay {
             origin,
-            dir: d_world / len,
+            dir,
             tmin: self.near / self.focal * len,
             tmax: self.far / self.focal * len,
+            depth_per_t: dir.dot(self.view_axis()),
         }
+    }
+
+    /// The camera's position in the world.
+    pub fn origin(&self) -> DVec3 {
+        self.camera_to_world.transform_point3(DVec3::ZERO)
+    }
+
+    /// Unit world direction the camera looks along (its local −Z).
+    pub fn view_axis(&self) -> DVec3 {
+        self.camera_to_world
+            .transform_vector3(-DVec3::Z)
+            .normalize_or(-DVec3::Z)
     }
 }

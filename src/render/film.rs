@@ -24,11 +24,12 @@ pub fn luminance(c: [f64; 3]) -> f64 {
 }
 
 impl Pixel {
-    pub fn add_sample(&mut self, rgb: [f64; 3], alpha: f64) {
+    /// Adds one sample; `false` when it was NaN or infinite (counted, not added).
+    pub fn add_sample(&mut self, rgb: [f64; 3], alpha: f64) -> bool {
         self.samples += 1;
         if !(rgb.iter().all(|v| v.is_finite()) && alpha.is_finite()) {
             self.nonfinite += 1;
-            return;
+            return false;
         }
         for c in 0..3 {
             self.rgb[c] += rgb[c];
@@ -37,6 +38,7 @@ impl Pixel {
         let l = luminance(rgb);
         self.lum += l;
         self.lum_sq += l * l;
+        true
     }
 
     /// Unbiased sample variance of the per-sample luminance (0 with fewer than 2 samples).
@@ -173,6 +175,45 @@ impl Region {
     }
 }
 
+/// Camera-depth bins of the deep output: `bins` equal slabs of [`z0`, `z1`] (the
+/// depth range of the volumes' bounds in front of the camera), then one more for light
+/// that reached the camera without a real collision on the camera ray (the environment
+/// seen through the volume), placed at `z1`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DepthBins {
+    pub z0: f64,
+    pub z1: f64,
+    pub bins: usize,
+}
+
+impl DepthBins {
+    /// Accumulators per pixel: the slabs and the no-collision bin.
+    pub fn stride(&self) -> usize {
+        self.bins + 1
+    }
+
+    /// The slab holding camera depth `z` (clamped into the range: a jittered sample's
+    /// collision can lie a rounding error outside it); NaN (no collision) is the last
+    /// bin.
+    #[inline]
+    pub fn index(&self, z: f64) -> usize {
+        if z.is_nan() {
+            return self.bins;
+        }
+        let f = (z - self.z0) / (self.z1 - self.z0) * self.bins as f64;
+        (f.max(0.0) as usize).min(self.bins - 1)
+    }
+
+    /// The depth range of bin `i`.
+    pub fn slab(&self, i: usize) -> (f64, f64) {
+        if i >= self.bins {
+            return (self.z1, self.z1);
+        }
+        let dz = (self.z1 - self.z0) / self.bins as f64;
+        (self.z0 + dz * i as f64, self.z0 + dz * (i + 1) as f64)
+    }
+}
+
 /// The accumulated pixels of a render: the whole image or a region of it.
 pub struct Film {
     /// Width and height of the pixels held (the region's).
@@ -188,6 +229,12 @@ pub struct Film {
     /// samples in any number of passes draws exactly the numbers a single pass would
     /// (and so gives the same image bit for bit).
     pub samplers: Vec<Sampler>,
+    /// Split layers (light groups, path splits): `layer_count` RGB sums per pixel.
+    pub layers: Vec<[f64; 3]>,
+    pub layer_count: usize,
+    /// Deep output: per pixel, RGB and alpha sums per depth bin of `depth_bins`.
+    pub deep: Vec<[f64; 4]>,
+    pub depth_bins: Option<DepthBins>,
 }
 
 impl Film {
@@ -212,7 +259,52 @@ impl Film {
             full: (width, height),
             pixels: vec![Pixel::default(); n],
             samplers,
+            layers: Vec::new(),
+            layer_count: 0,
+            deep: Vec::new(),
+            depth_bins: None,
         }
+    }
+
+    /// Adds `layers` split-layer accumulators and the deep bins `depth` to every pixel.
+    pub fn with_extras(mut self, layers: usize, depth: Option<DepthBins>) -> Film {
+        let n = self.pixels.len();
+        self.layer_count = layers;
+        self.layers = vec![[0.0; 3]; n * layers];
+        self.depth_bins = depth;
+        self.deep = vec![[0.0; 4]; n * depth.map_or(0, |d| d.stride())];
+        self
+    }
+
+    /// Bytes of film memory per pixel for `layers` split layers and deep `depth` bins.
+    pub fn extra_bytes_per_pixel(layers: usize, depth: Option<DepthBins>) -> usize {
+        layers * std::mem::size_of::<[f64; 3]>()
+            + depth.map_or(0, |d| d.stride() * std::mem::size_of::<[f64; 4]>())
+    }
+
+    /// Split layer `i` as three channels (R, G, B), per-sample means like the beauty.
+    pub fn layer(&self, i: usize) -> [Vec<f32>; 3] {
+        std::array::from_fn(|c| {
+            self.pixels
+                .iter()
+                .enumerate()
+                .map(|(p, px)| px.per_sample(self.layers[p * self.layer_count + i][c]))
+                .collect()
+        })
+    }
+
+    /// Pixel `p`'s deep bins as per-sample means: (slab, RGB, alpha) front to back.
+    pub fn deep_bins(&self, p: usize) -> Vec<((f64, f64), [f64; 3], f64)> {
+        let Some(d) = self.depth_bins else {
+            return Vec::new();
+        };
+        let px = &self.pixels[p];
+        let n = px.samples.max(1) as f64;
+        self.deep[p * d.stride()..(p + 1) * d.stride()]
+            .iter()
+            .enumerate()
+            .map(|(i, b)| (d.slab(i), [b[0] / n, b[1] / n, b[2] / n], b[3] / n))
+            .collect()
     }
 
     /// Bytes of film memory per pixel (accumulators and random stream).

@@ -6,11 +6,12 @@
 
 use crate::color::Spectrum;
 use crate::render::camera::CameraRays;
-use crate::render::film::{Film, Pixel};
+use crate::render::film::{DepthBins, Film, Pixel};
 use crate::render::lights::LightSample;
 use crate::render::lights::Lights;
 use crate::render::phase::{hg, sample_hg};
 use crate::render::sampler::{pixel_sampler, Sampler};
+use crate::render::splits::{SplitMap, MAX_LAYERS};
 use crate::track::free_path::{FreePath, FreePathSampler, Query, TransmittanceEstimator};
 use crate::track::race::MAX_MEDIA;
 use crate::volume::counters::{Counters, NoCounts, Tally};
@@ -56,6 +57,55 @@ struct PathState {
     last_cos: f64,
 }
 
+/// What a render adds beside the beauty and the counters: split layers (light groups,
+/// path splits) and deep bins. The default adds nothing and costs nothing.
+#[derive(Clone, Copy, Default)]
+pub struct Extras<'a> {
+    /// The split layers every contribution is also added to (`None`: none).
+    pub splits: Option<&'a SplitMap>,
+    /// Bin each sample by the camera depth of its first real collision.
+    pub depth_bins: Option<DepthBins>,
+}
+
+/// A sample's radiance: the beauty sum, and the split layers it also feeds.
+struct Radiance<'s> {
+    total: [f64; 3],
+    split: Option<(&'s SplitMap, &'s mut [[f64; 3]])>,
+}
+
+impl Radiance<'_> {
+    /// Adds `v`, light of `source` after `events` scattering events.
+    #[inline(always)]
+    fn add(&mut self, source: usize, events: u32, v: [f64; 3]) {
+        for c in 0..3 {
+            self.total[c] += v[c];
+        }
+        if let Some((map, layers)) = &mut self.split {
+            map.add(layers, source, events, v);
+        }
+    }
+
+    /// Adds `v` to the beauty only; the caller feeds the layers ([`Self::add_split`]),
+    /// as for the environment, whose radiance is split among its domes.
+    #[inline(always)]
+    fn add_total(&mut self, v: [f64; 3]) {
+        for c in 0..3 {
+            self.total[c] += v[c];
+        }
+    }
+
+    #[inline(always)]
+    fn splitting(&self) -> bool {
+        self.split.is_some()
+    }
+
+    fn add_split(&mut self, source: usize, events: u32, v: [f64; 3]) {
+        if let Some((map, layers)) = &mut self.split {
+            map.add(layers, source, events, v);
+        }
+    }
+}
+
 pub struct Integrator<'a, F: FreePathSampler, E: TransmittanceEstimator> {
     pub free_path: F,
     pub transmittance: E,
@@ -80,12 +130,16 @@ pub struct Integrator<'a, F: FreePathSampler, E: TransmittanceEstimator> {
     pub spp: u32,
     pub max_depth: u32,
     pub seed: u64,
+    pub extras: Extras<'a>,
 }
 
 /// One sample's result: radiance and alpha (1 − camera-ray transmittance estimate).
 pub struct SampleResult {
     pub rgb: [f64; 3],
     pub alpha: f64,
+    /// Camera depth of the first real collision on the camera ray; NaN when there was
+    /// none (deep output bins the sample by it).
+    pub depth: f64,
 }
 
 impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
@@ -103,14 +157,29 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
     pub fn render_pass(&self, film: &mut Film, n: u32, progress: &(dyn Fn() + Sync)) {
         assert_eq!(film.full, (self.width, self.height), "film size");
         let (region, w) = (film.region, film.width as usize);
+        let (nl, nd) = (film.layer_count, film.depth_bins.map_or(0, |d| d.stride()));
+        let splits = self
+            .extras
+            .splits
+            .filter(|m| !m.is_empty() && nl == m.len());
+        let depth_bins = self.extras.depth_bins.filter(|_| nd > 0);
+        // Rows of the extra accumulators (empty slices when a render has none).
+        let layer_rows = rows(&mut film.layers, w * nl, film.height as usize);
+        let deep_rows = rows(&mut film.deep, w * nd, film.height as usize);
         film.pixels
             .par_chunks_mut(w)
             .zip(film.samplers.par_chunks_mut(w))
+            .zip(layer_rows)
+            .zip(deep_rows)
             .enumerate()
-            .for_each(|(y, (row, rngs))| {
+            .for_each(|(y, (((row, rngs), layers), deep))| {
                 let y = region.y0 + y as u32;
                 for (x, (px, rng)) in row.iter_mut().zip(rngs).enumerate() {
-                    self.add_samples(px, rng, region.x0 + x as u32, y, n);
+                    let extra = PixelExtras {
+                        splits: splits.map(|m| (m, &mut layers[x * nl..(x + 1) * nl])),
+                        deep: depth_bins.map(|d| (d, &mut deep[x * nd..(x + 1) * nd])),
+                    };
+                    self.add_samples(px, extra, rng, region.x0 + x as u32, y, n);
                 }
                 progress();
             });
@@ -121,15 +190,32 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         let index = y as u64 * self.width as u64 + x as u64;
         let mut rng = pixel_sampler(self.seed, index);
         let mut px = Pixel::default();
-        self.add_samples(&mut px, &mut rng, x, y, self.spp);
+        self.add_samples(&mut px, PixelExtras::default(), &mut rng, x, y, self.spp);
         px
     }
 
-    fn add_samples(&self, px: &mut Pixel, rng: &mut Sampler, x: u32, y: u32, n: u32) {
+    fn add_samples(
+        &self,
+        px: &mut Pixel,
+        mut extra: PixelExtras,
+        rng: &mut Sampler,
+        x: u32,
+        y: u32,
+        n: u32,
+    ) {
         let count = self.count || self.profile;
+        // One sample's split layers, added to the pixel's when the sample is finite.
+        let mut scratch = [[0f64; 3]; MAX_LAYERS];
+        let nl = extra.splits.as_ref().map_or(0, |(m, _)| m.len());
         for _ in 0..n {
             let fx = x as f64 + rng.gen::<f64>();
             let fy = y as f64 + rng.gen::<f64>();
+            let sample_layers = &mut scratch[..nl];
+            sample_layers.fill([0.0; 3]);
+            let split = extra
+                .splits
+                .as_ref()
+                .map(|(m, _)| (*m, &mut *sample_layers));
             // One branch per sample picks the instantiation; the paths below it are
             // monomorphised with or without counting.
             let s = if count {
@@ -137,13 +223,30 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                     timing: self.profile,
                     ..Counters::default()
                 };
-                let s = self.sample(fx, fy, rng, &mut counters);
+                let s = self.sample_split(fx, fy, rng, &mut counters, split);
                 px.counters.add(&counters);
                 s
             } else {
-                self.sample(fx, fy, rng, &mut NoCounts)
+                self.sample_split(fx, fy, rng, &mut NoCounts, split)
             };
-            px.add_sample(s.rgb, s.alpha);
+            let finite = px.add_sample(s.rgb, s.alpha);
+            if !finite {
+                continue;
+            }
+            if let Some((_, layers)) = &mut extra.splits {
+                for (acc, v) in layers.iter_mut().zip(&scratch[..nl]) {
+                    for c in 0..3 {
+                        acc[c] += v[c];
+                    }
+                }
+            }
+            if let Some((bins, deep)) = &mut extra.deep {
+                let b = &mut deep[bins.index(s.depth)];
+                for c in 0..3 {
+                    b[c] += s.rgb[c];
+                }
+                b[3] += s.alpha;
+            }
         }
     }
 
@@ -154,6 +257,18 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         fy: f64,
         rng: &mut Sampler,
         counters: &mut C,
+    ) -> SampleResult {
+        self.sample_split(fx, fy, rng, counters, None)
+    }
+
+    /// [`Self::sample`], also adding each contribution to the split layers `split`.
+    fn sample_split<C: Tally>(
+        &self,
+        fx: f64,
+        fy: f64,
+        rng: &mut Sampler,
+        counters: &mut C,
+        split: Option<(&SplitMap, &mut [[f64; 3]])>,
     ) -> SampleResult {
         let ray = self.camera.ray(fx, fy);
         let mut origin = ray.origin;
@@ -170,9 +285,12 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                 m.majorants.walk(r.o, r.d, tmin, tmax).next().map(|s| s.t0)
             })
             .fold(f32::INFINITY, f32::min);
+        // Distance from the camera to `origin`, for the depth of the first collision.
+        let mut camera_shift = 0.0;
         if entry.is_finite() {
             let shift = entry as f64 * (1.0 - 1e-6);
             if shift > 0.0 {
+                camera_shift = shift;
                 origin += dir * shift;
                 tmin = (tmin as f64 - shift).max(0.0) as f32;
                 tmax = (tmax as f64 - shift) as f32;
@@ -194,8 +312,12 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             g: 0.0,
             last_cos: 1.0,
         };
-        let mut radiance = [0f64; 3];
+        let mut radiance = Radiance {
+            total: [0f64; 3],
+            split,
+        };
         let mut alpha = 0.0;
+        let mut depth = f64::NAN;
         loop {
             let t0 = counters.tracker_start();
             let (event, id) =
@@ -221,35 +343,37 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                     if path.depth == 0 {
                         alpha = 1.0 - crate::track::free_path::avg(path.throughput) as f64;
                         if self.lights.has_environment() {
-                            let le = self.lights.environment_radiance(dir);
-                            self.add(&mut radiance, path.throughput, le, 1.0);
+                            self.add_environment(&mut radiance, &path, dir, 1.0);
                         }
                     } else if self.lights.has_environment() {
                         // MIS with environment NEE; the phase sample's weight
                         // phase/pdf is 1.
                         let pdf_phase = hg(path.g, path.last_cos);
                         let w = power_heuristic(pdf_phase, self.lights.environment_pdf(dir));
-                        let le = self.lights.environment_radiance(dir);
-                        self.add(&mut radiance, path.throughput, le, w);
+                        self.add_environment(&mut radiance, &path, dir, w);
                     }
                     break;
                 }
                 FreePath::Absorb { t } => {
                     if path.depth == 0 {
                         alpha = 1.0;
+                        depth = (camera_shift + t as f64) * ray.depth_per_t;
                     }
                     // Emission is collected at absorption events: the tracker has
                     // applied the absorption weight μa(λ)/(μ̄·Pa), so path.throughput × Le is
                     // the collision estimate of ∫ T·μa·Le (the source term μa·Le).
                     if let Some(emission) = &medium.emission {
                         let le = emission.radiance(origin + dir * t as f64, counters);
-                        self.add(&mut radiance, path.throughput, le, 1.0);
+                        let v = scaled(path.throughput, le, 1.0);
+                        let source = self.extras.splits.map_or(0, |m| m.emission_source(id));
+                        radiance.add(source, path.depth, v);
                     }
                     break;
                 }
                 FreePath::Scatter { t } => {
                     if path.depth == 0 {
                         alpha = 1.0;
+                        depth = (camera_shift + t as f64) * ray.depth_per_t;
                     }
                     path.depth += 1;
                     let p = origin + dir * t as f64;
@@ -287,14 +411,21 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             }
         }
         SampleResult {
-            rgb: radiance,
+            rgb: radiance.total,
             alpha,
+            depth,
         }
     }
 
-    fn add(&self, radiance: &mut [f64; 3], throughput: [f32; 3], l: [f64; 3], w: f64) {
-        for c in 0..3 {
-            radiance[c] += throughput[c] as f64 * l[c] * w;
+    /// Adds environment light arriving along `dir` with MIS weight `w`; the split
+    /// layers get each dome's share.
+    fn add_environment(&self, radiance: &mut Radiance, path: &PathState, dir: DVec3, w: f64) {
+        let le = self.lights.environment_radiance(dir);
+        radiance.add_total(scaled(path.throughput, le, w));
+        if radiance.splitting() {
+            self.lights.environment_parts(dir, |source, part| {
+                radiance.add_split(source, path.depth, scaled(path.throughput, part, w));
+            });
         }
     }
 
@@ -306,26 +437,28 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         p: DVec3,
         dir: DVec3,
         path: &PathState,
-        radiance: &mut [f64; 3],
+        radiance: &mut Radiance,
         rng: &mut Sampler,
         counters: &mut C,
     ) {
         let (g, tracked, throughput) = (path.g, path.tracked, path.throughput);
-        for sun in &self.lights.suns {
+        let (events, sources) = (path.depth, &self.lights.sources);
+        for (i, sun) in self.lights.suns.iter().enumerate() {
             let wi = sun.sample_direction(rng.gen(), rng.gen());
             let tr = self.shadow(p, wi, f32::INFINITY, tracked, rng, counters);
             let f = hg(g, dir.dot(wi));
-            for c in 0..3 {
-                radiance[c] += (throughput[c] * tr[c]) as f64 * sun.irradiance[c] * f;
-            }
+            let v = std::array::from_fn(|c| (throughput[c] * tr[c]) as f64 * sun.irradiance[c] * f);
+            radiance.add(sources.sun(i), events, v);
         }
-        for sphere in &self.lights.spheres {
+        for (i, sphere) in self.lights.spheres.iter().enumerate() {
             let s = sphere.sample(p, rng.gen(), rng.gen());
-            self.add_light_sample(s, p, dir, path, radiance, rng, counters);
+            let source = sources.sphere(i);
+            self.add_light_sample(s, source, p, dir, path, radiance, rng, counters);
         }
-        for rect in &self.lights.rects {
+        for (i, rect) in self.lights.rects.iter().enumerate() {
             let s = rect.sample(p, rng.gen(), rng.gen());
-            self.add_light_sample(s, p, dir, path, radiance, rng, counters);
+            let source = sources.rect(i);
+            self.add_light_sample(s, source, p, dir, path, radiance, rng, counters);
         }
         if self.lights.has_environment() {
             let (wi, le, pdf) = self.lights.sample_environment(rng.gen(), rng.gen());
@@ -333,8 +466,14 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                 let f = hg(g, dir.dot(wi));
                 let w = power_heuristic(pdf, f);
                 let tr = self.shadow(p, wi, f32::INFINITY, tracked, rng, counters);
-                for c in 0..3 {
-                    radiance[c] += (throughput[c] * tr[c]) as f64 * le[c] * f / pdf * w;
+                let v = |l: [f64; 3]| -> [f64; 3] {
+                    std::array::from_fn(|c| (throughput[c] * tr[c]) as f64 * l[c] * f / pdf * w)
+                };
+                radiance.add_total(v(le));
+                if radiance.splitting() {
+                    self.lights.environment_parts(wi, |source, part| {
+                        radiance.add_split(source, events, v(part));
+                    });
                 }
             }
         }
@@ -346,10 +485,11 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
     fn add_light_sample<C: Tally>(
         &self,
         sample: Option<LightSample>,
+        source: usize,
         p: DVec3,
         dir: DVec3,
         path: &PathState,
-        radiance: &mut [f64; 3],
+        radiance: &mut Radiance,
         rng: &mut Sampler,
         counters: &mut C,
     ) {
@@ -359,9 +499,8 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         let (g, throughput) = (path.g, path.throughput);
         let f = hg(g, dir.dot(s.wi));
         let tr = self.shadow(p, s.wi, s.distance as f32, path.tracked, rng, counters);
-        for c in 0..3 {
-            radiance[c] += (throughput[c] * tr[c]) as f64 * s.weight[c] * f;
-        }
+        let v = std::array::from_fn(|c| (throughput[c] * tr[c]) as f64 * s.weight[c] * f);
+        radiance.add(source, path.depth, v);
     }
 
     fn shadow<C: Tally>(
@@ -452,6 +591,27 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         });
         f(&qs[..k], &ids[..k])
     }
+}
+
+/// Per-pixel slices of a film's extra accumulators, for [`Integrator::add_samples`].
+#[derive(Default)]
+struct PixelExtras<'f> {
+    splits: Option<(&'f SplitMap, &'f mut [[f64; 3]])>,
+    deep: Option<(DepthBins, &'f mut [[f64; 4]])>,
+}
+
+/// `len`-long rows of `buf` (`height` of them), or `height` empty rows when `len` is 0.
+fn rows<T: Send>(buf: &mut [T], len: usize, height: usize) -> Vec<&mut [T]> {
+    if len == 0 {
+        return (0..height).map(|_| &mut [][..]).collect();
+    }
+    buf.chunks_mut(len).collect()
+}
+
+/// `throughput × l × w`, per channel, as the beauty adds it.
+#[inline(always)]
+fn scaled(throughput: [f32; 3], l: [f64; 3], w: f64) -> [f64; 3] {
+    std::array::from_fn(|c| throughput[c] as f64 * l[c] * w)
 }
 
 /// Power heuristic (β = 2) weight of the strategy with density `a` against `b`.

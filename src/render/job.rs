@@ -4,7 +4,7 @@
 use crate::render::analysis::CodePaths;
 use crate::render::camera::CameraRays;
 use crate::render::film::{Film, Region};
-use crate::render::integrator::Integrator;
+use crate::render::integrator::{Extras, Integrator};
 use crate::render::lights::Lights;
 use crate::scene::schema::tokens;
 use crate::scene::{Field, Scene, Volume};
@@ -32,6 +32,8 @@ pub struct RenderJob<'a> {
     pub tracking: TrackerSettings,
     /// Which specialised code paths run (counting, single-channel tracking).
     pub paths: CodePaths,
+    /// Split layers and deep bins to fill beside the beauty.
+    pub extras: Extras<'a>,
 }
 
 impl RenderJob<'_> {
@@ -58,7 +60,9 @@ impl RenderJob<'_> {
     /// the whole frame or of `region` of it.
     pub fn new_film(&self, region: Option<Region>) -> Film {
         let region = region.unwrap_or(Region::full(self.width, self.height));
+        let layers = self.extras.splits.map_or(0, |m| m.len());
         Film::of_region(self.width, self.height, region, self.seed)
+            .with_extras(layers, self.extras.depth_bins)
     }
 
     /// Adds `n` samples per pixel to `film` (progressive rendering: any split of N
@@ -92,6 +96,7 @@ impl RenderJob<'_> {
                     spp: self.n,
                     max_depth: j.max_depth,
                     seed: j.seed,
+                    extras: j.extras,
                 }
                 .render_pass(self.film, self.n, self.progress)
             }

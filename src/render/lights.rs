@@ -64,6 +64,39 @@ pub struct Lights {
     pub env_maps: Vec<EnvMap>,
     pub spheres: Vec<SphereEmitter>,
     pub rects: Vec<RectEmitter>,
+    /// Which scene light each emitter came from, for the light-group AOVs.
+    pub sources: LightSources,
+}
+
+/// The scene light (its index in [`Scene::lights`]) behind each emitter of [`Lights`],
+/// list by list; the untextured domes keep their own emission so the environment's
+/// constant part can be split among them. Empty for lights built by hand (tests):
+/// their contributions then feed no split layer.
+#[derive(Clone, Debug, Default)]
+pub struct LightSources {
+    pub suns: Vec<usize>,
+    pub spheres: Vec<usize>,
+    pub rects: Vec<usize>,
+    pub env_maps: Vec<usize>,
+    /// (source, emission scale) of each untextured dome, which `environment` sums.
+    pub constant_domes: Vec<(usize, [f64; 3])>,
+}
+
+/// A source index no split layer gathers.
+pub const NO_SOURCE: usize = usize::MAX;
+
+impl LightSources {
+    pub fn sun(&self, i: usize) -> usize {
+        self.suns.get(i).copied().unwrap_or(NO_SOURCE)
+    }
+
+    pub fn sphere(&self, i: usize) -> usize {
+        self.spheres.get(i).copied().unwrap_or(NO_SOURCE)
+    }
+
+    pub fn rect(&self, i: usize) -> usize {
+        self.rects.get(i).copied().unwrap_or(NO_SOURCE)
+    }
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -111,7 +144,10 @@ impl Lights {
     /// The scene's lights; reads dome textures (errors name the light and the file).
     pub fn from_scene(scene: &Scene) -> Result<Lights, LightError> {
         let mut lights = Lights::default();
+        // Scene light indices in `Scene::lights` order: distant, dome, sphere, rect.
+        let mut next = 0..;
         for l in &scene.distant_lights {
+            let source = next.next().unwrap_or(NO_SOURCE);
             let s = light_scale(l.intensity, l.exposure, l.color, l.color_temperature);
             let theta = l.angle_degrees.clamp(0.0, 360.0).to_radians() * 0.5;
             let cos_half_angle = theta.cos();
@@ -126,6 +162,7 @@ impl Lights {
                 radiance.map(|v| v * solid_angle)
             };
             if nonzero(&irradiance) {
+                lights.sources.suns.push(source);
                 lights.suns.push(Sun {
                     direction: DVec3::from_array(l.direction).normalize_or(DVec3::Z),
                     irradiance,
@@ -134,22 +171,26 @@ impl Lights {
             }
         }
         for d in &scene.dome_lights {
+            let source = next.next().unwrap_or(NO_SOURCE);
             let s = light_scale(d.intensity, d.exposure, d.color, d.color_temperature);
             match &d.texture_file {
                 None => {
                     for c in 0..3 {
                         lights.environment[c] += s[c];
                     }
+                    lights.sources.constant_domes.push((source, s));
                 }
                 Some(file) => {
                     let map = EnvMap::load(d, file, s)?;
                     if map.power > 0.0 {
+                        lights.sources.env_maps.push(source);
                         lights.env_maps.push(map);
                     }
                 }
             }
         }
         for l in &scene.sphere_lights {
+            let source = next.next().unwrap_or(NO_SOURCE);
             let m = l.light_to_world;
             let scale = DMat3::from_mat4(m).determinant().abs().cbrt();
             let r = l.radius * scale;
@@ -170,10 +211,12 @@ impl Lights {
                 radiance,
             };
             if nonzero(&emitter.radiance) {
+                lights.sources.spheres.push(source);
                 lights.spheres.push(emitter);
             }
         }
         for l in &scene.rect_lights {
+            let source = next.next().unwrap_or(NO_SOURCE);
             let m = l.light_to_world;
             let edge_u = m.transform_vector3(DVec3::X * l.width);
             let edge_v = m.transform_vector3(DVec3::Y * l.height);
@@ -185,6 +228,7 @@ impl Lights {
                 _ => s,
             };
             if area > 0.0 && nonzero(&radiance) {
+                lights.sources.rects.push(source);
                 lights.rects.push(RectEmitter {
                     center: m.transform_point3(DVec3::ZERO),
                     edge_u,
@@ -214,6 +258,18 @@ impl Lights {
             }
         }
         l
+    }
+
+    /// Calls `part(source, radiance)` for each dome's share of
+    /// [`Lights::environment_radiance`] in direction `w`: each untextured dome, then
+    /// each textured one. With no sources recorded (lights built by hand), nothing.
+    pub fn environment_parts(&self, w: DVec3, mut part: impl FnMut(usize, [f64; 3])) {
+        for &(source, le) in &self.sources.constant_domes {
+            part(source, le);
+        }
+        for (m, &source) in self.env_maps.iter().zip(&self.sources.env_maps) {
+            part(source, m.radiance(w));
+        }
     }
 
     /// Selection weights of the environment's sampling strategies: the constant part

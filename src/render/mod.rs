@@ -11,4 +11,5 @@ pub mod phase;
 pub mod progressive;
 pub mod sampler;
 pub mod session;
+pub mod splits;
 pub mod tiles;

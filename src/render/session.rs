@@ -9,12 +9,16 @@
 
 use crate::render::analysis::{Analysis, CodePaths, Given};
 use crate::render::camera::CameraRays;
-use crate::render::film::{Film, Region};
+use crate::render::film::{DepthBins, Film, Region};
+use crate::render::integrator::Extras;
 use crate::render::job::{media_for_scene_with, RenderJob};
 use crate::render::lights::Lights;
 use crate::render::progressive::{render_progressive, Budget, Clock, Progress};
+use crate::render::splits::{SplitLayer, SplitMap};
 use crate::scene::defaults::{add_default_lights, frame_box, has_no_lights, DEFAULT_CAMERA};
-use crate::scene::{load_stage, Field, LoadOptions, RenderSettings, Scene, Volume, VolumeEmission};
+use crate::scene::{
+    load_stage, Emitter, Field, LoadOptions, RenderSettings, Scene, Volume, VolumeEmission,
+};
 use crate::track::scheme::SchemeOptions;
 use crate::track::select::{Choice, SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
 use crate::volume::asset::AssetLocation;
@@ -35,6 +39,27 @@ pub const DEFAULT_OCTREE_PRUNE: f32 = 1.0;
 /// Memory Nimbus may use for the film (bytes per pixel of accumulators), checked before
 /// rendering so an absurd resolution is refused with a message instead of an abort.
 const MAX_FILM_BYTES: u64 = 8 << 30;
+
+/// Camera-depth slabs per pixel of the deep output before merging to the sample limit.
+pub const DEEP_BINS: usize = 32;
+
+/// The split map and the deep bins a render's outputs need, owned beside the session
+/// (the job borrows them through [`ExtraOutputs::extras`]).
+#[derive(Debug, Default)]
+pub struct ExtraOutputs {
+    pub splits: SplitMap,
+    pub depth_bins: Option<DepthBins>,
+}
+
+impl ExtraOutputs {
+    /// The job's view of them.
+    pub fn extras(&self) -> Extras<'_> {
+        Extras {
+            splits: (!self.splits.is_empty()).then_some(&self.splits),
+            depth_bins: self.depth_bins,
+        }
+    }
+}
 
 /// What the caller asks for. `None` (and `false`) leave the choice to the stage, and
 /// the stage's silence to the schema fallbacks.
@@ -326,7 +351,57 @@ impl Session {
             seed: self.seed,
             tracking: self.tracking,
             paths,
+            extras: Extras::default(),
         }
+    }
+
+    /// What `layers` (split AOVs) and deep output (`deep`) need from a render of this
+    /// session: the split map over the scene's lights and volumes, and the camera-depth
+    /// bins of the volumes' bounds. Errors name a light group that matches nothing, or
+    /// a film that no longer fits in memory.
+    pub fn extra_outputs(&self, layers: Vec<SplitLayer>, deep: bool) -> Result<ExtraOutputs> {
+        let lights = self.scene.lights();
+        let volumes: Vec<Emitter> = self
+            .scene
+            .volumes
+            .iter()
+            .map(|v| Emitter {
+                prim_path: &v.prim_path,
+                light_group: v.light_group.as_deref(),
+            })
+            .collect();
+        let splits = SplitMap::new(layers, &lights, &volumes)
+            .map_err(|e| anyhow!("{}: {e}", self.stage_path.display()))?;
+        let depth_bins = deep.then(|| self.depth_bins(DEEP_BINS));
+        check_film_bytes(
+            self.width,
+            self.height,
+            Film::BYTES_PER_PIXEL + Film::extra_bytes_per_pixel(splits.len(), depth_bins),
+        )?;
+        Ok(ExtraOutputs { splits, depth_bins })
+    }
+
+    /// `bins` camera-depth slabs over the part of the volumes' world bounds in front
+    /// of the camera.
+    fn depth_bins(&self, bins: usize) -> DepthBins {
+        let (origin, axis) = (self.camera.origin(), self.camera.view_axis());
+        let (mut z0, mut z1) = (f64::INFINITY, f64::NEG_INFINITY);
+        for (lo, hi) in self.media.iter().filter_map(|m| m.world_bounds()) {
+            for i in 0..8 {
+                let corner = glam::DVec3::new(
+                    if i & 1 == 0 { lo.x } else { hi.x },
+                    if i & 2 == 0 { lo.y } else { hi.y },
+                    if i & 4 == 0 { lo.z } else { hi.z },
+                );
+                let z = (corner - origin).dot(axis);
+                z0 = z0.min(z);
+                z1 = z1.max(z);
+            }
+        }
+        let z0 = z0.max(0.0);
+        // A volume behind the camera (nothing to bin) still gets a valid range.
+        let z1 = if z1 > z0 { z1 } else { z0 + 1.0 };
+        DepthBins { z0, z1, bins }
     }
 
     /// A worker pool of the requested size (`default` threads when none was asked for;
@@ -561,7 +636,12 @@ fn check_camera(scene: &Scene) -> Result<()> {
 
 /// Refuses a film larger than [`MAX_FILM_BYTES`] or than the memory available.
 fn check_film_memory(width: u32, height: u32) -> Result<()> {
-    let film_bytes = width as u64 * height as u64 * Film::BYTES_PER_PIXEL as u64;
+    check_film_bytes(width, height, Film::BYTES_PER_PIXEL)
+}
+
+/// Refuses a film of `per_pixel` bytes per pixel that does not fit in memory.
+fn check_film_bytes(width: u32, height: u32, per_pixel: usize) -> Result<()> {
+    let film_bytes = width as u64 * height as u64 * per_pixel as u64;
     let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
     if film_bytes > MAX_FILM_BYTES {
         bail!(
@@ -640,6 +720,7 @@ fn scene_for_vdb(path: &Path, grid: Option<&str>) -> Result<Scene> {
     };
     let volume = Volume {
         prim_path: format!("/{}", chosen.name),
+        light_group: None,
         volume_to_world: glam::DMat4::IDENTITY,
         density: field.clone(),
         // NimbusVolumeAPI's fallbacks (schemas/schema.usda).

@@ -61,6 +61,7 @@ pub fn has_no_lights(scene: &Scene) -> bool {
 pub fn add_default_lights(scene: &mut Scene) {
     let towards = DVec3::new(-0.5, 0.8, 0.6).normalize();
     scene.distant_lights.push(DistantLight {
+        light_group: None,
         prim_path: "(default sun)".into(),
         direction: towards.to_array(),
         intensity: 3.0,
@@ -71,6 +72,7 @@ pub fn add_default_lights(scene: &mut Scene) {
         angle_degrees: 0.53,
     });
     scene.dome_lights.push(DomeLight {
+        light_group: None,
         prim_path: "(default sky)".into(),
         light_to_world: DMat4::IDENTITY,
         intensity: 0.5,

@@ -23,6 +23,37 @@ pub struct Scene {
     pub settings: RenderSettings,
 }
 
+/// Something that puts light into the scene, as the light-group AOVs name it: a UsdLux
+/// light or an emissive volume.
+#[derive(Clone, Copy, Debug)]
+pub struct Emitter<'a> {
+    pub prim_path: &'a str,
+    pub light_group: Option<&'a str>,
+}
+
+impl Scene {
+    /// The scene's lights in the order distant, dome, sphere, rect (each in stage
+    /// order): a light's index here is its light id in the renderer.
+    pub fn lights(&self) -> Vec<Emitter<'_>> {
+        let mut out = Vec::new();
+        macro_rules! push {
+            ($list:expr) => {
+                for l in &$list {
+                    out.push(Emitter {
+                        prim_path: &l.prim_path,
+                        light_group: l.light_group.as_deref(),
+                    });
+                }
+            };
+        }
+        push!(self.distant_lights);
+        push!(self.dome_lights);
+        push!(self.sphere_lights);
+        push!(self.rect_lights);
+        out
+    }
+}
+
 /// A pinhole camera (UsdGeomCamera). Lengths in the stage's units as USD defines them:
 /// focal length and apertures in tenths of a scene unit ("mm" when the unit is cm);
 /// only their ratios matter to a pinhole camera.
@@ -47,6 +78,8 @@ pub struct Camera {
 #[derive(Clone, Debug)]
 pub struct DistantLight {
     pub prim_path: String,
+    /// `nimbus:lightGroup`: the light group its light-group AOVs gather it under.
+    pub light_group: Option<String>,
     /// Unit world-space direction *towards* the light (the light shines along its local −Z,
     /// so this is the light's world +Z axis).
     pub direction: [f64; 3],
@@ -65,6 +98,8 @@ pub struct DistantLight {
 #[derive(Clone, Debug)]
 pub struct DomeLight {
     pub prim_path: String,
+    /// `nimbus:lightGroup`: the light group its light-group AOVs gather it under.
+    pub light_group: Option<String>,
     /// Light → world; the texture's +Y pole and +Z (longitude 0) are the light's local
     /// axes.
     pub light_to_world: DMat4,
@@ -82,6 +117,8 @@ pub struct DomeLight {
 #[derive(Clone, Debug)]
 pub struct SphereLight {
     pub prim_path: String,
+    /// `nimbus:lightGroup`: the light group its light-group AOVs gather it under.
+    pub light_group: Option<String>,
     pub light_to_world: DMat4,
     pub intensity: f64,
     pub exposure: f64,
@@ -99,6 +136,8 @@ pub struct SphereLight {
 #[derive(Clone, Debug)]
 pub struct RectLight {
     pub prim_path: String,
+    /// `nimbus:lightGroup`: the light group its light-group AOVs gather it under.
+    pub light_group: Option<String>,
     pub light_to_world: DMat4,
     pub intensity: f64,
     pub exposure: f64,
@@ -114,6 +153,8 @@ pub struct RectLight {
 #[derive(Clone, Debug)]
 pub struct Volume {
     pub prim_path: String,
+    /// `nimbus:lightGroup` of an emissive volume: the light group of its emission.
+    pub light_group: Option<String>,
     /// Volume → world (the prim's local-to-world transform at the scene's time).
     pub volume_to_world: DMat4,
     /// The field the density is read from (the relationship `field:<density_field>`).
@@ -257,6 +298,8 @@ pub struct RenderProduct {
     pub prim_path: String,
     /// `productName`, when authored.
     pub product_name: Option<String>,
+    /// `productType` ("raster", or "deepRaster" for a deep EXR).
+    pub product_type: String,
     /// `nimbus:previewName`, when authored: a tone-mapped sRGB PNG of the beauty to
     /// write beside the EXR.
     pub preview_name: Option<String>,
@@ -266,7 +309,9 @@ pub struct RenderProduct {
 #[derive(Clone, Debug)]
 pub struct RenderVar {
     pub prim_path: String,
-    /// `sourceName` (e.g. "color", "lookups").
+    /// `sourceName` (e.g. "color", "lookups", a light path expression).
     pub source_name: String,
+    /// `sourceType` ("raw", "lpe", …; the schema's fallback is "raw").
+    pub source_type: String,
     pub data_type: String,
 }

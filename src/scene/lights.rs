@@ -10,6 +10,7 @@ use super::attrs::{
     SceneError,
 };
 use super::description::{DistantLight, DomeLight, RectLight, SphereLight};
+use super::schema::tokens;
 use glam::{DMat4, DVec3};
 use openusd::sdf::Value;
 use openusd::usd::{Prim, TimeCode};
@@ -67,6 +68,7 @@ struct Common {
     color: [f64; 3],
     normalize: bool,
     color_temperature: Option<f64>,
+    light_group: Option<String>,
 }
 
 fn common(prim: &Prim, t: Option<TimeCode>, intensity_fallback: f64) -> Result<Common, SceneError> {
@@ -81,6 +83,7 @@ fn common(prim: &Prim, t: Option<TimeCode>, intensity_fallback: f64) -> Result<C
         color: read_vec3(prim, "inputs:color", t)?.unwrap_or([1.0; 3]),
         normalize: read_bool(prim, "inputs:normalize", t)?.unwrap_or(false),
         color_temperature,
+        light_group: read_string(prim, tokens::LIGHT_GROUP, t)?.filter(|g| !g.is_empty()),
     })
 }
 
@@ -97,6 +100,7 @@ fn distant_light(
     let c = common(prim, t, 50000.0)?;
     Ok(DistantLight {
         prim_path: prim.path().to_string(),
+        light_group: c.light_group,
         direction: direction.to_array(),
         intensity: c.intensity,
         exposure: c.exposure,
@@ -123,6 +127,7 @@ fn dome_light(prim: &Prim, t: Option<TimeCode>, to_world: &DMat4) -> Result<Dome
     let c = common(prim, t, 1.0)?;
     Ok(DomeLight {
         prim_path: prim.path().to_string(),
+        light_group: c.light_group,
         light_to_world: *to_world,
         intensity: c.intensity,
         exposure: c.exposure,
@@ -149,6 +154,7 @@ fn sphere_light(
     }
     Ok(SphereLight {
         prim_path: prim.path().to_string(),
+        light_group: c.light_group,
         light_to_world: *to_world,
         intensity: c.intensity,
         exposure: c.exposure,
@@ -179,6 +185,7 @@ fn rect_light(prim: &Prim, t: Option<TimeCode>, to_world: &DMat4) -> Result<Rect
     }
     Ok(RectLight {
         prim_path: prim.path().to_string(),
+        light_group: c.light_group,
         light_to_world: *to_world,
         intensity: c.intensity,
         exposure: c.exposure,

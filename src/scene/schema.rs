@@ -56,6 +56,7 @@ pub mod tokens {
     pub const CONTROL: &str = "nimbus:control";
     pub const OCTREE_DEPTH: &str = "nimbus:octreeDepth";
     pub const PREVIEW_NAME: &str = "nimbus:previewName";
+    pub const LIGHT_GROUP: &str = "nimbus:lightGroup";
 }
 
 /// Why the embedded schema could not be registered. This is a build defect (the

@@ -265,6 +265,11 @@ impl Loader<'_> {
 
     // ----- volumes ------------------------------------------------------------
 
+    /// `nimbus:lightGroup` of a volume (its emission's light group), if set.
+    fn light_group(&self, prim: &Prim) -> Result<Option<String>, SceneError> {
+        Ok(read_string(prim, tokens::LIGHT_GROUP, self.time)?.filter(|g| !g.is_empty()))
+    }
+
     fn volume(&mut self, prim: &Prim) -> Result<Volume, SceneError> {
         let t = self.time;
         let (fields, relationship_count) = self.fields(prim)?;
@@ -287,6 +292,7 @@ impl Loader<'_> {
             let density = self.density_field(prim, &m.density_field, &fields)?;
             return Ok(Volume {
                 prim_path: prim.path().to_string(),
+                light_group: self.light_group(prim)?,
                 volume_to_world: self.world_transform(prim)?,
                 density,
                 density_scale: m.density_scale,
@@ -306,6 +312,7 @@ impl Loader<'_> {
         let albedo = self.named_field(prim, tokens::ALBEDO_FIELD, &fields)?;
         Ok(Volume {
             prim_path: prim.path().to_string(),
+            light_group: self.light_group(prim)?,
             volume_to_world: self.world_transform(prim)?,
             density,
             density_scale: read_f64(prim, tokens::DENSITY_SCALE, t)?.unwrap_or(1.0),
@@ -567,11 +574,16 @@ impl Loader<'_> {
                 vars.push(RenderVar {
                     prim_path: var.path().to_string(),
                     source_name: read_string(&var, "sourceName", self.time)?.unwrap_or_default(),
+                    source_type: read_string(&var, "sourceType", self.time)?
+                        .unwrap_or_else(|| "raw".to_string()),
                     data_type: read_string(&var, "dataType", self.time)?.unwrap_or_default(),
                 });
             }
             products.push(RenderProduct {
                 prim_path: prim.path().to_string(),
+                product_type: read_string(&prim, "productType", self.time)?
+                    .filter(|t| !t.is_empty())
+                    .unwrap_or_else(|| "raster".to_string()),
                 product_name,
                 preview_name,
                 vars,

@@ -182,6 +182,7 @@ impl Dispatch<Output> for Run<'_, '_> {
             spp: s.spp,
             max_depth: s.max_depth,
             seed: s.seed,
+            extras: Default::default(),
         };
         match self.mode {
             Mode::Film => Output::Film(it.render(&|| {})),
