@@ -1,4 +1,4 @@
-//! `nimbus info`: what Nimbus reads from a stage.
+//! `nimbus info`: what Nimbus reads from a stage, a VDB file or a deep EXR.
 
 use crate::render::analysis::Given;
 use crate::scene::{load_stage, LoadOptions};
@@ -11,7 +11,7 @@ use std::path::PathBuf;
 
 #[derive(Args, Debug)]
 pub struct InfoArgs {
-    /// The USD stage, or a .vdb file (lists its grids).
+    /// The USD stage, a .vdb file (lists its grids) or a deep .exr (its sample counts).
     pub stage: PathBuf,
     /// Time code to evaluate the stage at.
     #[arg(long)]
@@ -28,6 +28,9 @@ pub fn run(args: InfoArgs) -> Result<()> {
         .is_some_and(|e| e.eq_ignore_ascii_case("vdb"))
     {
         return vdb_info(&args);
+    }
+    if crate::output::deep::is_deep_exr(&args.stage) {
+        return deep_info(&args.stage);
     }
     let scene = load_stage(
         &args.stage,
@@ -352,4 +355,47 @@ fn active_value_range(raw: &crate::volume::grid::RawGrid) -> (f32, f32) {
         add(t.value);
     }
     r
+}
+
+/// `nimbus info FILE.exr` on a deep EXR: windows, channels and how the samples are
+/// spread over the pixels.
+fn deep_info(path: &std::path::Path) -> Result<()> {
+    use crate::output::deep::read_deep_exr;
+    let meta = ::exr::meta::MetaData::read_from_file(path, false)?;
+    let channels: Vec<String> = meta
+        .headers
+        .first()
+        .map(|h| {
+            h.channels
+                .list
+                .iter()
+                .map(|c| format!("{} ({:?})", c.name, c.sample_type))
+                .collect()
+        })
+        .unwrap_or_default();
+    let image = read_deep_exr(path)?;
+    let (w, h) = image.full;
+    let r = image.region;
+    println!("deep exr: {} (deep scanline)", path.display());
+    println!(
+        "data window: x {}..{} y {}..{} ({}x{} pixels), display window {w}x{h}",
+        r.x0,
+        r.x1,
+        r.y0,
+        r.y1,
+        r.width(),
+        r.height()
+    );
+    println!("channels: {}", channels.join(", "));
+    let counts = &image.counts;
+    let min = counts.iter().min().copied().unwrap_or(0);
+    let max = counts.iter().max().copied().unwrap_or(0);
+    let mean = image.samples.len() as f64 / counts.len().max(1) as f64;
+    let empty = counts.iter().filter(|&&n| n == 0).count();
+    println!(
+        "samples: {} total, per pixel min {min} / mean {mean:.3} / max {max}, pixels with 0 samples {empty} of {}",
+        image.samples.len(),
+        counts.len()
+    );
+    Ok(())
 }

@@ -1,7 +1,10 @@
-//! Writing results: the EXR image with its AOV channels, and the stats JSON. Both are
-//! written to a temporary file beside the target and renamed into place, so a failed
-//! render never leaves a partial file or clobbers an existing one.
+//! Writing results: the EXR image with its AOV channels, deep EXR images, and the stats
+//! JSON. All are written to a temporary file beside the target and renamed into place,
+//! so a failed render never leaves a partial file or clobbers an existing one.
 
+pub mod deep;
+#[cfg(nimbus_openexr)]
+mod deep_bridge;
 pub mod exr;
 pub mod merge;
 pub mod preview;
@@ -15,6 +18,8 @@ use std::path::Path;
 pub enum OutputError {
     #[error("cannot write {path}: {message}")]
     Write { path: String, message: String },
+    #[error("cannot read {path}: {message}")]
+    Read { path: String, message: String },
 }
 
 /// Writes `path` atomically: `fill` writes into a temporary file in the same folder,
