@@ -3,6 +3,7 @@
 //! PNGs; their names for a frame of a sequence; and writing them all for the samples
 //! done so far (after the last pass, and at every checkpoint).
 
+use super::deep::{deep_samples, write_deep_exr, DeepImage, DepthBin};
 use super::exr::{write_channels, ExrMetadata, FarmMetadata};
 use super::preview::write_preview;
 use super::stats::{RenderStats, RunFacts};
@@ -263,10 +264,58 @@ impl Outputs {
     }
 }
 
-/// Writes the film's beauty as a deep EXR of at most `limit` samples per pixel.
+/// Writes the film's beauty as a deep EXR of at most `limit` samples per pixel: each
+/// pixel's depth bins (the mean radiance and alpha of the samples whose first real
+/// collision on the camera ray fell in each camera-depth slab, and of those with none
+/// at the back) become `over`-composited samples that flatten to the flat beauty.
 fn write_deep(path: &Path, film: &Film, limit: usize, meta: &ExrMetadata) -> Result<()> {
-    let _ = (path, film, limit, meta);
-    bail!("deep output is not built yet")
+    if film.depth_bins.is_none() {
+        bail!(
+            "{}: the render did not bin its samples by depth (its job was made without deep output)",
+            path.display()
+        );
+    }
+    let mut counts = Vec::with_capacity(film.pixels.len());
+    let mut samples = Vec::new();
+    let mut bins = Vec::new();
+    for p in 0..film.pixels.len() {
+        bins.clear();
+        bins.extend(
+            film.deep_bins(p)
+                .into_iter()
+                .map(|((z, z_back), rgb, alpha)| DepthBin {
+                    z,
+                    z_back,
+                    rgb,
+                    alpha,
+                }),
+        );
+        let before = samples.len();
+        deep_samples(&bins, limit, &mut samples);
+        counts.push((samples.len() - before) as u32);
+    }
+    let mut attributes = vec![
+        (
+            "nimbus:version".to_string(),
+            env!("CARGO_PKG_VERSION").to_string(),
+        ),
+        ("nimbus:stage".to_string(), meta.stage.clone()),
+        ("nimbus:tracker".to_string(), meta.tracker.clone()),
+        ("nimbus:spp".to_string(), meta.spp.to_string()),
+        ("nimbus:deepSamples".to_string(), limit.to_string()),
+    ];
+    if let Some(product) = &meta.product {
+        attributes.push(("nimbus:renderProduct".to_string(), product.clone()));
+    }
+    let image = DeepImage {
+        full: film.full,
+        region: film.region,
+        counts,
+        samples,
+        attributes,
+    };
+    write_deep_exr(path, &image)?;
+    Ok(())
 }
 
 /// Writes `value` as pretty JSON, atomically.
