@@ -661,6 +661,7 @@ fn scene_for_vdb(path: &Path, grid: Option<&str>) -> Result<Scene> {
         sphere_lights: Vec::new(),
         rect_lights: Vec::new(),
         volumes: vec![volume],
+        holdouts: Vec::new(),
         settings: RenderSettings::default(),
     })
 }
