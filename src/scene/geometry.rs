@@ -279,17 +279,23 @@ fn to_mesh(
     }
 }
 
-/// A repeated vertex, or edges whose cross product is zero (or not finite, as a
-/// singular or overflowing transform can make it): a ray can never hit it.
+/// A repeated vertex, or edges at an angle whose sine is below [`DEGENERATE_SINE`] (or
+/// not finite, as a singular or overflowing transform can make it). A relative test,
+/// not an exact zero: collinear points moved to world space by a rotation are collinear
+/// only to rounding, and such a sliver has no area a ray could hit in practice.
 pub(super) fn is_degenerate(points: &[[f64; 3]], [a, b, c]: [u32; 3]) -> bool {
     if a == b || b == c || a == c {
         return true;
     }
     let p = |i: u32| DVec3::from_array(points[i as usize]);
-    let n = (p(b) - p(a)).cross(p(c) - p(a));
-    let area2 = n.length_squared();
-    !(area2 > 0.0 && area2.is_finite())
+    let (e1, e2) = (p(b) - p(a), p(c) - p(a));
+    let area2 = e1.cross(e2).length_squared();
+    let scale2 = e1.length_squared() * e2.length_squared();
+    !(area2 > DEGENERATE_SINE * DEGENERATE_SINE * scale2 && area2.is_finite())
 }
+
+/// See [`is_degenerate`]: far above f64 rounding (1e-16), far below any real triangle.
+const DEGENERATE_SINE: f64 = 1e-12;
 
 // ----- implicit gprims -------------------------------------------------------------------
 //
