@@ -99,6 +99,8 @@ fn holdout_prims_are_read_with_world_transforms() {
         "/Shapes/Plane",
         "/Shapes/RenderPurpose",
         "/Shapes/Applied",
+        "/Rocks/Rock0/Rock",
+        "/Rocks/Rock1/Rock",
     ];
     for case in expected["holdouts"].as_array().unwrap() {
         let frame = case["frame"].as_f64();
@@ -448,6 +450,35 @@ fn ray_queries_agree_with_brute_force() {
         let rays = 20_000;
         let (hits, ambiguous) = check_against_brute_force(&meshes, &mut rng, rays, offset);
         eprintln!("offset {offset}: {hits} hits of {rays} rays, {ambiguous} grazing");
+        // Throughput, for the record (not asserted: the machine is shared).
+        let holdouts = Holdouts::build(&meshes);
+        let queries: Vec<(DVec3, DVec3)> = (0..200_000)
+            .map(|_| {
+                (
+                    offset + unit(&mut rng) * rng.gen_range(0.0..6.0),
+                    unit(&mut rng),
+                )
+            })
+            .collect();
+        let start = std::time::Instant::now();
+        let nearest = queries
+            .iter()
+            .filter(|(o, d)| holdouts.hit(*o, *d, 0.0, f64::INFINITY).is_some())
+            .count();
+        let hit_time = start.elapsed().as_secs_f64();
+        let start = std::time::Instant::now();
+        let blocked = queries
+            .iter()
+            .filter(|(o, d)| holdouts.occluded(*o, *d, 0.0, f64::INFINITY))
+            .count();
+        let any_time = start.elapsed().as_secs_f64();
+        assert_eq!(nearest, blocked);
+        eprintln!(
+            "  {} triangles: hit {:.0} ns/ray, occluded {:.0} ns/ray (one thread)",
+            holdouts.stats().triangles,
+            hit_time * 1e9 / queries.len() as f64,
+            any_time * 1e9 / queries.len() as f64
+        );
         assert!(hits > rays / 4, "too few hits ({hits}) to test anything");
         assert!(ambiguous < rays / 1000, "{ambiguous} grazing rays");
     }

@@ -40,6 +40,7 @@ mod types {
     pub const RENDER_VAR: &str = "RenderVar";
     /// Every UsdGeom gprim (Mesh, Sphere, …; also Volume, matched first).
     pub const GPRIM: &str = "Gprim";
+    pub const POINT_INSTANCER: &str = "PointInstancer";
 }
 
 /// Prefix of a volume's field relationships (`field:density`).
@@ -113,6 +114,9 @@ struct Inventory {
     render_settings: Vec<Prim>,
     /// Gprims other than volumes: candidates for holdouts.
     gprims: Vec<Prim>,
+    /// PointInstancers: the gprims beneath them are prototypes, drawn only where the
+    /// instancer places them (which Nimbus does not read), never in place.
+    point_instancers: Vec<Prim>,
 }
 
 struct Loader<'a> {
@@ -175,6 +179,8 @@ impl Loader<'_> {
                 &mut inventory.render_settings
             } else if prim.is_a(types::GPRIM)? {
                 &mut inventory.gprims
+            } else if prim.is_a(types::POINT_INSTANCER)? {
+                &mut inventory.point_instancers
             } else {
                 continue;
             };
@@ -203,6 +209,13 @@ impl Loader<'_> {
             let Some(prim_type) = geometry::holdout_type(&prim)? else {
                 continue;
             };
+            let prototype = inventory
+                .point_instancers
+                .iter()
+                .any(|instancer| prim.path().has_prefix(instancer.path()));
+            if prototype {
+                continue;
+            }
             let purpose = match geom::Imageable::from_prim(prim.clone())
                 .map_err(|e| prim_error(prim.path(), e))?
             {
