@@ -3,12 +3,11 @@
 //! both sides, so a query only needs a distance.
 //!
 //! The tree is built by `obvhs` (PLOC with reinsertion, in parallel on rayon) over the
-//! triangles' boxes, then flattened here into depth-first order with escape links:
-//! a node that is missed jumps past its subtree, one that is hit steps to the next node.
-//! That traversal needs no stack at all, so a query allocates nothing and cannot
-//! overflow however deep the builder's tree is; the price is a fixed child order
-//! (nearest-hit queries cannot visit the nearer child first), which any-hit queries
-//! (shadow rays, the common case) do not care about.
+//! triangles' boxes, then flattened here into depth-first order with escape links (the
+//! index just past each subtree). Queries visit the nearer child first and keep the
+//! other on a fixed array on the call stack; a tree deeper than that array (only
+//! pathological inputs) is walked without a stack instead, through the escape links in
+//! fixed child order. Either way a query allocates nothing and cannot overflow.
 //!
 //! Precision: triangles are stored and intersected in f64 (Möller–Trumbore, both
 //! sides, edges inclusive so neighbouring triangles leave no cracks). Node boxes are f32,
@@ -42,8 +41,14 @@ pub struct Holdouts {
     nodes: Vec<Node>,
     /// Triangles in leaf order (a leaf's are contiguous).
     triangles: Vec<Triangle>,
+    /// Whether the tree is shallow enough for the ordered traversal's fixed stack.
+    ordered: bool,
     stats: HoldoutStats,
 }
+
+/// Entries of the ordered traversal's stack (on the call stack: 1.5 KB). Trees deeper
+/// than this (pathological inputs) use the stackless escape-link traversal instead.
+const STACK: usize = 96;
 
 /// What the holdouts hold and cost (`nimbus info`, stats).
 #[derive(Clone, Copy, Debug, Default, serde::Serialize)]
@@ -128,9 +133,10 @@ impl BoxRay {
         }
     }
 
-    /// Whether the ray meets the node's box for some t in [tmin, tmax] (slab test).
+    /// Where the ray enters the node's box, if it meets it for some t in [tmin, tmax]
+    /// (slab test).
     #[inline(always)]
-    fn meets(&self, node: &Node, tmin: f64, tmax: f64) -> bool {
+    fn entry(&self, node: &Node, tmin: f64, tmax: f64) -> Option<f64> {
         let mut near = tmin;
         let mut far = tmax;
         for a in 0..3 {
@@ -140,7 +146,7 @@ impl BoxRay {
             near = near.max(lo);
             far = far.min(hi);
         }
-        near <= far
+        (near <= far).then_some(near)
     }
 }
 
@@ -150,6 +156,7 @@ impl Holdouts {
         Holdouts {
             nodes: Vec::new(),
             triangles: Vec::new(),
+            ordered: false,
             stats: HoldoutStats::default(),
         }
     }
@@ -181,9 +188,10 @@ impl Holdouts {
         }
         let mut holdouts = Holdouts::empty();
         if !triangles.is_empty() {
-            let (nodes, ordered) = build_tree(&triangles);
+            let (nodes, ordered, depth) = build_tree(&triangles);
             holdouts.nodes = nodes;
             holdouts.triangles = ordered;
+            holdouts.ordered = depth < STACK;
         }
         holdouts.stats = HoldoutStats {
             meshes: meshes.len(),
@@ -244,22 +252,82 @@ impl Holdouts {
             return;
         }
         let ray = BoxRay::new(origin, dir);
-        let mut i = 0;
-        while let Some(node) = self.nodes.get(i) {
-            if !ray.meets(node, tmin, *tmax) {
-                i = node.escape as usize;
-                continue;
-            }
+        // Tests a leaf's triangles; true = stop.
+        let mut leaf = |node: &Node, tmax: &mut f64| {
             let first = node.first as usize;
             for tri in &self.triangles[first..first + node.count as usize] {
                 if let Some(t) = tri.hit(origin, dir, tmin, *tmax) {
                     *tmax = t;
                     if on_hit(t) {
-                        return;
+                        return true;
                     }
                 }
             }
-            i += 1;
+            false
+        };
+        if !self.ordered {
+            // Escape links: no stack, any depth.
+            let mut i = 0;
+            while let Some(node) = self.nodes.get(i) {
+                if ray.entry(node, tmin, *tmax).is_none() {
+                    i = node.escape as usize;
+                    continue;
+                }
+                if leaf(node, tmax) {
+                    return;
+                }
+                i += 1;
+            }
+            return;
+        }
+        // Nearer child first, the other on a fixed stack with its entry distance (skipped
+        // on pop once a hit is nearer). At most one entry per level: `ordered` says the
+        // tree is shallower than the stack.
+        let mut stack = [(0u32, 0f64); STACK];
+        let mut depth = 0;
+        let mut i = 0;
+        if ray.entry(&self.nodes[0], tmin, *tmax).is_none() {
+            return;
+        }
+        loop {
+            let node = &self.nodes[i];
+            let mut next = None;
+            if node.count > 0 {
+                if leaf(node, tmax) {
+                    return;
+                }
+            } else {
+                // Depth-first order: the first child follows its parent, the second
+                // follows the first child's subtree.
+                let a = i + 1;
+                let b = self.nodes[a].escape as usize;
+                let ta = ray.entry(&self.nodes[a], tmin, *tmax);
+                let tb = ray.entry(&self.nodes[b], tmin, *tmax);
+                next = match (ta, tb) {
+                    (Some(ta), Some(tb)) => {
+                        let (near, far, t_far) = if ta <= tb { (a, b, tb) } else { (b, a, ta) };
+                        stack[depth] = (far as u32, t_far);
+                        depth += 1;
+                        Some(near)
+                    }
+                    (Some(_), None) => Some(a),
+                    (None, Some(_)) => Some(b),
+                    (None, None) => None,
+                };
+            }
+            i = match next {
+                Some(n) => n,
+                None => loop {
+                    if depth == 0 {
+                        return;
+                    }
+                    depth -= 1;
+                    let (n, t_entry) = stack[depth];
+                    if t_entry <= *tmax {
+                        break n as usize;
+                    }
+                },
+            };
         }
     }
 }
@@ -295,8 +363,9 @@ fn round_up(x: f64) -> f32 {
 }
 
 /// Builds obvhs' BVH2 over the triangles' boxes and flattens it into depth-first nodes
-/// with escape links; returns the nodes and the triangles in leaf order.
-fn build_tree(triangles: &[Triangle]) -> (Vec<Node>, Vec<Triangle>) {
+/// with escape links; returns the nodes, the triangles in leaf order and the tree's
+/// depth (edges from the root to the deepest node).
+fn build_tree(triangles: &[Triangle]) -> (Vec<Node>, Vec<Triangle>, usize) {
     let boxes: Vec<obvhs::aabb::Aabb> = triangles
         .iter()
         .map(|t| {
@@ -312,14 +381,16 @@ fn build_tree(triangles: &[Triangle]) -> (Vec<Node>, Vec<Triangle>) {
 
     // Pre-order walk (an explicit stack: the tree's depth is unbounded).
     let mut order = Vec::with_capacity(bvh.nodes.len());
-    let mut pending = vec![0u32];
-    while let Some(n) = pending.pop() {
+    let mut pending = vec![(0u32, 0usize)];
+    let mut depth = 0;
+    while let Some((n, d)) = pending.pop() {
         order.push(n);
+        depth = depth.max(d);
         let node = &bvh.nodes[n as usize];
         if !node.is_leaf() {
             // Second child pushed first so the first is visited first.
-            pending.push(node.first_index + 1);
-            pending.push(node.first_index);
+            pending.push((node.first_index + 1, d + 1));
+            pending.push((node.first_index, d + 1));
         }
     }
     // Subtree sizes, children before parents (reverse pre-order).
@@ -353,7 +424,7 @@ fn build_tree(triangles: &[Triangle]) -> (Vec<Node>, Vec<Triangle>) {
             count,
         });
     }
-    (nodes, ordered)
+    (nodes, ordered, depth)
 }
 
 #[cfg(test)]
@@ -365,6 +436,98 @@ mod tests {
         for x in [0.1f64, -0.1, 1.0 / 3.0, -7.0 / 3.0, 1e-30, 3.0] {
             assert!(f64::from(round_down(x)) <= x && f64::from(round_up(x)) >= x);
         }
+    }
+
+    fn soup(points: Vec<[f64; 3]>) -> HoldoutMesh {
+        let triangles = (0..points.len() as u32 / 3)
+            .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+            .collect();
+        HoldoutMesh {
+            prim_path: "/Soup".into(),
+            prim_type: "Mesh".into(),
+            points,
+            triangles,
+            faces: 0,
+            degenerate_triangles: 0,
+            double_sided: true,
+        }
+    }
+
+    /// The stackless traversal (trees deeper than the stack) answers as the ordered one.
+    #[test]
+    fn both_traversals_agree() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
+        let mut r = |s: f64| rng.gen_range(-s..s);
+        let points: Vec<[f64; 3]> = (0..3000)
+            .map(|i| {
+                let c = if i % 3 == 0 {
+                    [r(5.0), r(5.0), r(5.0)]
+                } else {
+                    [0.0; 3]
+                };
+                [c[0] + r(1.0), c[1] + r(1.0), c[2] + r(1.0)]
+            })
+            .collect();
+        // Triangles as offsets from their first vertex.
+        let points: Vec<[f64; 3]> = points
+            .chunks(3)
+            .flat_map(|c| {
+                let a = c[0];
+                [
+                    a,
+                    [a[0] + c[1][0], a[1] + c[1][1], a[2] + c[1][2]],
+                    [a[0] + c[2][0], a[1] + c[2][1], a[2] + c[2][2]],
+                ]
+            })
+            .collect();
+        let ordered = Holdouts::build(&[soup(points)]);
+        assert!(ordered.ordered);
+        let mut stackless = Holdouts::build(&[]);
+        stackless.nodes = ordered.nodes.clone();
+        stackless.triangles = ordered.triangles.clone();
+        stackless.ordered = false;
+        for _ in 0..5000 {
+            let o = DVec3::new(r(7.0), r(7.0), r(7.0));
+            let d = DVec3::new(r(1.0), r(1.0), r(1.0)).normalize();
+            let (tmin, tmax) = (r(1.0).abs(), 2.0 + r(20.0).abs());
+            assert_eq!(
+                ordered.hit(o, d, tmin, tmax),
+                stackless.hit(o, d, tmin, tmax)
+            );
+            assert_eq!(
+                ordered.occluded(o, d, tmin, tmax),
+                stackless.occluded(o, d, tmin, tmax)
+            );
+        }
+    }
+
+    /// Triangles at exponentially growing distances make a chain-like tree deeper than
+    /// the ordered traversal's stack: it is walked through the escape links instead.
+    #[test]
+    fn a_deep_tree_falls_back_to_the_stackless_traversal() {
+        let mut points = Vec::new();
+        for k in 0..900 {
+            let x = 1.1f64.powi(k);
+            points.extend([[x, -1.0, -1.0], [x, 1.0, -1.0], [x, 0.0, 1.0]]);
+        }
+        let h = Holdouts::build(&[soup(points)]);
+        assert_eq!(h.stats().triangles, 900);
+        assert!(!h.ordered, "expected a tree deeper than {STACK}");
+        // Along +x from the origin the first wall is at 1; from past wall k, at 1.1^(k+1).
+        assert_eq!(
+            h.hit(DVec3::new(0.0, 0.0, 0.0), DVec3::X, 0.0, f64::INFINITY),
+            Some(1.0)
+        );
+        let from = 1.1f64.powi(100) * 1.05;
+        let want = 1.1f64.powi(101) - from;
+        let got = h.hit(DVec3::new(from, 0.0, 0.0), DVec3::X, 0.0, f64::INFINITY);
+        assert!(
+            got.is_some_and(|t| (t - want).abs() <= 1e-9 * want),
+            "{got:?} vs {want}"
+        );
+        assert!(h.occluded(DVec3::new(from, 0.0, 0.0), DVec3::NEG_X, 0.0, f64::INFINITY));
+        assert!(!h.occluded(DVec3::new(from, 0.0, 0.0), DVec3::Y, 0.0, f64::INFINITY));
     }
 
     #[test]
