@@ -214,7 +214,7 @@ fn render(session: &Session, layers: Vec<SplitLayer>) -> Film {
         count: true,
         specialise: true,
     });
-    job.extras = extra.extras();
+    extra.apply(&mut job);
     let pool = session.pool(2).unwrap();
     let never = AtomicBool::new(false);
     session

@@ -116,6 +116,7 @@ pub fn run(args: InfoArgs) -> Result<()> {
             p.prim_path, p.product_name, vars
         );
     }
+    print_holdouts(&scene.holdouts);
     for v in &scene.volumes {
         println!(
             "volume: {} densityField {} densityScale {} absorption {:?} scattering {:?} anisotropy {}",
@@ -230,6 +231,36 @@ pub fn run(args: InfoArgs) -> Result<()> {
     }
     print_analysis(&args, &scene, args.octree_depth.clamp(1, MAX_DEPTH));
     Ok(())
+}
+
+/// The holdout geometry (black matte occluders) and what its BVH costs, when the stage
+/// has any; a stage without geometry prints nothing.
+fn print_holdouts(meshes: &[crate::scene::HoldoutMesh]) {
+    if meshes.is_empty() {
+        return;
+    }
+    let s = crate::render::holdouts::Holdouts::build(meshes).stats();
+    println!(
+        "holdouts: {} meshes, {} triangles, {} degenerate skipped, BVH built in {:.3} s, {:.2} MiB",
+        s.meshes,
+        s.triangles,
+        s.degenerate_triangles,
+        s.build_seconds,
+        s.bytes as f64 / (1024.0 * 1024.0)
+    );
+    const LISTED: usize = 20;
+    for m in meshes.iter().take(LISTED) {
+        println!(
+            "  holdout {} ({}): {} triangles, {} degenerate skipped",
+            m.prim_path,
+            m.prim_type,
+            m.triangles.len(),
+            m.degenerate_triangles
+        );
+    }
+    if meshes.len() > LISTED {
+        println!("  … and {} more", meshes.len() - LISTED);
+    }
 }
 
 /// The scene analysis and what `--tracker auto` would pick (at the stage's resolution).

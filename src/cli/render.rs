@@ -352,7 +352,7 @@ fn render_frame(
     }
     let extra = session.extra_outputs(outputs.split_layers(), outputs.deep())?;
     let mut job = session.job(outputs.need_counts());
-    job.extras = extra.extras();
+    extra.apply(&mut job);
     let pool = session.pool(0)?;
     let (width, height, spp) = (session.width, session.height, session.spp);
     let bar = if spp == u32::MAX {

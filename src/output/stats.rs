@@ -24,6 +24,9 @@ pub struct RenderStats {
     pub tile: Option<String>,
     /// The session's settings hash (`Session::settings_hash`, hex), which `merge` checks.
     pub settings_hash: String,
+    /// The holdout geometry: meshes, triangles, degenerate triangles skipped, BVH build
+    /// seconds and bytes (all 0 for a stage without geometry).
+    pub holdouts: crate::render::holdouts::HoldoutStats,
     pub wall_seconds: f64,
     pub load_seconds: f64,
     pub render_seconds: f64,
@@ -117,6 +120,7 @@ impl RenderStats {
             full_resolution: film.full,
             tile: run.tile.map(|t| format!("{}/{}", t.index, t.count)),
             settings_hash: format!("{:016x}", session.settings_hash()),
+            holdouts: session.holdouts.stats(),
             wall_seconds: run.wall_seconds,
             load_seconds: session.load_seconds,
             render_seconds: p.seconds,

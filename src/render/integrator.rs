@@ -7,6 +7,7 @@
 use crate::color::Spectrum;
 use crate::render::camera::CameraRays;
 use crate::render::film::{DepthBins, Film, Pixel};
+use crate::render::holdouts::Holdouts;
 use crate::render::lights::LightSample;
 use crate::render::lights::Lights;
 use crate::render::phase::{hg, sample_hg};
@@ -65,6 +66,9 @@ pub struct Extras<'a> {
     pub splits: Option<&'a SplitMap>,
     /// Bin each sample by the camera depth of its first real collision.
     pub depth_bins: Option<DepthBins>,
+    /// Black matte occluders: camera, scattered and shadow rays end at them (`None`
+    /// for a stage without geometry: no query at all).
+    pub holdouts: Option<&'a Holdouts>,
 }
 
 /// A sample's radiance: the beauty sum, and the split layers it also feeds.
@@ -274,6 +278,15 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         let mut origin = ray.origin;
         let mut dir = ray.dir;
         let (mut tmin, mut tmax) = (ray.tmin as f32, ray.tmax as f32);
+        // A holdout in front of the camera ends the camera ray: the trackers sample free
+        // paths only up to it, and what passes the volume finds black, with alpha 0.
+        let mut blocked = false;
+        if let Some(h) = self.extras.holdouts {
+            if let Some(d) = h.hit(ray.origin, ray.dir, ray.tmin, ray.tmax) {
+                tmax = d as f32;
+                blocked = true;
+            }
+        }
         // Start the camera ray just before it enters the majorant region: trackers add
         // free-path steps to `t` in f32, and far from the origin (f32 spacing 6e-5 at
         // t = 1e3) the steps of a dense medium would round away and stall the walk.
@@ -342,6 +355,10 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                 FreePath::Escape => {
                     if path.depth == 0 {
                         alpha = 1.0 - crate::track::free_path::avg(path.throughput) as f64;
+                    }
+                    if blocked {
+                        // The ray ended at a holdout: black matte, nothing more.
+                    } else if path.depth == 0 {
                         if self.lights.has_environment() {
                             self.add_environment(&mut radiance, &path, dir, 1.0);
                         }
@@ -407,6 +424,11 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                     dir = new_dir;
                     tmin = 0.0;
                     tmax = f32::INFINITY;
+                    if let Some(h) = self.extras.holdouts {
+                        let hit = h.hit(origin, dir, 0.0, f64::INFINITY);
+                        blocked = hit.is_some();
+                        tmax = hit.map_or(f32::INFINITY, |d| d as f32);
+                    }
                 }
             }
         }
@@ -512,6 +534,12 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         rng: &mut Sampler,
         counters: &mut C,
     ) -> Spectrum {
+        // The set shadows the volume: a blocked shadow ray needs no tracking.
+        if let Some(h) = self.extras.holdouts {
+            if h.occluded(p, wi, 0.0, tmax as f64) {
+                return [0.0; 3];
+            }
+        }
         let t0 = counters.tracker_start();
         let tr = self.with_queries(p, wi, 0.0, tmax, tracked, |qs, _| {
             if let [q] = qs {

@@ -1,9 +1,11 @@
 //! The integrator and everything a sample needs: camera rays, the sampler, the phase
-//! function, lights, and the film that accumulates pixels and AOVs.
+//! function, lights, holdout geometry (ray queries), and the film that accumulates
+//! pixels and AOVs.
 
 pub mod analysis;
 pub mod camera;
 pub mod film;
+pub mod holdouts;
 pub mod integrator;
 pub mod job;
 pub mod lights;

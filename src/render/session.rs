@@ -10,6 +10,7 @@
 use crate::render::analysis::{Analysis, CodePaths, Given};
 use crate::render::camera::CameraRays;
 use crate::render::film::{DepthBins, Film, Region};
+use crate::render::holdouts::Holdouts;
 use crate::render::integrator::Extras;
 use crate::render::job::{media_for_scene_with, RenderJob};
 use crate::render::lights::Lights;
@@ -52,12 +53,10 @@ pub struct ExtraOutputs {
 }
 
 impl ExtraOutputs {
-    /// The job's view of them.
-    pub fn extras(&self) -> Extras<'_> {
-        Extras {
-            splits: (!self.splits.is_empty()).then_some(&self.splits),
-            depth_bins: self.depth_bins,
-        }
+    /// Makes `job` fill them.
+    pub fn apply<'a>(&'a self, job: &mut RenderJob<'a>) {
+        job.extras.splits = (!self.splits.is_empty()).then_some(&self.splits);
+        job.extras.depth_bins = self.depth_bins;
     }
 }
 
@@ -134,6 +133,8 @@ pub struct Session {
     threads: Option<usize>,
     /// Things the user should hear about (printed by the caller).
     pub warnings: Vec<String>,
+    /// The stage's holdout geometry, in a BVH (empty: none).
+    pub holdouts: Holdouts,
 }
 
 impl Session {
@@ -214,6 +215,10 @@ impl Session {
         }
         let lights = Lights::from_scene(&scene)?;
         check_camera(&scene)?;
+        let holdouts = match scene.holdouts.is_empty() {
+            true => Holdouts::empty(),
+            false => Holdouts::build(&scene.holdouts),
+        };
         let camera = CameraRays::new(&scene.camera, width, height);
         let analysis = Analysis::of_media(&media, &lights, &camera, (width, height));
         let mut tracking = request.settings;
@@ -267,6 +272,7 @@ impl Session {
             specialise: !o.no_specialise,
             threads: o.threads,
             warnings,
+            holdouts,
         };
         session.prune();
         Ok(session)
@@ -351,7 +357,10 @@ impl Session {
             seed: self.seed,
             tracking: self.tracking,
             paths,
-            extras: Extras::default(),
+            extras: Extras {
+                holdouts: (!self.holdouts.is_empty()).then_some(&self.holdouts),
+                ..Extras::default()
+            },
         }
     }
 
@@ -742,6 +751,7 @@ fn scene_for_vdb(path: &Path, grid: Option<&str>) -> Result<Scene> {
         sphere_lights: Vec::new(),
         rect_lights: Vec::new(),
         volumes: vec![volume],
+        holdouts: Vec::new(),
         settings: RenderSettings::default(),
     })
 }

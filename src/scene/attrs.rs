@@ -275,6 +275,72 @@ pub(super) fn read_asset(
     }
 }
 
+pub(super) fn read_bool(
+    prim: &Prim,
+    name: &str,
+    time: Option<TimeCode>,
+) -> Result<Option<bool>, SceneError> {
+    let Some(value) = read_value(prim, name, time)? else {
+        return Ok(None);
+    };
+    match value {
+        Value::Bool(b) => Ok(Some(b)),
+        other => Err(wrong_type(prim, name, "a bool", &other)),
+    }
+}
+
+/// An int array (`int[]`, or any integer width an author used); `None` when unauthored
+/// with no fallback.
+pub(super) fn read_int_array(
+    prim: &Prim,
+    name: &str,
+    time: Option<TimeCode>,
+) -> Result<Option<Vec<i64>>, SceneError> {
+    let Some(value) = read_value(prim, name, time)? else {
+        return Ok(None);
+    };
+    let widen = |v: Vec<i64>| Ok(Some(v));
+    match value {
+        Value::IntVec(v) => widen(v.into_iter().map(i64::from).collect()),
+        Value::Int64Vec(v) => widen(v),
+        Value::UintVec(v) => widen(v.into_iter().map(i64::from).collect()),
+        Value::UcharVec(v) => widen(v.into_iter().map(i64::from).collect()),
+        // Values past i64::MAX are out of range for any index; saturate so the
+        // range check reports them.
+        Value::Uint64Vec(v) => widen(
+            v.into_iter()
+                .map(|x| i64::try_from(x).unwrap_or(i64::MAX))
+                .collect(),
+        ),
+        other => Err(wrong_type(prim, name, "an int array", &other)),
+    }
+}
+
+/// A 3-vector array (`point3f[]`, `double3[]`, `half3[]`, …), widened to f64.
+pub(super) fn read_vec3_array(
+    prim: &Prim,
+    name: &str,
+    time: Option<TimeCode>,
+) -> Result<Option<Vec<[f64; 3]>>, SceneError> {
+    let Some(value) = read_value(prim, name, time)? else {
+        return Ok(None);
+    };
+    match value {
+        Value::Vec3fVec(v) => Ok(Some(
+            v.into_iter()
+                .map(|p| [p.x, p.y, p.z].map(f64::from))
+                .collect(),
+        )),
+        Value::Vec3dVec(v) => Ok(Some(v.into_iter().map(|p| [p.x, p.y, p.z]).collect())),
+        Value::Vec3hVec(v) => Ok(Some(
+            v.into_iter()
+                .map(|p| [p.x, p.y, p.z].map(f64::from))
+                .collect(),
+        )),
+        other => Err(wrong_type(prim, name, "a 3-vector array", &other)),
+    }
+}
+
 // ----- assets ----------------------------------------------------------------------------
 
 /// Where a field's file is. openusd resolves the asset path against the layer

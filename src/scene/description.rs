@@ -1,5 +1,6 @@
 //! The scene as plain data: what [`load_stage`](super::stage::load_stage) returns —
-//! camera, lights, volumes and their fields, render settings, products and vars — with
+//! camera, lights, volumes and their fields, holdout geometry, render settings, products
+//! and vars — with
 //! world-space transforms already evaluated and asset paths already resolved.
 
 use crate::volume::asset::AssetLocation;
@@ -20,6 +21,9 @@ pub struct Scene {
     pub sphere_lights: Vec<SphereLight>,
     pub rect_lights: Vec<RectLight>,
     pub volumes: Vec<Volume>,
+    /// The visible UsdGeom gprims rendered as black matte occluders (empty when the
+    /// stage has none).
+    pub holdouts: Vec<HoldoutMesh>,
     pub settings: RenderSettings,
 }
 
@@ -235,6 +239,29 @@ impl VolumeEmission {
     pub fn is_emissive(&self) -> bool {
         self.temperature.is_some() || self.emission.is_some()
     }
+}
+
+/// A UsdGeom gprim read as a holdout: a black matte occluder, opaque from both sides,
+/// as world-space triangles at the scene's time. Meshes are fan-triangulated (a
+/// subdivision mesh is its control cage); the implicit gprims (Sphere, Cube, Cylinder,
+/// Cone, Capsule, Plane) are tessellated (see `scene::geometry`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct HoldoutMesh {
+    pub prim_path: String,
+    /// The schema type read: "Mesh", "Sphere", "Cube", "Cylinder", "Cone", "Capsule"
+    /// or "Plane".
+    pub prim_type: String,
+    /// World-space vertex positions (all finite).
+    pub points: Vec<[f64; 3]>,
+    /// Triangles as indices into `points`, degenerate ones already left out.
+    pub triangles: Vec<[u32; 3]>,
+    /// Polygons read (a Mesh's faces less its holes; for an implicit gprim, the
+    /// tessellation's triangles before degenerate ones are dropped).
+    pub faces: usize,
+    /// Triangles left out because they have zero area or repeat a vertex.
+    pub degenerate_triangles: usize,
+    /// `doubleSided`, recorded only: a holdout blocks rays from both sides regardless.
+    pub double_sided: bool,
 }
 
 /// A UsdVolOpenVDBAsset prim, resolved.

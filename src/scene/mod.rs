@@ -3,12 +3,14 @@
 //! already resolved.
 //!
 //! Loading lives in [`stage`] (UsdLux lights in `lights`, other tools' volume materials
-//! in [`shading`], the attribute readers and errors they share in `attrs`); Nimbus'
-//! codeless schema (see `schemas/`) is registered by [`schema`].
+//! in [`shading`], holdout gprims in [`geometry`], the attribute readers and errors they
+//! share in `attrs`); Nimbus' codeless schema (see `schemas/`) is registered by
+//! [`schema`].
 
 mod attrs;
 pub mod defaults;
 pub mod description;
+pub mod geometry;
 mod lights;
 pub mod schema;
 pub mod shading;

@@ -33,7 +33,11 @@ pub const VOLUME_API: &str = "NimbusVolumeAPI";
 /// Single-apply API schema carrying the integrator settings of a RenderSettings prim.
 pub const RENDER_SETTINGS_API: &str = "NimbusRenderSettingsAPI";
 
-/// Property names of [`VOLUME_API`] and [`RENDER_SETTINGS_API`].
+/// Single-apply API schema of a UsdGeom gprim: `nimbus:holdout` (whether it renders as
+/// a black matte occluder). The attribute is read whether or not the schema is applied.
+pub const HOLDOUT_API: &str = "NimbusHoldoutAPI";
+
+/// Property names of [`VOLUME_API`], [`RENDER_SETTINGS_API`] and [`HOLDOUT_API`].
 pub mod tokens {
     pub const DENSITY_FIELD: &str = "nimbus:densityField";
     pub const DENSITY_SCALE: &str = "nimbus:densityScale";
@@ -57,6 +61,7 @@ pub mod tokens {
     pub const OCTREE_DEPTH: &str = "nimbus:octreeDepth";
     pub const PREVIEW_NAME: &str = "nimbus:previewName";
     pub const LIGHT_GROUP: &str = "nimbus:lightGroup";
+    pub const HOLDOUT: &str = "nimbus:holdout";
 }
 
 /// Why the embedded schema could not be registered. This is a build defect (the
@@ -200,7 +205,7 @@ mod tests {
     #[test]
     fn registry_knows_nimbus_api_schemas() {
         let registry = registry().expect("embedded schema registers");
-        for api in [VOLUME_API, RENDER_SETTINGS_API] {
+        for api in [VOLUME_API, RENDER_SETTINGS_API, HOLDOUT_API] {
             let info = registry
                 .schema_info(&Token::from(api))
                 .expect("schema registered");

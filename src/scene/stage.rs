@@ -10,6 +10,7 @@
 use super::attrs::*;
 use super::defaults;
 use super::description::*;
+use super::geometry;
 use super::lights;
 use super::schema::{self, tokens};
 use super::shading;
@@ -37,6 +38,9 @@ mod types {
     pub const RENDER_SETTINGS: &str = "RenderSettings";
     pub const RENDER_PRODUCT: &str = "RenderProduct";
     pub const RENDER_VAR: &str = "RenderVar";
+    /// Every UsdGeom gprim (Mesh, Sphere, …; also Volume, matched first).
+    pub const GPRIM: &str = "Gprim";
+    pub const POINT_INSTANCER: &str = "PointInstancer";
 }
 
 /// Prefix of a volume's field relationships (`field:density`).
@@ -108,6 +112,11 @@ struct Inventory {
     cameras: Vec<Prim>,
     lights: Vec<Prim>,
     render_settings: Vec<Prim>,
+    /// Gprims other than volumes: candidates for holdouts.
+    gprims: Vec<Prim>,
+    /// PointInstancers: the gprims beneath them are prototypes, drawn only where the
+    /// instancer places them (which Nimbus does not read), never in place.
+    point_instancers: Vec<Prim>,
 }
 
 struct Loader<'a> {
@@ -131,6 +140,7 @@ impl Loader<'_> {
         };
         let volumes = self.visible(&inventory.volumes)?;
         let lights = self.lights(&inventory)?;
+        let holdouts = self.holdouts(&inventory)?;
         Ok(Scene {
             stage_path: path.to_path_buf(),
             // USD's default time code is NaN (`UsdTimeCode::Default()`).
@@ -144,6 +154,7 @@ impl Loader<'_> {
                 .iter()
                 .map(|p| self.volume(p))
                 .collect::<Result<_, _>>()?,
+            holdouts,
             settings,
         })
     }
@@ -166,6 +177,10 @@ impl Loader<'_> {
                 &mut inventory.lights
             } else if prim.is_a(types::RENDER_SETTINGS)? {
                 &mut inventory.render_settings
+            } else if prim.is_a(types::GPRIM)? {
+                &mut inventory.gprims
+            } else if prim.is_a(types::POINT_INSTANCER)? {
+                &mut inventory.point_instancers
             } else {
                 continue;
             };
@@ -182,6 +197,45 @@ impl Loader<'_> {
             prims.push((prim, to_world));
         }
         lights::read_lights(&prims, self.time)
+    }
+
+    /// The visible gprims of a type Nimbus reads, with the `default` or `render`
+    /// purpose (`proxy` and `guide` are stand-ins a final render leaves out) and
+    /// `nimbus:holdout` not false (the attribute is read whether or not
+    /// `NimbusHoldoutAPI` is applied), as world-space triangles.
+    fn holdouts(&mut self, inventory: &Inventory) -> Result<Vec<HoldoutMesh>, SceneError> {
+        let mut holdouts = Vec::new();
+        for prim in self.visible(&inventory.gprims)? {
+            let Some(prim_type) = geometry::holdout_type(&prim)? else {
+                continue;
+            };
+            let prototype = inventory
+                .point_instancers
+                .iter()
+                .any(|instancer| prim.path().has_prefix(instancer.path()));
+            if prototype {
+                continue;
+            }
+            let purpose = match geom::Imageable::from_prim(prim.clone())
+                .map_err(|e| prim_error(prim.path(), e))?
+            {
+                Some(im) => im
+                    .compute_purpose()
+                    .map_err(|e| prim_error(prim.path(), format!("purpose: {e}")))?,
+                None => geom::Purpose::Default,
+            };
+            if !matches!(purpose, geom::Purpose::Default | geom::Purpose::Render) {
+                continue;
+            }
+            if read_bool(&prim, tokens::HOLDOUT, self.time)? == Some(false) {
+                continue;
+            }
+            let to_world = self.world_transform(&prim)?;
+            holdouts.push(geometry::read_holdout(
+                &prim, prim_type, &to_world, self.time,
+            )?);
+        }
+        Ok(holdouts)
     }
 
     /// Drops prims whose computed visibility (inherited down namespace) is
