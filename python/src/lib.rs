@@ -15,7 +15,7 @@ use nimbus::output::OutputError as LibOutputError;
 use nimbus::render::analysis::Given;
 use nimbus::render::film::{Aov, Film};
 use nimbus::render::progressive::{Clock, Progress};
-use nimbus::render::session::{Overrides, Session, DEFAULT_OCTREE_PRUNE};
+use nimbus::render::session::{ExtraOutputs, Overrides, Session, DEFAULT_OCTREE_PRUNE};
 use nimbus::scene::schema::tokens;
 use nimbus::scene::SceneError;
 use nimbus::track::select::{Choice, SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
@@ -552,13 +552,19 @@ fn render(
     let done = Arc::new(AtomicU64::new(0));
     let total = (session.spp != u32::MAX).then(|| session.spp as u64 * session.height as u64);
     let (tx, rx) = channel::<PyResult<Rendered>>();
+    // Split AOVs and deep images the files written ask for are filled by this render.
+    let extra = match &outputs {
+        Some(o) => guarded(|| session.extra_outputs(o.split_layers(), o.deep()))?,
+        None => ExtraOutputs::default(),
+    };
     {
         let (session, stop, done) = (session.clone(), stop.clone(), done.clone());
         std::thread::Builder::new()
             .name("nimbus-render".into())
             .spawn(move || {
                 let r = guarded(|| {
-                    let job = session.job(count);
+                    let mut job = session.job(count);
+                    extra.apply(&mut job);
                     let pool = session.pool(0)?;
                     let threads = pool.current_num_threads();
                     let (film, p) = session.render(
