@@ -201,6 +201,7 @@ fn build_bridge(found: &OpenVdb) {
     println!("cargo:rerun-if-changed=src/volume/vdb/bridge.rs");
     println!("cargo:rerun-if-changed=cpp/vdb_bridge.h");
     println!("cargo:rerun-if-changed=cpp/vdb_bridge.cc");
+    println!("cargo:rerun-if-changed=cpp/guarded.h");
     println!("cargo:rustc-link-search=native={}", found.lib_dir.display());
     for lib in ["openvdb", "tbb", "Imath-3_1"] {
         println!("cargo:rustc-link-lib={lib}");
@@ -268,6 +269,7 @@ fn build_exr_bridge(found: &OpenExr) {
     println!("cargo:rerun-if-changed=src/output/deep_bridge.rs");
     println!("cargo:rerun-if-changed=cpp/exr_deep.h");
     println!("cargo:rerun-if-changed=cpp/exr_deep.cc");
+    println!("cargo:rerun-if-changed=cpp/guarded.h");
     let mut searched: Vec<&PathBuf> = Vec::new();
     for (dir, lib) in &found.libs {
         if !searched.contains(&dir) {

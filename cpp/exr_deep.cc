@@ -1,4 +1,5 @@
 #include "nimbus/cpp/exr_deep.h"
+#include "nimbus/cpp/guarded.h"
 #include "nimbus/src/output/deep_bridge.rs.h"
 
 #include <ImfChannelList.h>
@@ -15,6 +16,7 @@
 #include <exception>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace nimbus_exr {
@@ -30,29 +32,10 @@ const char* const kNames[kChannels] = {"Z", "ZBack", "R", "G", "B", "A"};
 constexpr int64_t kMaxPixels = int64_t(1) << 28;
 constexpr uint64_t kMaxSamples = uint64_t(1) << 27;
 
-// OpenEXR's messages can quote file contents; keep what crosses into Rust short.
-constexpr size_t kMaxMessage = 512;
-
-std::string capped(const char* what) {
-    std::string s = what ? what : "unknown error";
-    if (s.size() > kMaxMessage) {
-        s.resize(kMaxMessage);
-        s += "... (truncated)";
-    }
-    return s;
-}
-
-// Runs `body`, turning every exception (Iex's derive from std::exception) into a
-// std::runtime_error with a capped message, which cxx hands to Rust as an Err.
+// Iex's exceptions derive from std::exception: guarded() turns them into capped errors.
 template <typename F>
 auto guarded(F&& body) -> decltype(body()) {
-    try {
-        return body();
-    } catch (const std::exception& e) {
-        throw std::runtime_error(capped(e.what()));
-    } catch (...) {
-        throw std::runtime_error("unknown C++ exception in OpenEXR");
-    }
+    return nimbus_cpp::guarded("OpenEXR", std::forward<F>(body));
 }
 
 // OpenEXR writes through an OStream; this one fills memory, so Rust can write the bytes

@@ -1,4 +1,5 @@
 #include "nimbus/cpp/vdb_bridge.h"
+#include "nimbus/cpp/guarded.h"
 #include "nimbus/src/volume/vdb/bridge.rs.h"
 
 #include <openvdb/openvdb.h>
@@ -8,36 +9,15 @@
 #include <stdexcept>
 #include <string>
 #include <type_traits>
+#include <utility>
 
 namespace nimbus_vdb {
 namespace {
 
-// OpenVDB exception texts can embed file contents (a corrupt file once produced a
-// 1.5 GB message); keep what crosses into Rust short.
-constexpr size_t kMaxMessage = 512;
-
-std::string capped(const char* what) {
-    std::string s = what ? what : "unknown error";
-    if (s.size() > kMaxMessage) {
-        s.resize(kMaxMessage);
-        s += "... (truncated)";
-    }
-    return s;
-}
-
-// Runs `body`, turning every exception into a std::runtime_error with a capped message,
-// which cxx hands to Rust as an Err.
+// openvdb::Exception derives from std::exception: guarded() turns it into a capped error.
 template <typename F>
 auto guarded(F&& body) -> decltype(body()) {
-    try {
-        return body();
-    } catch (const openvdb::Exception& e) {
-        throw std::runtime_error(capped(e.what()));
-    } catch (const std::exception& e) {
-        throw std::runtime_error(capped(e.what()));
-    } catch (...) {
-        throw std::runtime_error("unknown C++ exception in OpenVDB");
-    }
+    return nimbus_cpp::guarded("OpenVDB", std::forward<F>(body));
 }
 
 void open_file(openvdb::io::File& file) {
