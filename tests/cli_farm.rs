@@ -342,6 +342,16 @@ fn farm_errors_are_clear() {
         stderr(&r)
     );
     let r = nimbus(&[
+        "farm", "openjd", &stage, "-o", &out, "--frames", "1-2", "--dir", &job, "--", "--deep",
+        "d.exr",
+    ]);
+    assert!(!r.status.success());
+    assert!(
+        stderr(&r).contains("does not assemble deep tiles"),
+        "{}",
+        stderr(&r)
+    );
+    let r = nimbus(&[
         "farm", "openjd", &stage, "-o", &out, "--frames", "1-2", "--dir", &job, "--", "--sp", "3",
     ]);
     assert!(!r.status.success());

@@ -94,6 +94,12 @@ impl FarmJob {
         {
             bail!("--checkpoint would write partial images onto a task's final path; split the frame into more tiles instead");
         }
+        if render_args
+            .iter()
+            .any(|a| a == "--deep" || a.starts_with("--deep="))
+        {
+            bail!("--deep: `nimbus merge` does not assemble deep tiles yet; render deep images on one machine (nimbus render --deep)");
+        }
         let nimbus = std::env::current_exe().context("cannot find the nimbus executable")?;
         Ok(FarmJob {
             nimbus,
