@@ -42,9 +42,10 @@
 //! # Grey media and several media
 //!
 //! In a grey medium every channel has the same probabilities, so p_k = f_λ for all k
-//! and every weight is exactly 1: the estimator is delta tracking. Queries on grey
-//! cross-sections are therefore run by [`Delta`] itself (bit-identical decisions,
-//! weights and random numbers). In the race over several media ([`race_collisions`])
+//! and every weight is exactly 1 under a bounding majorant: the estimator is delta
+//! tracking. Queries on grey cross-sections with `majorant_scale ≥ 1` are therefore run
+//! by [`Delta`] itself (bit-identical decisions, weights and random numbers); with a
+//! scaled-down majorant they take the MIS path (signed weights, unbiased). In the race over several media ([`race_collisions`])
 //! the tentative distances are still shared by all channels (the superposed processes
 //! do not depend on the channel) and each collision is decided with the producing
 //! medium's coefficients and majorant, so the same products apply unchanged; the hero
@@ -96,7 +97,10 @@ impl SpectralMis {
     }
 }
 
-/// Whether the cross-sections are the same in every channel.
+/// Whether the cross-sections are the same in every channel. (Grey queries with a
+/// bounding majorant are run by [`Delta`]; under a scaled-down, non-bounding majorant
+/// delta tracking is biased, so they take the MIS path, whose signed weights stay
+/// unbiased there as `weighted-delta`'s do.)
 #[inline(always)]
 fn grey(s: &Sigma) -> bool {
     s.a[0] == s.a[1] && s.a[1] == s.a[2] && s.s[0] == s.s[1] && s.s[1] == s.s[2]
@@ -240,7 +244,7 @@ impl FreePathSampler for SpectralMis {
         rng: &mut R,
         c: &mut C,
     ) -> FreePath {
-        if grey(q.sigma) {
+        if grey(q.sigma) && q.majorant_scale >= 1.0 {
             return Delta.sample(q, throughput, rng, c);
         }
         let no_abs = self.options.no_absorption_events;
@@ -260,7 +264,7 @@ impl FreePathSampler for SpectralMis {
         rng: &mut R,
         c: &mut C,
     ) -> (FreePath, usize) {
-        if qs.iter().all(|q| grey(q.sigma)) {
+        if qs.iter().all(|q| grey(q.sigma) && q.majorant_scale >= 1.0) {
             return Delta.sample_race(qs, throughput, rng, c);
         }
         let (mut s, mut t) = ([0f32; 3], [0f32; 3]);
