@@ -572,6 +572,11 @@ mod tests {
         assert_eq!(t.label, "spectral:max:no-absorption-events");
         assert!(t.settings.options.no_absorption_events && !t.settings.options.reduced_termination);
         assert!(parse_tracker("delta:reduced-termination").is_err());
+        let t = parse_tracker("spectral-mis:no-absorption-events").unwrap();
+        assert_eq!(t.label, "spectral-mis:no-absorption-events");
+        assert!(t.settings.options.no_absorption_events);
+        assert!(parse_tracker("spectral-mis:reduced-termination").is_err());
+        assert!(parse_tracker("spectral-mis:hist-avg").is_err());
         for bad in [
             "",
             "deltaa",
