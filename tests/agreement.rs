@@ -154,6 +154,7 @@ fn trackers_agree_with_delta_reference() {
                 "spectral-decomposition hist-avg",
                 settings(SpectralDecomposition, HistAvg),
             ),
+            ("spectral-mis", settings(SpectralMis, Avg)),
             (
                 "residual-ratio shadows",
                 TrackerSettings {
@@ -168,6 +169,13 @@ fn trackers_agree_with_delta_reference() {
             TrackerSettings {
                 majorant_scale: 0.5,
                 ..settings(WeightedDelta, Avg)
+            },
+        ));
+        configs.push((
+            "spectral-mis, majorant × 0.5",
+            TrackerSettings {
+                majorant_scale: 0.5,
+                ..settings(SpectralMis, Avg)
             },
         ));
         for (i, (name, t)) in configs.into_iter().enumerate() {

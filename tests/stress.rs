@@ -18,6 +18,7 @@ use nimbus::track::ratio::{Ratio, ResidualRatio};
 use nimbus::track::scheme::{Avg, HistAvg, HistMax, Max, SchemeOptions};
 use nimbus::track::select::{SchemeKind, TrackerKind};
 use nimbus::track::spectral::Spectral;
+use nimbus::track::spectral_mis::SpectralMis;
 use nimbus::volume::counters::Counters;
 use nimbus::volume::grid::{Grid, RawGrid, RawTile, BRICK_VOXELS};
 use nimbus::volume::majorant::MajorantSpec;
@@ -259,7 +260,7 @@ fn z_scores(s: &[Vec<f64>; 3], expected: [f64; 3]) -> [f64; 3] {
 /// residual-ratio shadow estimates, against exp(−τ) per channel; N = 40,000
 /// (× NIMBUS_STRESS) per case, seed 21, optical depth from [`tau_for`] so variances stay
 /// finite. Weighted trackers (every spectral scheme, weighted delta, decomposition and
-/// its weighted and spectral forms, ratio tracking) stay unbiased: |z| < 4 per channel.
+/// its weighted and spectral forms, spectral MIS, ratio tracking) stay unbiased: |z| < 4 per channel.
 /// Every free-path sampler reports `majorant_violations` > 0 below ×1 and none at ×1.
 /// Delta tracking (and so naive delta) is biased there; its z-scores are printed.
 #[test]
@@ -323,6 +324,7 @@ fn non_bounding_majorants_weighted_unbiased_violations_reported() {
         Decomposition::<HistAvg>::new(0.0, o),
         true,
     );
+    check("spectral-mis", SpectralMis::new(o), true);
 
     fn check_shadow<E: TransmittanceEstimator>(name: &str, e: E) {
         for scale in [0.1f64, 0.25, 0.5, 0.75, 0.9, 1.0] {

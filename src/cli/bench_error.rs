@@ -32,7 +32,7 @@ pub struct ErrorArgs {
     #[arg(
         long,
         value_delimiter = ',',
-        default_value = "naive-delta,delta,spectral,decomposition,spectral-decomposition"
+        default_value = "naive-delta,delta,spectral,decomposition,spectral-decomposition,spectral-mis"
     )]
     pub trackers: Vec<String>,
     /// Time budgets in seconds of rendering (comma-separated).
@@ -145,7 +145,9 @@ pub fn parse_tracker(item: &str) -> Result<TrackerSpec> {
                 bail!("'{item}' names two shadow-ray estimators");
             }
         } else if p == NO_ABSORPTION_EVENTS || p == REDUCED_TERMINATION {
-            if !tracker.uses_scheme() {
+            // spectral-mis honours no-absorption-events (not reduced termination).
+            let mis = tracker == TrackerKind::SpectralMis && p == NO_ABSORPTION_EVENTS;
+            if !tracker.uses_scheme() && !mis {
                 bail!("tracker '{name}' takes no scheme options, got '{item}'");
             }
             let o = &mut s.options;
@@ -570,6 +572,11 @@ mod tests {
         assert_eq!(t.label, "spectral:max:no-absorption-events");
         assert!(t.settings.options.no_absorption_events && !t.settings.options.reduced_termination);
         assert!(parse_tracker("delta:reduced-termination").is_err());
+        let t = parse_tracker("spectral-mis:no-absorption-events").unwrap();
+        assert_eq!(t.label, "spectral-mis:no-absorption-events");
+        assert!(t.settings.options.no_absorption_events);
+        assert!(parse_tracker("spectral-mis:reduced-termination").is_err());
+        assert!(parse_tracker("spectral-mis:hist-avg").is_err());
         for bad in [
             "",
             "deltaa",

@@ -18,3 +18,4 @@ pub mod ratio;
 pub mod scheme;
 pub mod select;
 pub mod spectral;
+pub mod spectral_mis;

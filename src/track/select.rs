@@ -4,7 +4,7 @@
 //! the integrator is instantiated once per render, the collision loops see no enum).
 
 use super::free_path::{FreePathSampler, TransmittanceEstimator};
-use super::{decomposition, delta, grey, ratio, scheme, spectral};
+use super::{decomposition, delta, grey, ratio, scheme, spectral, spectral_mis};
 
 /// A closed set of named options (a tracker, a scheme, a shadow-ray estimator, a clock):
 /// the names the CLI, the schema's tokens and the stats share, with a line of help each.
@@ -49,6 +49,8 @@ pub enum TrackerKind {
     Spectral,
     /// Spectral tracking of an achromatic control and a chromatic residual.
     SpectralDecomposition,
+    /// Hero-channel free paths combined over the channels by one-sample MIS.
+    SpectralMis,
 }
 
 impl Choice for TrackerKind {
@@ -60,6 +62,7 @@ impl Choice for TrackerKind {
         TrackerKind::DecompositionWeighted,
         TrackerKind::Spectral,
         TrackerKind::SpectralDecomposition,
+        TrackerKind::SpectralMis,
     ];
 
     fn help(self) -> &'static str {
@@ -71,6 +74,7 @@ impl Choice for TrackerKind {
             TrackerKind::DecompositionWeighted => "Decomposition with the control above the minimum (`--control`), weighted residual",
             TrackerKind::Spectral => "Spectral tracking with `--scheme`",
             TrackerKind::SpectralDecomposition => "Spectral tracking of an achromatic control and a chromatic residual",
+            TrackerKind::SpectralMis => "Hero-channel delta tracking, channels combined by one-sample MIS (balance heuristic)",
         }
     }
 
@@ -90,6 +94,7 @@ impl TrackerKind {
             TrackerKind::DecompositionWeighted => "decomposition-weighted",
             TrackerKind::Spectral => "spectral",
             TrackerKind::SpectralDecomposition => "spectral-decomposition",
+            TrackerKind::SpectralMis => "spectral-mis",
         }
     }
 }
@@ -293,6 +298,7 @@ fn dispatch_free_path<T, E: TransmittanceEstimator>(
             SchemeKind::HistMax => f.run(Decomposition::<HistMax>::new(0.0, o), e),
             SchemeKind::HistAvg => f.run(Decomposition::<HistAvg>::new(0.0, o), e),
         },
+        TrackerKind::SpectralMis => f.run(spectral_mis::SpectralMis::new(o), e),
     }
 }
 
