@@ -5,11 +5,9 @@
 
 use nimbus::render::analysis::CodePaths;
 use nimbus::render::film::{Aov, Film};
-use nimbus::render::progressive::Clock;
 use nimbus::render::session::{Overrides, Session};
 use nimbus::render::splits::SplitLayer;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::AtomicBool;
 
 mod common;
 
@@ -215,21 +213,7 @@ fn render(session: &Session, layers: Vec<SplitLayer>) -> Film {
         specialise: true,
     });
     extra.apply(&mut job);
-    let pool = session.pool(2).unwrap();
-    let never = AtomicBool::new(false);
-    session
-        .render(
-            &job,
-            None,
-            &pool,
-            Clock::Wall,
-            None,
-            &never,
-            &|_| {},
-            |_, _| Ok::<(), ()>(()),
-        )
-        .unwrap()
-        .0
+    common::render_job(session, &job, None)
 }
 
 /// Splitting costs no tracking and changes nothing: the beauty, alpha and every counter

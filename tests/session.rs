@@ -7,12 +7,10 @@
 use nimbus::render::analysis::CodePaths;
 use nimbus::render::film::{Aov, Film, Region};
 use nimbus::render::job::RenderJob;
-use nimbus::render::progressive::Clock;
 use nimbus::render::session::{Overrides, Session};
 use nimbus::track::select::{TrackerKind, TrackerSettings, TransmittanceKind};
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use std::sync::atomic::AtomicBool;
 
 mod common;
 
@@ -24,26 +22,7 @@ fn render(session: &Session, region: Option<Region>, count: bool) -> Film {
         count,
         specialise: true,
     });
-    render_job(session, &job, region)
-}
-
-/// Renders `job` (a job of `session`, possibly with other tracking) to a film.
-fn render_job(session: &Session, job: &RenderJob, region: Option<Region>) -> Film {
-    let pool = session.pool(2).unwrap();
-    let never = AtomicBool::new(false);
-    let (film, _) = session
-        .render(
-            job,
-            region,
-            &pool,
-            Clock::Wall,
-            None,
-            &never,
-            &|_| {},
-            |_, _| Ok::<(), ()>(()),
-        )
-        .unwrap();
-    film
+    common::render_job(session, &job, region)
 }
 
 fn small(stage: &str) -> (PathBuf, Overrides) {
@@ -142,7 +121,7 @@ fn retrack_prunes_as_a_render_with_that_tracker() {
             specialise: true,
         })
     };
-    let c = render_job(&pruned_for_delta, &job, None);
+    let c = common::render_job(&pruned_for_delta, &job, None);
     assert_ne!(
         c.totals().0.cells_visited,
         cb.cells_visited,

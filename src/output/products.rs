@@ -334,22 +334,21 @@ pub fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<(), Outp
 /// (`direct`, `indirect`, `emission`, `lightgroup:GROUP`) become layers named after them
 /// (`lightgroup:key` → `lightgroup_key`).
 pub fn requested_outputs(names: &[String]) -> Result<(Vec<Aov>, Vec<SplitLayer>)> {
-    let mut aovs = Vec::new();
     let mut layers = Vec::new();
-    for n in names.iter().map(|n| n.trim()).filter(|n| !n.is_empty()) {
-        if Aov::from_name(n).is_none() {
-            if let Ok(l) = SplitLayer::parse(&layer_name(n), n, "raw") {
-                add_layers(&mut layers, "--aovs", l)?;
-                continue;
-            }
-        }
-        for a in requested_aovs(&[n.to_string()])? {
-            if !aovs.contains(&a) {
-                aovs.push(a);
-            }
+    let mut others = Vec::new();
+    for n in names.iter().map(|n| n.trim()) {
+        match split_shorthand(&layer_name(n), n) {
+            Some(l) => add_layers(&mut layers, "--aovs", l)?,
+            None => others.push(n.to_string()),
         }
     }
-    Ok((aovs, layers))
+    Ok((requested_aovs(&others)?, layers))
+}
+
+/// The split layer a shorthand (`direct`, `indirect`, `emission`, `lightgroup:GROUP`)
+/// names, as layer `layer`; `None` for any other name (no AOV name is a shorthand).
+fn split_shorthand(layer: &str, name: &str) -> Option<SplitLayer> {
+    SplitLayer::parse(layer, name, "raw").ok()
 }
 
 /// An EXR layer name for a split shorthand: characters other than letters, digits
@@ -519,19 +518,17 @@ enum VarOutput {
 /// named after the RenderVar prim (USD names an AOV by its RenderVar); anything else
 /// is one of the film's channels ([`render_var_aovs`]).
 fn render_var_output(var: &RenderVar) -> Result<VarOutput> {
-    let layer_name = var.prim_path.rsplit('/').next().unwrap_or(&var.prim_path);
+    let var_name = var.prim_path.rsplit('/').next().unwrap_or(&var.prim_path);
     let source = var.source_name.trim();
     if var.source_type == "lpe" {
-        return SplitLayer::parse(layer_name, source, "lpe")
+        return SplitLayer::parse(var_name, source, "lpe")
             .map(VarOutput::Layer)
             .map_err(|e| anyhow::anyhow!("{}: {e}", var.prim_path));
     }
-    if Aov::from_name(source).is_none() {
-        if let Ok(l) = SplitLayer::parse(layer_name, source, "raw") {
-            return Ok(VarOutput::Layer(l));
-        }
+    match split_shorthand(var_name, source) {
+        Some(l) => Ok(VarOutput::Layer(l)),
+        None => render_var_aovs(var).map(VarOutput::Aovs),
     }
-    render_var_aovs(var).map(VarOutput::Aovs)
 }
 
 /// The channels a RenderVar names: `color` (also `C`, `Ci`, `rgb`) is R, G, B;

@@ -81,12 +81,8 @@ impl Radiance<'_> {
     /// Adds `v`, light of `source` after `events` scattering events.
     #[inline(always)]
     fn add(&mut self, source: usize, events: u32, v: [f64; 3]) {
-        for c in 0..3 {
-            self.total[c] += v[c];
-        }
-        if let Some((map, layers)) = &mut self.split {
-            map.add(layers, source, events, v);
-        }
+        self.add_total(v);
+        self.add_split(source, events, v);
     }
 
     /// Adds `v` to the beauty only; the caller feeds the layers ([`Self::add_split`]),
@@ -103,6 +99,7 @@ impl Radiance<'_> {
         self.split.is_some()
     }
 
+    #[inline(always)]
     fn add_split(&mut self, source: usize, events: u32, v: [f64; 3]) {
         if let Some((map, layers)) = &mut self.split {
             map.add(layers, source, events, v);

@@ -396,12 +396,7 @@ impl Session {
         let (origin, axis) = (self.camera.origin(), self.camera.view_axis());
         let (mut z0, mut z1) = (f64::INFINITY, f64::NEG_INFINITY);
         for (lo, hi) in self.media.iter().filter_map(|m| m.world_bounds()) {
-            for i in 0..8 {
-                let corner = glam::DVec3::new(
-                    if i & 1 == 0 { lo.x } else { hi.x },
-                    if i & 2 == 0 { lo.y } else { hi.y },
-                    if i & 4 == 0 { lo.z } else { hi.z },
-                );
+            for corner in crate::volume::grid::box_corners(lo, hi) {
                 let z = (corner - origin).dot(axis);
                 z0 = z0.min(z);
                 z1 = z1.max(z);

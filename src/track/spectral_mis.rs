@@ -57,7 +57,6 @@ use super::scheme::{pick, Coefficients, SchemeOptions};
 use crate::color::Spectrum;
 use crate::track::free_path::{walk_collisions, FreePath, FreePathSampler, Query};
 use crate::volume::counters::Tally;
-use crate::volume::medium::Sigma;
 use rand::Rng;
 use std::ops::ControlFlow;
 
@@ -97,13 +96,13 @@ impl SpectralMis {
     }
 }
 
-/// Whether the cross-sections are the same in every channel. (Grey queries with a
-/// bounding majorant are run by [`Delta`]; under a scaled-down, non-bounding majorant
-/// delta tracking is biased, so they take the MIS path, whose signed weights stay
-/// unbiased there as `weighted-delta`'s do.)
+/// Whether delta tracking runs the query: grey cross-sections ([`crate::volume::medium::Sigma::is_grey`]) under
+/// a bounding majorant. Under a scaled-down, non-bounding majorant delta tracking is
+/// biased, so grey queries take the MIS path, whose signed weights stay unbiased there
+/// as `weighted-delta`'s do.
 #[inline(always)]
-fn grey(s: &Sigma) -> bool {
-    s.a[0] == s.a[1] && s.a[1] == s.a[2] && s.s[0] == s.s[1] && s.s[1] == s.s[2]
+fn delta_suffices(q: &Query) -> bool {
+    q.sigma.is_grey() && q.majorant_scale >= 1.0
 }
 
 /// The per-query MIS state.
@@ -244,7 +243,7 @@ impl FreePathSampler for SpectralMis {
         rng: &mut R,
         c: &mut C,
     ) -> FreePath {
-        if grey(q.sigma) && q.majorant_scale >= 1.0 {
+        if delta_suffices(q) {
             return Delta.sample(q, throughput, rng, c);
         }
         let no_abs = self.options.no_absorption_events;
@@ -264,7 +263,7 @@ impl FreePathSampler for SpectralMis {
         rng: &mut R,
         c: &mut C,
     ) -> (FreePath, usize) {
-        if qs.iter().all(|q| grey(q.sigma) && q.majorant_scale >= 1.0) {
+        if qs.iter().all(delta_suffices) {
             return Delta.sample_race(qs, throughput, rng, c);
         }
         let (mut s, mut t) = ([0f32; 3], [0f32; 3]);

@@ -127,19 +127,16 @@ impl RawGrid {
     /// or `None` for an empty grid.
     pub fn world_bounds(&self, volume_to_world: DMat4) -> Option<(DVec3, DVec3)> {
         let (lo, hi) = self.active_index_bounds()?;
-        let mut wlo = DVec3::splat(f64::INFINITY);
-        let mut whi = DVec3::splat(f64::NEG_INFINITY);
-        for c in 0..8 {
-            let p = DVec3::new(
-                if c & 1 == 0 { lo[0] } else { hi[0] } as f64,
-                if c & 2 == 0 { lo[1] } else { hi[1] } as f64,
-                if c & 4 == 0 { lo[2] } else { hi[2] } as f64,
-            );
-            let w = (volume_to_world * self.index_to_world).transform_point3(p);
-            wlo = wlo.min(w);
-            whi = whi.max(w);
-        }
-        Some((wlo, whi))
+        let to_world = volume_to_world * self.index_to_world;
+        let (lo, hi) = (lo.map(|v| v as f64), hi.map(|v| v as f64));
+        let corners = box_corners(DVec3::from_array(lo), DVec3::from_array(hi));
+        Some(corners.into_iter().fold(
+            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |(wlo, whi), p| {
+                let w = to_world.transform_point3(p);
+                (wlo.min(w), whi.max(w))
+            },
+        ))
     }
 }
 
@@ -494,4 +491,15 @@ mod tests {
         let v = g.sample_trilinear([7.5, 3.0, 3.0]);
         assert_eq!(v, 0.5 * g.voxel([7, 3, 3]));
     }
+}
+
+/// The eight corners of the box `lo`..`hi` (x varies fastest).
+pub fn box_corners(lo: DVec3, hi: DVec3) -> [DVec3; 8] {
+    std::array::from_fn(|i| {
+        DVec3::new(
+            if i & 1 == 0 { lo.x } else { hi.x },
+            if i & 2 == 0 { lo.y } else { hi.y },
+            if i & 4 == 0 { lo.z } else { hi.z },
+        )
+    })
 }

@@ -63,6 +63,7 @@ impl Sigma {
     }
 
     /// All channels equal: grey tracking is exact with unit weights.
+    #[inline]
     pub fn is_grey(&self) -> bool {
         self.t[0] == self.t[1]
             && self.t[1] == self.t[2]
@@ -78,12 +79,7 @@ fn world_box(majorants: &MajorantTree, world_to_index: DMat4) -> Option<(DVec3, 
     let index_to_world = world_to_index.inverse();
     let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
     let mut b = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-    for i in 0..8 {
-        let c = DVec3::new(
-            if i & 1 == 0 { lo.x } else { hi.x },
-            if i & 2 == 0 { lo.y } else { hi.y },
-            if i & 4 == 0 { lo.z } else { hi.z },
-        );
+    for c in crate::volume::grid::box_corners(lo, hi) {
         let w = index_to_world.transform_point3(c);
         b = (b.0.min(w), b.1.max(w));
     }

@@ -358,3 +358,26 @@ pub fn medium_for_scene(scene: &nimbus::scene::Scene, cell_voxels: u32) -> anyho
     }
     Ok(media.remove(0))
 }
+
+/// Renders `job` (a job of `session`, possibly with other tracking) to a film.
+pub fn render_job(
+    session: &nimbus::render::session::Session,
+    job: &nimbus::render::job::RenderJob,
+    region: Option<nimbus::render::film::Region>,
+) -> Film {
+    let pool = session.pool(2).unwrap();
+    let never = std::sync::atomic::AtomicBool::new(false);
+    let (film, _) = session
+        .render(
+            job,
+            region,
+            &pool,
+            nimbus::render::progressive::Clock::Wall,
+            None,
+            &never,
+            &|_| {},
+            |_, _| Ok::<(), ()>(()),
+        )
+        .unwrap();
+    film
+}
