@@ -105,8 +105,12 @@ fn unpack(b: [f32; 2]) -> [f32; 2] {
 /// jump a whole slab (hundreds of KB) per z step and miss the cache on most steps.
 const BRICK_LOG2: i32 = 2;
 const BRICK: i32 = 1 << BRICK_LOG2;
-/// Bits 0, 3 of a cell's Morton code inside a brick, from its two coordinate bits.
-const SPREAD: [usize; 4] = [0, 1, 8, 9];
+/// Bits 0 and 3 of a cell's Morton code inside a brick, from the two low bits of its
+/// coordinate.
+#[inline(always)]
+fn spread(x: usize) -> usize {
+    (x & 1) | ((x & 2) << 2)
+}
 
 /// Bricks per axis for `dims` cells.
 fn brick_dims(dims: [i32; 3]) -> [i32; 3] {
@@ -116,11 +120,17 @@ fn brick_dims(dims: [i32; 3]) -> [i32; 3] {
 impl Level {
     #[inline(always)]
     fn index(&self, c: [i32; 3]) -> usize {
-        let b = c.map(|x| x >> BRICK_LOG2);
-        let brick = ((b[2] * self.bdims[1] + b[1]) * self.bdims[0] + b[0]) as usize;
-        let m = c.map(|x| SPREAD[(x & (BRICK - 1)) as usize]);
-        (brick << (3 * BRICK_LOG2)) | m[0] | (m[1] << 1) | (m[2] << 2)
+        slot(self.bdims, c)
     }
+}
+
+/// The storage slot of cell `c` in a level of `bdims` bricks per axis.
+#[inline(always)]
+fn slot(bdims: [i32; 3], c: [i32; 3]) -> usize {
+    let b = c.map(|x| x >> BRICK_LOG2);
+    let brick = ((b[2] * bdims[1] + b[1]) * bdims[0] + b[0]) as usize;
+    let m = c.map(|x| spread(x as usize));
+    (brick << (3 * BRICK_LOG2)) | m[0] | (m[1] << 1) | (m[2] << 2)
 }
 
 impl Level {
@@ -138,6 +148,12 @@ impl Level {
                 .then(|| self.bounds[self.index(c)])
         })
     }
+}
+
+/// The row-major (x fastest) index of cell `c` among `dims`.
+#[inline(always)]
+fn row_major(dims: [i32; 3], c: [i32; 3]) -> usize {
+    ((c[2] * dims[1] + c[1]) * dims[0] + c[0]) as usize
 }
 
 /// Storage slots of a level of `dims` cells (padded to whole bricks).
@@ -173,6 +189,13 @@ pub struct MajorantTree {
     origin: Vec3,
     /// Finest (leaf) level first, root last.
     levels: Vec<Level>,
+    /// A one-level structure's bounds again, row-major (x fastest): the flat walk steps
+    /// through them by adding a stride, where the brick order needs the cell's slot
+    /// recomputed. Empty for a hierarchy.
+    flat_bounds: Vec<[f32; 2]>,
+    /// The continuous index-space box the leaves cover ([`MajorantTree::index_region`]),
+    /// kept for the slab test every walk starts with.
+    region: Option<(Vec3, Vec3)>,
     spec: MajorantSpec,
     /// See [`MajorantTree::margin`].
     margin: f32,
@@ -191,6 +214,8 @@ impl MajorantTree {
             return MajorantTree {
                 origin: Vec3::ZERO,
                 levels: Vec::new(),
+                flat_bounds: Vec::new(),
+                region: None,
                 spec,
                 margin: 0.0,
                 build_seconds: start.elapsed().as_secs_f64(),
@@ -269,9 +294,26 @@ impl MajorantTree {
             let parent = reduce(levels.last().expect("non-empty"));
             levels.push(parent);
         }
+        let flat_bounds = match &levels[..] {
+            [leaf] => {
+                let n = dims.iter().map(|&d| d as usize).product();
+                let mut rows = vec![[0f32; 2]; n];
+                for (s, b) in leaf.bounds.iter().enumerate() {
+                    if let Some(c) = cell_of(dims, s) {
+                        rows[row_major(dims, c)] = *b;
+                    }
+                }
+                rows
+            }
+            _ => Vec::new(),
+        };
+        let origin = Vec3::new(rlo[0] as f32, rlo[1] as f32, rlo[2] as f32);
+        let d = Vec3::new(dims[0] as f32, dims[1] as f32, dims[2] as f32);
         MajorantTree {
-            origin: Vec3::new(rlo[0] as f32, rlo[1] as f32, rlo[2] as f32),
+            origin,
             levels,
+            flat_bounds,
+            region: Some((origin, origin + d * edge)),
             spec,
             margin,
             build_seconds: start.elapsed().as_secs_f64(),
@@ -371,12 +413,10 @@ impl MajorantTree {
         self.build_seconds
     }
 
-    /// Bytes held by the bounds and flags of every level.
+    /// Bytes held by the bounds and flags of every level (and the flat walk's copy).
     pub fn memory_bytes(&self) -> usize {
-        self.levels
-            .iter()
-            .map(|l| l.bounds.len() * std::mem::size_of::<[f32; 2]>())
-            .sum()
+        let cells: usize = self.levels.iter().map(|l| l.bounds.len()).sum();
+        (cells + self.flat_bounds.len()) * std::mem::size_of::<[f32; 2]>()
     }
 
     /// Largest density anywhere (the global majorant).
@@ -388,9 +428,7 @@ impl MajorantTree {
 
     /// Continuous index-space box covered by the leaves.
     pub fn index_region(&self) -> Option<(Vec3, Vec3)> {
-        let l = self.levels.first()?;
-        let d = Vec3::new(l.dims[0] as f32, l.dims[1] as f32, l.dims[2] as f32);
-        Some((self.origin, self.origin + d * l.edge))
+        self.region
     }
 
     /// Fraction of the leaf cells whose maximum is 0 (crossed without any lookup).
@@ -492,6 +530,13 @@ fn reduce(child: &Level) -> Level {
 /// enters a non-terminal cell it descends, locating the entry point level by level.
 /// Restartable: callers keep their own `t` and move on to the next segment.
 ///
+/// A flat grid (one level, every cell terminal) takes a short path through the same
+/// arithmetic: no climbing or descending, the cells in row-major order so that a step
+/// adds a stride to the index, the level's data held in the walk instead of behind the
+/// tree's pointers, and the crossed axis picked without a branch. It is inlined into
+/// the trackers' loops; the general walk is not. Its segments are the general walk's,
+/// bit for bit (`flat_walk_is_the_general_walk`).
+///
 /// A point computed exactly on a face can round into the node behind it (its exit is
 /// then not ahead of the point); the walk then locates the point 1e-4 voxels further on
 /// and hands out that node from the face: the sliver lies within 1e-4 voxels of the
@@ -499,6 +544,14 @@ fn reduce(child: &Level) -> Level {
 /// flat-grid bounds within one voxel, see [`MajorantTree::build`]).
 pub struct TreeWalk<'a> {
     tree: &'a MajorantTree,
+    /// The flat path's data, copied out of the tree once per walk: the row-major
+    /// bounds (empty for a hierarchy: take the general path), cells per axis, cell
+    /// edge, and the index step of a move along each axis.
+    flat_bounds: &'a [[f32; 2]],
+    flat_dims: [i32; 3],
+    flat_edge: Vec3,
+    flat_stride: [isize; 3],
+    origin: Vec3,
     o: Vec3,
     d: Vec3,
     inv_d: Vec3,
@@ -520,12 +573,27 @@ pub struct TreeWalk<'a> {
 
 impl<'a> TreeWalk<'a> {
     fn new(tree: &'a MajorantTree, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> TreeWalk<'a> {
+        let step = [0, 1, 2].map(|a| if d[a] < 0.0 { -1 } else { 1 });
+        let (flat_dims, flat_edge) = match &tree.levels[..] {
+            [leaf] => (leaf.dims, leaf.edge),
+            _ => ([0; 3], Vec3::ONE),
+        };
+        let row = [
+            1,
+            flat_dims[0] as isize,
+            (flat_dims[0] * flat_dims[1]) as isize,
+        ];
         let mut walk = TreeWalk {
             tree,
+            flat_bounds: &tree.flat_bounds,
+            flat_dims,
+            flat_edge,
+            flat_stride: [0, 1, 2].map(|a| row[a] * step[a] as isize),
+            origin: tree.origin,
             o,
             d,
             inv_d: d.recip(),
-            step: [0, 1, 2].map(|a| if d[a] < 0.0 { -1 } else { 1 }),
+            step,
             min_step: 1e-4 / d.abs().max_element(),
             t: 0.0,
             t_end: -1.0,
@@ -569,38 +637,43 @@ impl<'a> TreeWalk<'a> {
 impl Iterator for TreeWalk<'_> {
     type Item = Segment;
 
-    #[inline]
+    #[inline(always)]
     fn next(&mut self) -> Option<Segment> {
+        if self.flat_bounds.is_empty() {
+            return self.next_general();
+        }
         if !(self.t < self.t_end) {
             return None;
         }
         let t0 = self.t;
         if self.relocate {
-            self.locate(t0);
+            self.locate_flat(t0);
         }
-        let mut t1 = self.exit();
-        if t1 > t0 {
-            self.t = t1;
-            let b = self.tree.levels[self.level].bounds[self.idx];
-            self.advance();
-            return Some(segment(t0, t1, b));
-        }
-        // Rounding put the point behind the face it just crossed: locate a point a
-        // sliver further on instead (see the type's doc), and locate afresh after it.
-        let t = (t0 + self.min_step).max(t0.next_up());
-        self.locate(t);
-        t1 = self.exit();
+        let t1 = self.exit();
         if !(t1 > t0) {
-            t1 = t.min(self.t_end);
+            return Some(self.sliver(t0));
         }
         self.t = t1;
-        self.relocate = true;
-        Some(segment(
-            t0,
-            t1,
-            self.tree.levels[self.level].bounds[self.idx],
-        ))
+        let b = self.flat_bounds[self.idx];
+        self.advance_flat();
+        Some(segment(t0, t1, b))
     }
+}
+
+/// The cell of level `l` holding the point `rel` (index space, relative to the
+/// region's corner) for a ray stepping cells in directions `step`: on a face, the cell
+/// the ray is entering; x ≥ 0 inside the region, and a negative x from rounding
+/// clamps to cell 0 (as one beyond the far side clamps to the last cell).
+#[inline(always)]
+fn cell_at(l: &Level, rel: Vec3, step: [i32; 3]) -> [i32; 3] {
+    std::array::from_fn(|a| {
+        let x = rel[a] * l.inv_edge[a];
+        let mut i = x as i32;
+        if step[a] < 0 && i as f32 == x {
+            i -= 1;
+        }
+        i.clamp(0, l.dims[a] - 1)
+    })
 }
 
 #[inline(always)]
@@ -615,6 +688,26 @@ fn segment(t0: f32, t1: f32, b: [f32; 2]) -> Segment {
 }
 
 impl TreeWalk<'_> {
+    /// The next segment of a hierarchy.
+    #[inline(never)]
+    fn next_general(&mut self) -> Option<Segment> {
+        if !(self.t < self.t_end) {
+            return None;
+        }
+        let t0 = self.t;
+        if self.relocate {
+            self.locate(t0);
+        }
+        let t1 = self.exit();
+        if !(t1 > t0) {
+            return Some(self.sliver(t0));
+        }
+        self.t = t1;
+        let b = self.tree.levels[self.level].bounds[self.idx];
+        self.advance();
+        Some(segment(t0, t1, b))
+    }
+
     /// Where the ray leaves the current node (clipped to the walk's end).
     #[inline(always)]
     fn exit(&self) -> f32 {
@@ -624,15 +717,40 @@ impl TreeWalk<'_> {
             .min(self.t_end)
     }
 
-    /// Where the ray crosses the far face of cell `c` of `level` on axis `a`.
+    /// Rounding put the point at `t0` behind the face it just crossed: hands out the
+    /// node a sliver further on instead (see the type's doc), and locates afresh after
+    /// it.
+    #[cold]
+    fn sliver(&mut self, t0: f32) -> Segment {
+        let t = (t0 + self.min_step).max(t0.next_up());
+        self.locate(t);
+        let mut t1 = self.exit();
+        if !(t1 > t0) {
+            t1 = t.min(self.t_end);
+        }
+        self.t = t1;
+        self.relocate = true;
+        segment(t0, t1, self.tree.levels[self.level].bounds[self.idx])
+    }
+
+    /// Where the ray crosses the far face of cell `c` on axis `a`, cells of edge `edge`.
     #[inline(always)]
-    fn face(&self, level: &Level, c: i32, a: usize) -> f32 {
+    fn face(&self, edge: f32, c: i32, a: usize) -> f32 {
         if self.d[a] == 0.0 {
             return f32::INFINITY;
         }
         let side = (self.step[a] > 0) as i32;
-        let face = self.tree.origin[a] + (c + side) as f32 * level.edge[a];
+        let face = self.origin[a] + (c + side) as f32 * edge;
         (face - self.o[a]) * self.inv_d[a]
+    }
+
+    /// The axis whose far face the ray reaches first (x before y before z on ties).
+    #[inline(always)]
+    fn exit_axis(&self) -> usize {
+        let f = self.t_face;
+        // Branch-free: which axis a ray leaves by is a coin toss the predictor loses.
+        let not_x = !(f[0] <= f[1] && f[0] <= f[2]) as usize;
+        not_x * (1 + !(f[1] <= f[2]) as usize)
     }
 
     /// Makes the first terminal node containing the point at `t`, at or below the
@@ -640,32 +758,52 @@ impl TreeWalk<'_> {
     #[inline(always)]
     fn locate(&mut self, t: f32) {
         let tree = self.tree;
-        let rel = self.o + self.d * t - tree.origin;
+        let rel = self.o + self.d * t - self.origin;
+        // The leaf cell once; the cell of level k is it shifted right by k, the cell
+        // `cell_at` would compute on that level (`cell_at_level_is_the_leaf_cell_shifted`):
+        // edges double from level to level, so x scales by exact powers of two.
+        let leaf = cell_at(&tree.levels[0], rel, self.step);
         let mut k = self.level.min(tree.levels.len() - 1);
         loop {
             let l = &tree.levels[k];
-            let mut c = [0i32; 3];
-            for a in 0..3 {
-                let x = rel[a] * l.inv_edge[a];
-                // On a face, take the cell the ray is entering (x ≥ 0 inside the
-                // region; a negative x from rounding clamps to cell 0).
-                let mut i = x as i32;
-                if self.step[a] < 0 && i as f32 == x {
-                    i -= 1;
-                }
-                c[a] = i.clamp(0, l.dims[a] - 1);
-            }
+            let c = leaf.map(|x| x >> k);
             let idx = l.index(c);
             if k == 0 || is_terminal(l.bounds[idx]) {
                 self.level = k;
                 self.cell = c;
                 self.idx = idx;
-                self.t_face = [0, 1, 2].map(|a| self.face(l, c[a], a));
+                self.t_face = [0, 1, 2].map(|a| self.face(l.edge[a], c[a], a));
                 self.relocate = false;
                 return;
             }
             k -= 1;
         }
+    }
+
+    /// [`locate`](Self::locate) on a flat grid: the same cell, its row-major index.
+    #[inline(always)]
+    fn locate_flat(&mut self, t: f32) {
+        let rel = self.o + self.d * t - self.origin;
+        let c = cell_at(&self.tree.levels[0], rel, self.step);
+        self.cell = c;
+        self.idx = row_major(self.flat_dims, c);
+        self.t_face = [0, 1, 2].map(|a| self.face(self.flat_edge[a], c[a], a));
+        self.relocate = false;
+    }
+
+    /// [`advance`](Self::advance) on a flat grid: the next cell of the one level.
+    #[inline(always)]
+    fn advance_flat(&mut self) {
+        let a = self.exit_axis();
+        let new = self.cell[a] + self.step[a];
+        if new as u32 >= self.flat_dims[a] as u32 {
+            // Out of the region: the walk is over (up to rounding of the slab test).
+            self.t = self.t_end;
+            return;
+        }
+        self.cell[a] = new;
+        self.idx = self.idx.wrapping_add_signed(self.flat_stride[a]);
+        self.t_face[a] = self.face(self.flat_edge[a], new, a);
     }
 
     /// Moves to the node after the current one, through the face the ray leaves by.
@@ -674,13 +812,7 @@ impl TreeWalk<'_> {
         let tree = self.tree;
         let k = self.level;
         let l = &tree.levels[k];
-        let a = if self.t_face[0] <= self.t_face[1] && self.t_face[0] <= self.t_face[2] {
-            0
-        } else if self.t_face[1] <= self.t_face[2] {
-            1
-        } else {
-            2
-        };
+        let a = self.exit_axis();
         let old = self.cell[a];
         let new = old + self.step[a];
         if new < 0 || new >= l.dims[a] {
@@ -698,12 +830,12 @@ impl TreeWalk<'_> {
                 self.level = k + 1;
                 self.cell = pc;
                 self.idx = pidx;
-                self.t_face = [0, 1, 2].map(|a| self.face(p, pc[a], a));
+                self.t_face = [0, 1, 2].map(|a| self.face(p.edge[a], pc[a], a));
                 return;
             }
         }
         self.idx = l.index(self.cell);
-        self.t_face[a] = self.face(l, new, a);
+        self.t_face[a] = self.face(l.edge[a], new, a);
         if !is_terminal(l.bounds[self.idx]) {
             self.relocate = true;
         }
@@ -713,6 +845,101 @@ impl TreeWalk<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::volume::grid::Grid;
+    use crate::volume::procedural::grid_from_fn;
+    use glam::DVec3;
+    use rand::{Rng, SeedableRng};
+
+    /// The flat path hands out the general walk's segments bit for bit: 20,000 random
+    /// rays (axis-parallel ones and ones starting inside included) through flat grids
+    /// of 1-, 3- and 8-voxel cells over a sparse blob, each walked twice, once with the
+    /// flat path switched off.
+    #[test]
+    fn flat_walk_is_the_general_walk() {
+        let raw = grid_from_fn("density", [37, 29, 41], DVec3::ZERO, 1.0, |p| {
+            let r = (p - DVec3::new(18.0, 14.0, 20.0)).length();
+            (1.0 - r / 14.0).max(0.0) * (1.0 + (p.x * 0.7).sin() * 0.5)
+        });
+        let grid = Grid::from_raw(&raw).unwrap();
+        let mut rng = rand_pcg::Pcg32::seed_from_u64(3);
+        let mut segments = 0usize;
+        for cell_voxels in [1, 3, 8] {
+            let tree = MajorantTree::build(&grid, MajorantSpec::Uniform { cell_voxels });
+            assert_eq!(tree.levels(), 1);
+            for n in 0..20_000 / 3 {
+                let o = Vec3::new(
+                    rng.gen_range(-10.0..50.0),
+                    rng.gen_range(-10.0..40.0),
+                    rng.gen_range(-10.0..50.0),
+                );
+                let mut d = Vec3::new(
+                    rng.gen_range(-1.0..1.0),
+                    rng.gen_range(-1.0..1.0),
+                    rng.gen_range(-1.0..1.0),
+                );
+                if n % 5 == 0 {
+                    d[n % 3] = 0.0;
+                }
+                let (tmin, tmax) = (rng.gen_range(0.0..5.0), rng.gen_range(5.0..200.0));
+                let fast: Vec<Segment> = tree.walk(o, d, tmin, tmax).collect();
+                let mut general = tree.walk(o, d, tmin, tmax);
+                assert!(!general.flat_bounds.is_empty());
+                general.flat_bounds = &[];
+                let general: Vec<Segment> = general.collect();
+                assert_eq!(fast.len(), general.len(), "ray {n}: {o} {d}");
+                for (a, b) in fast.iter().zip(&general) {
+                    let bits = |s: &Segment| [s.t0, s.t1, s.dmin, s.dmax].map(f32::to_bits);
+                    assert_eq!(bits(a), bits(b), "ray {n}: {o} {d}");
+                }
+                segments += fast.len();
+            }
+        }
+        assert!(
+            segments > 40_000,
+            "{segments} segments: the rays must cross the grid"
+        );
+    }
+
+    /// The walk locates a point's cell on every level by shifting its leaf cell:
+    /// the same cell as computing it on that level, for 200,000 points (on faces,
+    /// beyond the region and at tiny negative offsets included) in octrees of odd and
+    /// even leaf counts, both stepping directions.
+    #[test]
+    fn cell_at_level_is_the_leaf_cell_shifted() {
+        let mut rng = rand_pcg::Pcg32::seed_from_u64(5);
+        for dims in [[37, 29, 41], [13, 64, 5], [300, 3, 77]] {
+            let raw = grid_from_fn("density", dims, DVec3::ZERO, 1.0, |p| {
+                0.1 + (p.x * 0.3).sin().abs() * (p.y * 0.2).cos().abs()
+            });
+            let grid = Grid::from_raw(&raw).unwrap();
+            let tree = MajorantTree::build(&grid, MajorantSpec::Octree { depth: 8 });
+            assert!(tree.levels() >= 5, "{} levels", tree.levels());
+            let (lo, hi) = tree.index_region().unwrap();
+            let edge = tree.leaf_edge();
+            for n in 0..200_000 / 3 {
+                let mut rel = Vec3::new(
+                    rng.gen_range(-2.0..(hi.x - lo.x) + 2.0),
+                    rng.gen_range(-2.0..(hi.y - lo.y) + 2.0),
+                    rng.gen_range(-2.0..(hi.z - lo.z) + 2.0),
+                );
+                // Onto faces of the cells of some level, and tiny negative offsets.
+                for a in 0..3 {
+                    let e = edge[a] * (1 << rng.gen_range(0..4)) as f32;
+                    match rng.gen_range(0..6) {
+                        0 => rel[a] = (rel[a] / e).round() * e,
+                        1 => rel[a] = -rng.gen::<f32>() * 1e-6,
+                        _ => {}
+                    }
+                }
+                let step = [0, 1, 2].map(|_| if rng.gen::<bool>() { 1 } else { -1 });
+                let leaf = cell_at(&tree.levels[0], rel, step);
+                for (k, l) in tree.levels.iter().enumerate() {
+                    let shifted = leaf.map(|x| x >> k);
+                    assert_eq!(shifted, cell_at(l, rel, step), "point {n} {rel} level {k}");
+                }
+            }
+        }
+    }
 
     /// The brick layout is a bijection between the cells and the non-padding slots.
     #[test]
