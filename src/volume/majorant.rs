@@ -549,12 +549,14 @@ pub struct TreeWalk<'a> {
     /// edge, and the index step of a move along each axis.
     flat_bounds: &'a [[f32; 2]],
     flat_dims: [i32; 3],
-    flat_edge: Vec3,
+    flat_edge: [f32; 3],
     flat_stride: [isize; 3],
-    origin: Vec3,
-    o: Vec3,
-    d: Vec3,
-    inv_d: Vec3,
+    // Arrays, not `Vec3`s: the walk indexes them by the axis it crosses, a run-time
+    // value, and `Vec3` indexing is a match.
+    origin: [f32; 3],
+    o: [f32; 3],
+    d: [f32; 3],
+    inv_d: [f32; 3],
     /// +1 or −1 per axis: the direction the walk steps cells in.
     step: [i32; 3],
     /// Smallest step in `t` when rounding stalls the walk (1e-4 voxels along the ray).
@@ -573,10 +575,13 @@ pub struct TreeWalk<'a> {
 
 impl<'a> TreeWalk<'a> {
     fn new(tree: &'a MajorantTree, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> TreeWalk<'a> {
-        let step = [0, 1, 2].map(|a| if d[a] < 0.0 { -1 } else { 1 });
+        let min_step = 1e-4 / d.abs().max_element();
+        let inv_d = d.recip().to_array();
+        let (o, d) = (o.to_array(), d.to_array());
+        let step = d.map(|x| if x < 0.0 { -1 } else { 1 });
         let (flat_dims, flat_edge) = match &tree.levels[..] {
-            [leaf] => (leaf.dims, leaf.edge),
-            _ => ([0; 3], Vec3::ONE),
+            [leaf] => (leaf.dims, leaf.edge.to_array()),
+            _ => ([0; 3], [1.0; 3]),
         };
         let row = [
             1,
@@ -589,12 +594,12 @@ impl<'a> TreeWalk<'a> {
             flat_dims,
             flat_edge,
             flat_stride: [0, 1, 2].map(|a| row[a] * step[a] as isize),
-            origin: tree.origin,
+            origin: tree.origin.to_array(),
             o,
             d,
-            inv_d: d.recip(),
+            inv_d,
             step,
-            min_step: 1e-4 / d.abs().max_element(),
+            min_step,
             t: 0.0,
             t_end: -1.0,
             level: tree.levels.len().saturating_sub(1),
@@ -603,35 +608,45 @@ impl<'a> TreeWalk<'a> {
             t_face: [f32::INFINITY; 3],
             relocate: true,
         };
-        let Some((lo, hi)) = tree.index_region() else {
-            return walk;
-        };
-        // Slab test against the region.
-        let (mut t0, mut t1) = (tmin, tmax);
-        for a in 0..3 {
-            if d[a] == 0.0 {
-                if !(o[a] >= lo[a] && o[a] < hi[a]) {
-                    return walk;
-                }
-                continue;
-            }
-            let (mut ta, mut tb) = (
-                (lo[a] - o[a]) * walk.inv_d[a],
-                (hi[a] - o[a]) * walk.inv_d[a],
-            );
-            if ta > tb {
-                std::mem::swap(&mut ta, &mut tb);
-            }
-            t0 = t0.max(ta);
-            t1 = t1.min(tb);
+        if let Some((t0, t1)) = tree
+            .region
+            .and_then(|(lo, hi)| clip(lo.to_array(), hi.to_array(), o, d, inv_d, tmin, tmax))
+        {
+            walk.t = t0;
+            walk.t_end = t1;
         }
-        if !(t0 < t1) {
-            return walk;
-        }
-        walk.t = t0;
-        walk.t_end = t1;
         walk
     }
+}
+
+/// The part `[t0, t1)` of `[tmin, tmax)` where the ray `o + t·d` lies in the box
+/// `[lo, hi)` (a slab test), if any.
+#[inline(always)]
+fn clip(
+    lo: [f32; 3],
+    hi: [f32; 3],
+    o: [f32; 3],
+    d: [f32; 3],
+    inv_d: [f32; 3],
+    tmin: f32,
+    tmax: f32,
+) -> Option<(f32, f32)> {
+    let (mut t0, mut t1) = (tmin, tmax);
+    for a in 0..3 {
+        if d[a] == 0.0 {
+            if !(o[a] >= lo[a] && o[a] < hi[a]) {
+                return None;
+            }
+            continue;
+        }
+        let (mut ta, mut tb) = ((lo[a] - o[a]) * inv_d[a], (hi[a] - o[a]) * inv_d[a]);
+        if ta > tb {
+            std::mem::swap(&mut ta, &mut tb);
+        }
+        t0 = t0.max(ta);
+        t1 = t1.min(tb);
+    }
+    (t0 < t1).then_some((t0, t1))
 }
 
 impl Iterator for TreeWalk<'_> {
@@ -665,9 +680,10 @@ impl Iterator for TreeWalk<'_> {
 /// the ray is entering; x ≥ 0 inside the region, and a negative x from rounding
 /// clamps to cell 0 (as one beyond the far side clamps to the last cell).
 #[inline(always)]
-fn cell_at(l: &Level, rel: Vec3, step: [i32; 3]) -> [i32; 3] {
+fn cell_at(l: &Level, rel: [f32; 3], step: [i32; 3]) -> [i32; 3] {
+    let inv_edge = l.inv_edge.to_array();
     std::array::from_fn(|a| {
-        let x = rel[a] * l.inv_edge[a];
+        let x = rel[a] * inv_edge[a];
         let mut i = x as i32;
         if step[a] < 0 && i as f32 == x {
             i -= 1;
@@ -733,6 +749,12 @@ impl TreeWalk<'_> {
         segment(t0, t1, self.tree.levels[self.level].bounds[self.idx])
     }
 
+    /// The index-space point at `t` relative to the region's corner.
+    #[inline(always)]
+    fn point(&self, t: f32) -> [f32; 3] {
+        std::array::from_fn(|a| self.o[a] + self.d[a] * t - self.origin[a])
+    }
+
     /// Where the ray crosses the far face of cell `c` on axis `a`, cells of edge `edge`.
     #[inline(always)]
     fn face(&self, edge: f32, c: i32, a: usize) -> f32 {
@@ -758,7 +780,7 @@ impl TreeWalk<'_> {
     #[inline(always)]
     fn locate(&mut self, t: f32) {
         let tree = self.tree;
-        let rel = self.o + self.d * t - self.origin;
+        let rel = self.point(t);
         // The leaf cell once; the cell of level k is it shifted right by k, the cell
         // `cell_at` would compute on that level (`cell_at_level_is_the_leaf_cell_shifted`):
         // edges double from level to level, so x scales by exact powers of two.
@@ -772,7 +794,8 @@ impl TreeWalk<'_> {
                 self.level = k;
                 self.cell = c;
                 self.idx = idx;
-                self.t_face = [0, 1, 2].map(|a| self.face(l.edge[a], c[a], a));
+                let edge = l.edge.to_array();
+                self.t_face = [0, 1, 2].map(|a| self.face(edge[a], c[a], a));
                 self.relocate = false;
                 return;
             }
@@ -783,7 +806,7 @@ impl TreeWalk<'_> {
     /// [`locate`](Self::locate) on a flat grid: the same cell, its row-major index.
     #[inline(always)]
     fn locate_flat(&mut self, t: f32) {
-        let rel = self.o + self.d * t - self.origin;
+        let rel = self.point(t);
         let c = cell_at(&self.tree.levels[0], rel, self.step);
         self.cell = c;
         self.idx = row_major(self.flat_dims, c);
@@ -830,12 +853,13 @@ impl TreeWalk<'_> {
                 self.level = k + 1;
                 self.cell = pc;
                 self.idx = pidx;
-                self.t_face = [0, 1, 2].map(|a| self.face(p.edge[a], pc[a], a));
+                let edge = p.edge.to_array();
+                self.t_face = [0, 1, 2].map(|a| self.face(edge[a], pc[a], a));
                 return;
             }
         }
         self.idx = l.index(self.cell);
-        self.t_face[a] = self.face(l.edge[a], new, a);
+        self.t_face[a] = self.face(l.edge.to_array()[a], new, a);
         if !is_terminal(l.bounds[self.idx]) {
             self.relocate = true;
         }
@@ -932,10 +956,11 @@ mod tests {
                     }
                 }
                 let step = [0, 1, 2].map(|_| if rng.gen::<bool>() { 1 } else { -1 });
-                let leaf = cell_at(&tree.levels[0], rel, step);
+                let leaf = cell_at(&tree.levels[0], rel.to_array(), step);
                 for (k, l) in tree.levels.iter().enumerate() {
                     let shifted = leaf.map(|x| x >> k);
-                    assert_eq!(shifted, cell_at(l, rel, step), "point {n} {rel} level {k}");
+                    let at_level = cell_at(l, rel.to_array(), step);
+                    assert_eq!(shifted, at_level, "point {n} {rel} level {k}");
                 }
             }
         }
