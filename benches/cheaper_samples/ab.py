@@ -1,0 +1,30 @@
+"""Interleaved CPU-time comparison of two nimbus builds on the same renders.
+
+usage: ab.py BASEBIN NEWBIN ROUNDS SPP STAGE... [-- EXTRA RENDER ARGS]
+
+Each round renders every stage once with each binary (base first), 160x120, SPP
+samples, one thread, and reads the children's CPU seconds (user + system) from
+getrusage. Prints the median per binary, their ratio, and whether the exact counts
+(density lookups, cells visited) agree. Run from the repository root.
+"""
+import resource, subprocess, statistics, sys, json
+args = sys.argv[1:]
+extra = []
+if '--' in args:
+    i = args.index('--'); extra = args[i+1:]; args = args[:i]
+if len(args) < 5:
+    sys.exit(__doc__)
+bins = {"base": args[0], "new": args[1]}
+rounds, spp = int(args[2]), args[3]
+for sc in args[4:]:
+    t = {k: [] for k in bins}
+    for r in range(rounds):
+        for k, b in bins.items():
+            before = resource.getrusage(resource.RUSAGE_CHILDREN)
+            subprocess.run([b, "render", sc, "-o", f"/tmp/ab_{k}.exr", "--res", "160x120", "--spp", spp, "--threads", "1", "--stats", f"/tmp/ab_{k}.json"] + extra, check=True, capture_output=True, cwd="/work/main")
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            t[k].append(after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime)
+    st = {k: json.load(open(f"/tmp/ab_{k}.json")) for k in bins}
+    cnt = {k: (st[k]["density_lookups"], st[k]["cells_visited"]) for k in bins}
+    mb, mn = statistics.median(t["base"]), statistics.median(t["new"])
+    print(f"{sc.split('/')[-1]} {' '.join(extra)}: median CPU s base {mb:.3f} new {mn:.3f} ratio {mn/mb:.3f}; counts equal {cnt['base']==cnt['new']} {cnt['new']}", flush=True)
