@@ -188,8 +188,19 @@ fn sanitize(v: f32, count: &mut u64) -> f32 {
 }
 
 impl Grid {
-    /// Builds the lookup layout from a reader's grid.
+    /// Builds the lookup layout from a reader's grid; the bricks are filled in
+    /// parallel on the current rayon pool.
     pub fn from_raw(raw: &RawGrid) -> Result<Grid, GridError> {
+        Self::from_raw_with(raw, true)
+    }
+
+    /// As [`Grid::from_raw`] on one thread (the reference the parallel build is
+    /// tested and benchmarked against); the result is the same.
+    pub fn from_raw_serial(raw: &RawGrid) -> Result<Grid, GridError> {
+        Self::from_raw_with(raw, false)
+    }
+
+    fn from_raw_with(raw: &RawGrid, parallel: bool) -> Result<Grid, GridError> {
         let mut sanitized = 0u64;
         let background = sanitize(raw.background, &mut sanitized);
         let bounds = raw.active_index_bounds();
@@ -255,26 +266,59 @@ impl Grid {
                 }
             }
         }
-        for leaf in &raw.leaves {
-            let b = leaf.origin.map(|c| c.div_euclid(BRICK));
-            let Some(e) = grid.entry(b) else { continue };
-            let mut values = [0f32; BRICK_VOXELS];
-            for (dst, &src) in values.iter_mut().zip(leaf.values.iter()) {
-                *dst = sanitize(src, &mut sanitized);
+        // Leaves: each brick is filled and sanitised independently (in parallel unless
+        // `parallel` is off), then the bricks that hold only the background are dropped
+        // and the index is set in leaf order, exactly as a serial pass would.
+        let first = grid.bricks.len();
+        // Zeroed allocation: the pages are touched by the (parallel) fill, not here.
+        let mut bricks = vec![[0f32; BRICK_VOXELS]; first + raw.leaves.len()];
+        bricks[..first].copy_from_slice(&grid.bricks);
+        grid.bricks = bricks;
+        let fill = |(dst, leaf): (&mut [f32; BRICK_VOXELS], &RawLeaf)| -> (u64, bool) {
+            let mut count = 0u64;
+            for (d, &src) in dst.iter_mut().zip(leaf.values.iter()) {
+                *d = sanitize(src, &mut count);
             }
             // Fewer than 512 values means a reader bug; the missing ones read as background.
-            for dst in values.iter_mut().skip(leaf.values.len()) {
-                *dst = background;
+            for d in dst.iter_mut().skip(leaf.values.len()) {
+                *d = background;
             }
             // A leaf that holds only the background (sims often keep such leaves
             // active) reads the same as no brick: it is not stored.
-            if values.iter().all(|&v| v == background) {
+            (count, dst.iter().all(|&v| v == background))
+        };
+        let filled: Vec<(u64, bool)> = if parallel {
+            use rayon::prelude::*;
+            grid.bricks[first..]
+                .par_iter_mut()
+                .zip(raw.leaves.par_iter())
+                .with_min_len(64)
+                .map(fill)
+                .collect()
+        } else {
+            grid.bricks[first..]
+                .iter_mut()
+                .zip(raw.leaves.iter())
+                .map(fill)
+                .collect()
+        };
+        let mut kept = first;
+        for (n, (leaf, &(count, background_only))) in raw.leaves.iter().zip(&filled).enumerate() {
+            let b = leaf.origin.map(|c| c.div_euclid(BRICK));
+            let Some(e) = grid.entry(b) else { continue };
+            sanitized += count;
+            if background_only {
                 grid.index[e] = NO_BRICK;
                 continue;
             }
-            grid.index[e] = grid.bricks.len() as u32;
-            grid.bricks.push(values);
+            grid.index[e] = kept as u32;
+            if kept != first + n {
+                grid.bricks[kept] = grid.bricks[first + n];
+            }
+            kept += 1;
         }
+        grid.bricks.truncate(kept);
+        grid.bricks.shrink_to_fit();
         grid.sanitized_voxels = sanitized;
         Ok(grid)
     }
@@ -402,6 +446,11 @@ impl Grid {
         (mn, mx)
     }
 
+    /// Whether brick coordinate `b` (voxel `b * 8`) has a stored brick.
+    pub fn has_brick(&self, b: [i32; 3]) -> bool {
+        self.entry(b).is_some_and(|e| self.index[e] != NO_BRICK)
+    }
+
     /// Number of bricks held (leaves plus one per distinct non-background tile).
     pub fn brick_count(&self) -> usize {
         self.bricks.len()
@@ -490,6 +539,66 @@ mod tests {
         // Across the face between the stored and the dropped leaf: the lerp towards 0.
         let v = g.sample_trilinear([7.5, 3.0, 3.0]);
         assert_eq!(v, 0.5 * g.voxel([7, 3, 3]));
+    }
+
+    /// The parallel build makes exactly the grid the serial one does: the same index,
+    /// the same bricks in the same order, the same counts.
+    #[test]
+    fn parallel_build_equals_serial() {
+        let mut leaves = Vec::new();
+        for n in 0..300i32 {
+            let origin = [(n % 7) * 8, ((n / 7) % 6) * 8, (n / 42) * 8 - 16];
+            leaves.push(match n % 5 {
+                // Background-only leaves, dropped.
+                0 => leaf(origin, |_| 0.0),
+                // NaN and negative values, sanitised.
+                1 => leaf(origin, |i| if i % 3 == 0 { f32::NAN } else { -(i as f32) }),
+                // Short value lists (a reader bug) read as background.
+                2 => RawLeaf {
+                    values: vec![1.5; 100],
+                    ..leaf(origin, |_| 0.0)
+                },
+                _ => leaf(origin, |i| ((i * 31 + n as usize) % 17) as f32 * 0.1),
+            });
+        }
+        // A duplicate origin: the later leaf wins in both builds.
+        leaves.push(leaf([0, 0, -16], |i| i as f32));
+        let raw = RawGrid {
+            name: "density".into(),
+            class: "fog volume".into(),
+            background: 0.0,
+            leaves,
+            tiles: vec![RawTile {
+                origin: [64, 0, 0],
+                dim: 16,
+                value: 0.5,
+                active: true,
+            }],
+            index_to_world: DMat4::IDENTITY,
+        };
+        let a = Grid::from_raw(&raw).unwrap();
+        let b = Grid::from_raw_serial(&raw).unwrap();
+        assert_eq!(a.index, b.index);
+        assert_eq!(a.bricks.len(), b.bricks.len());
+        for (x, y) in a.bricks.iter().zip(&b.bricks) {
+            assert_eq!(x.map(f32::to_bits), y.map(f32::to_bits));
+        }
+        assert_eq!(
+            (
+                a.sanitized_voxels,
+                a.active_voxels,
+                a.brick_min,
+                a.brick_dims
+            ),
+            (
+                b.sanitized_voxels,
+                b.active_voxels,
+                b.brick_min,
+                b.brick_dims
+            )
+        );
+        assert!(a.sanitized_voxels > 0);
+        assert_eq!(a.voxel([3, 0, -16]), ((3 << 6) as f32));
     }
 }
 

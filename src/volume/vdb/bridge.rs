@@ -43,6 +43,8 @@ pub(crate) mod ffi {
         fn list_grids(path: &str) -> Result<Vec<GridListEntry>>;
         fn read_float_grid(path: &str, lookup_name: &str) -> Result<GridData>;
         fn read_vec3s_grid(path: &str, lookup_name: &str) -> Result<GridData>;
+        /// OpenVDB's own in-memory size (`GridBase::memUsage`) of a float grid.
+        fn float_grid_mem_usage(path: &str, lookup_name: &str) -> Result<u64>;
     }
 }
 
