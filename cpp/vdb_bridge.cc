@@ -36,6 +36,8 @@ void push3(Vec& v, const T& c) {
 }
 
 void push_value(rust::Vec<float>& v, float x) { v.push_back(x); }
+size_t leaf_values_len(size_t leaves, float) { return leaves * 512; }
+size_t leaf_values_len(size_t leaves, const openvdb::Vec3s&) { return leaves * 512 * 3; }
 void push_value(rust::Vec<float>& v, const openvdb::Vec3s& x) { push3(v, x); }
 
 template <typename Value>
@@ -101,6 +103,7 @@ void copy_grid(const GridT& grid, GridData& out) {
     const size_t leaf_count = grid.tree().leafCount();
     out.leaf_origins.reserve(leaf_count * 3);
     out.leaf_masks.reserve(leaf_count * 8);
+    out.leaf_values.reserve(leaf_values_len(leaf_count, background));
     for (auto c5 = root.cbeginChildOn(); c5; ++c5) {
         for (auto it = c5->cbeginValueAll(); it; ++it) {
             push_tile(out, background, it.getCoord(), 128, *it, it.isValueOn());
@@ -171,6 +174,13 @@ GridData read_vec3s_grid(rust::Str path, rust::Str lookup_name) {
         GridData out;
         copy_grid(*grid, out);
         return out;
+    });
+}
+
+uint64_t float_grid_mem_usage(rust::Str path, rust::Str lookup_name) {
+    return guarded([&] {
+        auto grid = read_grid<openvdb::FloatGrid>(path, std::string(lookup_name), "float");
+        return static_cast<uint64_t>(grid->memUsage());
     });
 }
 

@@ -5,6 +5,8 @@
 
 #include "rust/cxx.h"
 
+#include <cstdint>
+
 namespace nimbus_vdb {
 
 struct GridListEntry;
@@ -21,5 +23,9 @@ GridData read_float_grid(rust::Str path, rust::Str lookup_name);
 // As read_float_grid, for a Vec3s grid (three floats per value, also when the file
 // stores halves).
 GridData read_vec3s_grid(rust::Str path, rust::Str lookup_name);
+
+// OpenVDB's in-memory size in bytes (GridBase::memUsage) of the float grid `lookup_name`,
+// as read_float_grid reads it; for benchmarks.
+uint64_t float_grid_mem_usage(rust::Str path, rust::Str lookup_name);
 
 } // namespace nimbus_vdb

@@ -32,6 +32,10 @@ pub enum BenchCommand {
     /// The specialised code paths (single-channel grey tracking, counting compiled
     /// out) against the general ones, with the tracker `auto` picks.
     Paths(super::bench_paths::PathsArgs),
+    /// Production-size grids: `make` a large grid from a real VDB, `measure` its load
+    /// time, memory per active voxel and ns per lookup.
+    #[command(subcommand)]
+    Grid(super::bench_grid::GridCommand),
 }
 
 #[derive(Args, Debug)]
@@ -59,6 +63,7 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
         BenchCommand::Octree(a) => octree(a),
         BenchCommand::Error(a) => super::bench_error::run(a),
         BenchCommand::Paths(a) => super::bench_paths::run(a),
+        BenchCommand::Grid(c) => super::bench_grid::run(c),
     }
 }
 

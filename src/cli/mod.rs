@@ -4,6 +4,7 @@ mod bench;
 // `bench error` lives apart from bench.rs (error vs time, its reference and plot) to
 // keep merges with parallel branches conflict-free.
 mod bench_error;
+mod bench_grid;
 mod bench_paths;
 mod choice;
 mod error_plot;

@@ -6,6 +6,7 @@
 //! contiguous brick pool, so a lookup is index → brick → 8 loads → lerp.
 
 use glam::{DMat4, DVec3};
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Edge length of a brick (OpenVDB leaf node) in voxels.
 pub const BRICK: i32 = 8;
@@ -101,16 +102,27 @@ impl RawGrid {
         let mut hi = [i32::MIN; 3];
         let mut any = false;
         for leaf in &self.leaves {
-            for off in 0..BRICK_VOXELS {
-                if leaf.active[off / 64] >> (off % 64) & 1 == 1 {
-                    let d = [(off >> 6) as i32, ((off >> 3) & 7) as i32, (off & 7) as i32];
-                    for a in 0..3 {
-                        lo[a] = lo[a].min(leaf.origin[a] + d[a]);
-                        hi[a] = hi[a].max(leaf.origin[a] + d[a]);
-                    }
-                    any = true;
-                }
+            // Mask word x holds the voxels (x, y, z) at bit y*8 + z: the x range comes
+            // from the non-zero words, y from the non-zero bytes of their union, z
+            // from the union of those bytes.
+            let words = leaf.active;
+            let union = words.iter().fold(0u64, |a, &w| a | w);
+            if union == 0 {
+                continue;
             }
+            let xs = words
+                .iter()
+                .enumerate()
+                .fold(0u8, |m, (x, &w)| m | (((w != 0) as u8) << x));
+            let ys = (0..8).fold(0u8, |m, y| {
+                m | ((((union >> (8 * y)) & 0xFF != 0) as u8) << y)
+            });
+            let zs = (0..8).fold(0u8, |m, y| m | (union >> (8 * y)) as u8);
+            for (a, bits) in [xs, ys, zs].into_iter().enumerate() {
+                lo[a] = lo[a].min(leaf.origin[a] + bits.trailing_zeros() as i32);
+                hi[a] = hi[a].max(leaf.origin[a] + 7 - bits.leading_zeros() as i32);
+            }
+            any = true;
         }
         for t in self.tiles.iter().filter(|t| t.active) {
             for a in 0..3 {
@@ -188,8 +200,19 @@ fn sanitize(v: f32, count: &mut u64) -> f32 {
 }
 
 impl Grid {
-    /// Builds the lookup layout from a reader's grid.
+    /// Builds the lookup layout from a reader's grid; the bricks are filled in
+    /// parallel on the current rayon pool.
     pub fn from_raw(raw: &RawGrid) -> Result<Grid, GridError> {
+        Self::from_raw_with(raw, true)
+    }
+
+    /// As [`Grid::from_raw`] on one thread (the reference the parallel build is
+    /// tested and benchmarked against); the result is the same.
+    pub fn from_raw_serial(raw: &RawGrid) -> Result<Grid, GridError> {
+        Self::from_raw_with(raw, false)
+    }
+
+    fn from_raw_with(raw: &RawGrid, parallel: bool) -> Result<Grid, GridError> {
         let mut sanitized = 0u64;
         let background = sanitize(raw.background, &mut sanitized);
         let bounds = raw.active_index_bounds();
@@ -218,13 +241,15 @@ impl Grid {
             background,
             brick_min,
             brick_dims,
-            index: vec![NO_BRICK; entries as usize],
+            index: Vec::new(),
             bricks: Vec::new(),
             index_to_world: raw.index_to_world,
             index_bounds: bounds,
             sanitized_voxels: 0,
             active_voxels: raw.active_voxel_count(),
         };
+        grid.index = Vec::with_capacity(entries as usize);
+        grid.index.resize(entries as usize, NO_BRICK);
         if entries == 0 {
             grid.sanitized_voxels = sanitized;
             return Ok(grid);
@@ -255,26 +280,64 @@ impl Grid {
                 }
             }
         }
-        for leaf in &raw.leaves {
-            let b = leaf.origin.map(|c| c.div_euclid(BRICK));
-            let Some(e) = grid.entry(b) else { continue };
-            let mut values = [0f32; BRICK_VOXELS];
-            for (dst, &src) in values.iter_mut().zip(leaf.values.iter()) {
-                *dst = sanitize(src, &mut sanitized);
-            }
+        // Leaves: each brick is filled and sanitised independently (in parallel unless
+        // `parallel` is off), then the bricks that hold only the background are dropped
+        // and the index is set in leaf order, exactly as a serial pass would.
+        let first = grid.bricks.len();
+        // The pool is allocated once and filled in place (rayon's indexed `par_extend` writes each
+        // brick straight into its slot).
+        let mut bricks = Vec::with_capacity(first + raw.leaves.len());
+        bricks.extend_from_slice(&grid.bricks);
+        grid.bricks = bricks;
+        // Per leaf: sanitised-value count << 1 | "holds only the background".
+        let flags: Vec<AtomicU64> = (0..raw.leaves.len()).map(|_| AtomicU64::new(0)).collect();
+        let fill = |(leaf, flag): (&RawLeaf, &AtomicU64)| -> [f32; BRICK_VOXELS] {
+            let mut dst = [background; BRICK_VOXELS];
+            let mut count = 0u64;
             // Fewer than 512 values means a reader bug; the missing ones read as background.
-            for dst in values.iter_mut().skip(leaf.values.len()) {
-                *dst = background;
+            for (d, &src) in dst.iter_mut().zip(leaf.values.iter()) {
+                *d = sanitize(src, &mut count);
             }
             // A leaf that holds only the background (sims often keep such leaves
             // active) reads the same as no brick: it is not stored.
-            if values.iter().all(|&v| v == background) {
+            let background_only = dst.iter().all(|&v| v == background);
+            flag.store(count << 1 | background_only as u64, Ordering::Relaxed);
+            dst
+        };
+        if parallel {
+            use rayon::prelude::*;
+            grid.bricks.par_extend(
+                raw.leaves
+                    .par_iter()
+                    .zip(flags.par_iter())
+                    .with_min_len(64)
+                    .map(fill),
+            );
+        } else {
+            grid.bricks
+                .extend(raw.leaves.iter().zip(flags.iter()).map(fill));
+        }
+        let filled = flags.into_iter().map(|f| {
+            let f = f.into_inner();
+            (f >> 1, f & 1 == 1)
+        });
+        let mut kept = first;
+        for (n, (leaf, (count, background_only))) in raw.leaves.iter().zip(filled).enumerate() {
+            let b = leaf.origin.map(|c| c.div_euclid(BRICK));
+            let Some(e) = grid.entry(b) else { continue };
+            sanitized += count;
+            if background_only {
                 grid.index[e] = NO_BRICK;
                 continue;
             }
-            grid.index[e] = grid.bricks.len() as u32;
-            grid.bricks.push(values);
+            grid.index[e] = kept as u32;
+            if kept != first + n {
+                grid.bricks[kept] = grid.bricks[first + n];
+            }
+            kept += 1;
         }
+        grid.bricks.truncate(kept);
+        grid.bricks.shrink_to_fit();
         grid.sanitized_voxels = sanitized;
         Ok(grid)
     }
@@ -418,6 +481,11 @@ impl Grid {
             }
         }
         (mn, mx)
+    }
+
+    /// Whether brick coordinate `b` (voxel `b * 8`) has a stored brick.
+    pub fn has_brick(&self, b: [i32; 3]) -> bool {
+        self.entry(b).is_some_and(|e| self.index[e] != NO_BRICK)
     }
 
     /// Number of bricks held (leaves plus one per distinct non-background tile).
@@ -587,6 +655,120 @@ mod tests {
         // Across the face between the stored and the dropped leaf: the lerp towards 0.
         let v = g.sample_trilinear([7.5, 3.0, 3.0]);
         assert_eq!(v, 0.5 * g.voxel([7, 3, 3]));
+    }
+
+    /// The per-leaf mask shortcut of `active_index_bounds` agrees with a voxel-by-voxel
+    /// scan.
+    #[test]
+    fn active_bounds_from_masks() {
+        let mut state = 0x1234_5678_9ABC_DEF0u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        for _ in 0..200 {
+            let mut leaves = Vec::new();
+            for n in 0..3 {
+                let mut active = [0u64; 8];
+                // Sparse masks: a few random bits per word in some words.
+                for w in active.iter_mut() {
+                    if next() % 3 == 0 {
+                        *w = next() & next() & next() & next();
+                    }
+                }
+                let o = [(next() % 5) as i32 * 8 - 16, n * 8, (next() % 3) as i32 * 8];
+                leaves.push(RawLeaf {
+                    active,
+                    ..leaf(o, |_| 1.0)
+                });
+            }
+            let raw = RawGrid {
+                name: "d".into(),
+                class: String::new(),
+                background: 0.0,
+                leaves,
+                tiles: vec![],
+                index_to_world: DMat4::IDENTITY,
+            };
+            let mut lo = [i32::MAX; 3];
+            let mut hi = [i32::MIN; 3];
+            let mut any = false;
+            for l in &raw.leaves {
+                for off in 0..BRICK_VOXELS {
+                    if l.active[off / 64] >> (off % 64) & 1 == 1 {
+                        let d = [(off >> 6) as i32, ((off >> 3) & 7) as i32, (off & 7) as i32];
+                        for a in 0..3 {
+                            lo[a] = lo[a].min(l.origin[a] + d[a]);
+                            hi[a] = hi[a].max(l.origin[a] + d[a]);
+                        }
+                        any = true;
+                    }
+                }
+            }
+            assert_eq!(raw.active_index_bounds(), any.then_some((lo, hi)));
+        }
+    }
+
+    /// The parallel build makes exactly the grid the serial one does: the same index,
+    /// the same bricks in the same order, the same counts.
+    #[test]
+    fn parallel_build_equals_serial() {
+        let mut leaves = Vec::new();
+        for n in 0..300i32 {
+            let origin = [(n % 7) * 8, ((n / 7) % 6) * 8, (n / 42) * 8 - 16];
+            leaves.push(match n % 5 {
+                // Background-only leaves, dropped.
+                0 => leaf(origin, |_| 0.0),
+                // NaN and negative values, sanitised.
+                1 => leaf(origin, |i| if i % 3 == 0 { f32::NAN } else { -(i as f32) }),
+                // Short value lists (a reader bug) read as background.
+                2 => RawLeaf {
+                    values: vec![1.5; 100],
+                    ..leaf(origin, |_| 0.0)
+                },
+                _ => leaf(origin, |i| ((i * 31 + n as usize) % 17) as f32 * 0.1),
+            });
+        }
+        // A duplicate origin: the later leaf wins in both builds.
+        leaves.push(leaf([0, 0, -16], |i| i as f32));
+        let raw = RawGrid {
+            name: "density".into(),
+            class: "fog volume".into(),
+            background: 0.0,
+            leaves,
+            tiles: vec![RawTile {
+                origin: [64, 0, 0],
+                dim: 16,
+                value: 0.5,
+                active: true,
+            }],
+            index_to_world: DMat4::IDENTITY,
+        };
+        let a = Grid::from_raw(&raw).unwrap();
+        let b = Grid::from_raw_serial(&raw).unwrap();
+        assert_eq!(a.index, b.index);
+        assert_eq!(a.bricks.len(), b.bricks.len());
+        for (x, y) in a.bricks.iter().zip(&b.bricks) {
+            assert_eq!(x.map(f32::to_bits), y.map(f32::to_bits));
+        }
+        assert_eq!(
+            (
+                a.sanitized_voxels,
+                a.active_voxels,
+                a.brick_min,
+                a.brick_dims
+            ),
+            (
+                b.sanitized_voxels,
+                b.active_voxels,
+                b.brick_min,
+                b.brick_dims
+            )
+        );
+        assert!(a.sanitized_voxels > 0);
+        assert_eq!(a.voxel([3, 0, -16]), ((3 << 6) as f32));
     }
 }
 

@@ -10,4 +10,5 @@ pub mod majorant;
 pub mod medium;
 pub mod procedural;
 pub mod ticks;
+pub mod upsample;
 pub mod vdb;

@@ -43,6 +43,8 @@ pub(crate) mod ffi {
         fn list_grids(path: &str) -> Result<Vec<GridListEntry>>;
         fn read_float_grid(path: &str, lookup_name: &str) -> Result<GridData>;
         fn read_vec3s_grid(path: &str, lookup_name: &str) -> Result<GridData>;
+        /// OpenVDB's own in-memory size (`GridBase::memUsage`) of a float grid.
+        fn float_grid_mem_usage(path: &str, lookup_name: &str) -> Result<u64>;
     }
 }
 
@@ -76,7 +78,10 @@ pub(crate) fn to_raw_grids<const N: usize>(d: ffi::GridData) -> Result<[RawGrid;
     cols.copy_from_slice(&d.index_to_world_row_major);
     let index_to_world = DMat4::from_cols_array(&cols);
     Ok(std::array::from_fn(|c| {
+        use rayon::prelude::*;
         let leaves = (0..leaf_count)
+            .into_par_iter()
+            .with_min_len(256)
             .map(|i| {
                 let mut active = [0u64; 8];
                 active.copy_from_slice(&d.leaf_masks[i * 8..i * 8 + 8]);
@@ -87,7 +92,11 @@ pub(crate) fn to_raw_grids<const N: usize>(d: ffi::GridData) -> Result<[RawGrid;
                         d.leaf_origins[i * 3 + 1],
                         d.leaf_origins[i * 3 + 2],
                     ],
-                    values: values.iter().skip(c).step_by(N).copied().collect(),
+                    values: if N == 1 {
+                        values.to_vec()
+                    } else {
+                        values.iter().skip(c).step_by(N).copied().collect()
+                    },
                     active,
                 }
             })

@@ -173,6 +173,48 @@ fn float_from(
     }
 }
 
+/// OpenVDB's own in-memory size in bytes (`GridBase::memUsage`) of the float grid
+/// [`read_float_grid`] would read; needs the OpenVDB bridge (benchmarks compare
+/// Nimbus' layout against it).
+pub fn openvdb_mem_usage(
+    loc: &AssetLocation,
+    name: &str,
+    index: Option<i32>,
+) -> Result<u64, VdbError> {
+    with_selected(loc, name, index, |info, desc| {
+        let file = loc.to_string();
+        if !desc.is_float() {
+            return Err(VdbError::WrongType {
+                file,
+                grid: desc.name.clone(),
+                found: desc.value_type_label(),
+                expected: "float",
+            });
+        }
+        check_linear(info, desc, &file)?;
+        openvdb_mem(loc, desc)
+    })
+}
+
+#[cfg(nimbus_openvdb)]
+fn openvdb_mem(loc: &AssetLocation, desc: &GridDesc) -> Result<u64, VdbError> {
+    let file = loc.to_string();
+    with_openvdb_path(loc, |p| {
+        bridge::ffi::float_grid_mem_usage(p, &desc.openvdb_lookup_name()).map_err(|e| {
+            VdbError::Reader {
+                file: file.clone(),
+                reader: "openvdb",
+                message: e.what().to_string(),
+            }
+        })
+    })
+}
+
+#[cfg(not(nimbus_openvdb))]
+fn openvdb_mem(loc: &AssetLocation, _desc: &GridDesc) -> Result<u64, VdbError> {
+    Err(openvdb_unavailable(loc))
+}
+
 /// Reads one Vec3s grid (selected as in [`read_float_grid`]) as three float grids of
 /// one topology: component x, y, z (for a colour grid such as Houdini's `Cd`: r, g, b).
 /// Needs the OpenVDB bridge: vdb-rs 0.6 returns empty trees for Vec3s grids, so the
