@@ -2,12 +2,12 @@
 
 usage: ab.py BASEBIN NEWBIN ROUNDS SPP STAGE... [-- EXTRA RENDER ARGS]
 
-Each round renders every stage once with each binary (base first), 160x120, SPP
-samples, one thread, and reads the children's CPU seconds (user + system) from
+Each round renders every stage once with each binary (base first), at $RES
+(default 160x120) with SPP samples on $THREADS threads (default 1), and reads the children's CPU seconds (user + system) from
 getrusage. Prints the median per binary, their ratio, and whether the exact counts
 (density lookups, cells visited) agree. Run from the repository root.
 """
-import resource, subprocess, statistics, sys, json
+import json, os, resource, statistics, subprocess, sys
 args = sys.argv[1:]
 extra = []
 if '--' in args:
@@ -21,7 +21,7 @@ for sc in args[4:]:
     for r in range(rounds):
         for k, b in bins.items():
             before = resource.getrusage(resource.RUSAGE_CHILDREN)
-            subprocess.run([b, "render", sc, "-o", f"/tmp/ab_{k}.exr", "--res", "160x120", "--spp", spp, "--threads", "1", "--stats", f"/tmp/ab_{k}.json"] + extra, check=True, capture_output=True, cwd="/work/main")
+            subprocess.run([b, "render", sc, "-o", f"/tmp/ab_{k}.exr", "--res", os.environ.get("RES", "160x120"), "--spp", spp, "--threads", os.environ.get("THREADS", "1"), "--stats", f"/tmp/ab_{k}.json"] + extra, check=True, capture_output=True, cwd="/work/main")
             after = resource.getrusage(resource.RUSAGE_CHILDREN)
             t[k].append(after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime)
     st = {k: json.load(open(f"/tmp/ab_{k}.json")) for k in bins}
