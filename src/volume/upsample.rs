@@ -46,6 +46,10 @@ impl Default for UpsampleParams {
 /// Largest coarse distance array (cells) [`upsample`] allocates.
 const MAX_COARSE_CELLS: u64 = 1 << 30;
 
+/// Most fine leaves the generator considers (each up to 2 KiB of values: 8.6 GB at the
+/// limit). smoke.vdb at the defaults has about 0.8 M.
+const MAX_CANDIDATE_LEAVES: u64 = 1 << 22;
+
 fn unsupported(raw: &RawGrid, message: String) -> GridError {
     GridError::Unsupported {
         grid: raw.name.clone(),
@@ -97,6 +101,21 @@ pub fn upsample(raw: &RawGrid, params: &UpsampleParams) -> Result<RawGrid, GridE
     let lhi = fhi.map(|c| c.div_euclid(BRICK));
     let ldims = [0, 1, 2].map(|a| (lhi[a] - llo[a] + 1) as usize);
     let leaf_count = ldims[0] * ldims[1] * ldims[2];
+    // Every candidate may become a 2 KiB leaf: refuse before allocating what the machine
+    // may not have, rather than being killed for it.
+    if leaf_count as u64 > MAX_CANDIDATE_LEAVES {
+        return Err(unsupported(
+            raw,
+            format!(
+                "factor {f} and halo {} make {}x{}x{} candidate leaves of 8³ voxels (up to {:.1} GB); more than the generator's limit of {MAX_CANDIDATE_LEAVES}",
+                p.halo,
+                ldims[0],
+                ldims[1],
+                ldims[2],
+                leaf_count as f64 * (BRICK_VOXELS * 4) as f64 / 1e9
+            ),
+        ));
+    }
     let leaves: Vec<RawLeaf> = (0..leaf_count)
         .into_par_iter()
         .filter_map(|n| {
@@ -531,5 +550,19 @@ mod tests {
             let e = upsample(&raw, &params).unwrap_err().to_string();
             assert!(e.contains("density"), "{e}");
         }
+        // Too large an output is refused before anything is allocated for it.
+        let e = upsample(
+            &raw,
+            &UpsampleParams {
+                halo: 64,
+                ..plain(16)
+            },
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("density") && e.contains("candidate leaves"),
+            "{e}"
+        );
     }
 }
