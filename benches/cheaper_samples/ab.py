@@ -5,7 +5,8 @@ usage: ab.py BASEBIN NEWBIN ROUNDS SPP STAGE... [-- EXTRA RENDER ARGS]
 Each round renders every stage once with each binary (base first), at $RES
 (default 160x120) with SPP samples on $THREADS threads (default 1), and reads the children's CPU seconds (user + system) from
 getrusage. Prints the median per binary, their ratio, and whether the exact counts
-(density lookups, cells visited) agree. Run from the repository root.
+(density lookups, cells visited) agree. Relative stage paths are taken from the
+repository root.
 """
 import json, os, resource, statistics, subprocess, sys
 args = sys.argv[1:]
@@ -15,13 +16,15 @@ if '--' in args:
 if len(args) < 5:
     sys.exit(__doc__)
 bins = {"base": args[0], "new": args[1]}
+# Stage paths are taken relative to the repository root (two levels above this file's folder).
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 rounds, spp = int(args[2]), args[3]
 for sc in args[4:]:
     t = {k: [] for k in bins}
     for r in range(rounds):
         for k, b in bins.items():
             before = resource.getrusage(resource.RUSAGE_CHILDREN)
-            subprocess.run([b, "render", sc, "-o", f"/tmp/ab_{k}.exr", "--res", os.environ.get("RES", "160x120"), "--spp", spp, "--threads", os.environ.get("THREADS", "1"), "--stats", f"/tmp/ab_{k}.json"] + extra, check=True, capture_output=True, cwd="/work/main")
+            subprocess.run([b, "render", sc, "-o", f"/tmp/ab_{k}.exr", "--res", os.environ.get("RES", "160x120"), "--spp", spp, "--threads", os.environ.get("THREADS", "1"), "--stats", f"/tmp/ab_{k}.json"] + extra, check=True, capture_output=True, cwd=ROOT)
             after = resource.getrusage(resource.RUSAGE_CHILDREN)
             t[k].append(after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime)
     st = {k: json.load(open(f"/tmp/ab_{k}.json")) for k in bins}

@@ -9,6 +9,7 @@
 //! from cache-resident to the whole grid. Render times at several octree depths come
 //! from `nimbus bench octree` on the stage `make` writes.
 
+use super::bench_error::median;
 use crate::volume::asset::AssetLocation;
 use crate::volume::grid::{Grid, BRICK, BRICK_VOXELS};
 use crate::volume::upsample::{upsample, UpsampleParams};
@@ -227,18 +228,6 @@ def Scope "Render"
         seed = p.seed,
         scale = a.density_scale,
     )
-}
-
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n == 0 {
-        f64::NAN
-    } else if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
 }
 
 /// xorshift64*: the lookups' positions.

@@ -655,23 +655,10 @@ impl Iterator for TreeWalk<'_> {
     #[inline(always)]
     fn next(&mut self) -> Option<Segment> {
         if self.flat_bounds.is_empty() {
-            return self.next_general();
+            self.next_general()
+        } else {
+            self.next_on(true)
         }
-        if !(self.t < self.t_end) {
-            return None;
-        }
-        let t0 = self.t;
-        if self.relocate {
-            self.locate_flat(t0);
-        }
-        let t1 = self.exit();
-        if !(t1 > t0) {
-            return Some(self.sliver(t0));
-        }
-        self.t = t1;
-        let b = self.flat_bounds[self.idx];
-        self.advance_flat();
-        Some(segment(t0, t1, b))
     }
 }
 
@@ -707,20 +694,39 @@ impl TreeWalk<'_> {
     /// The next segment of a hierarchy.
     #[inline(never)]
     fn next_general(&mut self) -> Option<Segment> {
+        self.next_on(false)
+    }
+
+    /// The next segment, on the flat path or the general one (`flat` is a constant at
+    /// each call, so each path compiles to its own straight-line code).
+    #[inline(always)]
+    fn next_on(&mut self, flat: bool) -> Option<Segment> {
         if !(self.t < self.t_end) {
             return None;
         }
         let t0 = self.t;
         if self.relocate {
-            self.locate(t0);
+            if flat {
+                self.locate_flat(t0);
+            } else {
+                self.locate(t0);
+            }
         }
         let t1 = self.exit();
         if !(t1 > t0) {
             return Some(self.sliver(t0));
         }
         self.t = t1;
-        let b = self.tree.levels[self.level].bounds[self.idx];
-        self.advance();
+        let b = if flat {
+            self.flat_bounds[self.idx]
+        } else {
+            self.tree.levels[self.level].bounds[self.idx]
+        };
+        if flat {
+            self.advance_flat();
+        } else {
+            self.advance();
+        }
         Some(segment(t0, t1, b))
     }
 

@@ -129,6 +129,19 @@ fn with_selected<T>(
     read(&info, desc)
 }
 
+/// A float grid with a linear transform: what the float readers accept.
+fn check_float(info: &FileInfo, desc: &GridDesc, file: &str) -> Result<(), VdbError> {
+    if !desc.is_float() {
+        return Err(VdbError::WrongType {
+            file: file.to_string(),
+            grid: desc.name.clone(),
+            found: desc.value_type_label(),
+            expected: "float",
+        });
+    }
+    check_linear(info, desc, file)
+}
+
 /// Reads the float grid `desc` of the validated file `info`.
 fn float_from(
     reader: Reader,
@@ -137,15 +150,7 @@ fn float_from(
     desc: &GridDesc,
 ) -> Result<RawGrid, VdbError> {
     let file = loc.to_string();
-    if !desc.is_float() {
-        return Err(VdbError::WrongType {
-            file,
-            grid: desc.name.clone(),
-            found: desc.value_type_label(),
-            expected: "float",
-        });
-    }
-    check_linear(info, desc, &file)?;
+    check_float(info, desc, &file)?;
     match reader {
         Reader::VdbRs => {
             if let Some(message) = vdbrs::unsupported_reason(info, desc) {
@@ -182,16 +187,7 @@ pub fn openvdb_mem_usage(
     index: Option<i32>,
 ) -> Result<u64, VdbError> {
     with_selected(loc, name, index, |info, desc| {
-        let file = loc.to_string();
-        if !desc.is_float() {
-            return Err(VdbError::WrongType {
-                file,
-                grid: desc.name.clone(),
-                found: desc.value_type_label(),
-                expected: "float",
-            });
-        }
-        check_linear(info, desc, &file)?;
+        check_float(info, desc, &loc.to_string())?;
         openvdb_mem(loc, desc)
     })
 }
