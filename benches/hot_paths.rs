@@ -190,6 +190,7 @@ fn full_path(c: &mut Criterion) {
             spp: 1,
             max_depth: 64,
             seed: 1,
+            qmc_dims: 0,
             extras: Default::default(),
         };
         let mut rng = pixel_sampler(5, 6);

@@ -27,6 +27,7 @@ use nimbus::render::camera::CameraRays;
 use nimbus::render::film::Film;
 use nimbus::render::job::RenderJob;
 use nimbus::render::lights::Lights;
+use nimbus::render::sampler::SamplerKind;
 use nimbus::scene::{load_stage, LoadOptions};
 use nimbus::track::select::{SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
 use nimbus::volume::counters::Counters;
@@ -64,6 +65,8 @@ fn render(s: &Setup, tracking: TrackerSettings, spp: u32, seed: u64) -> Film {
         spp,
         max_depth: 64,
         seed,
+        // Independent samples: the z-tests take each pixel's variance from its samples.
+        sampler: SamplerKind::Independent,
         tracking,
         extras: Default::default(),
     }

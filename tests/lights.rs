@@ -366,6 +366,7 @@ fn samples(
         spp: 1,
         max_depth,
         seed,
+        qmc_dims: 0,
         extras: Default::default(),
     };
     let mut rng = pixel_sampler(seed, 40);
@@ -591,9 +592,14 @@ fn sun_disk_single_scattering_matches_quadrature() {
 /// A cube (side 1, σa = 0.5, σs = (2, 1, 0.5), g = 0.5, multiple scattering) in front of
 /// a camera on +Z, lit by `lights`.
 fn lit_cube(lights: &Lights, n: usize, seed: u64) -> Vec<[f64; 3]> {
+    lit_cube_to_depth(lights, 64, n, seed)
+}
+
+/// [`lit_cube`] with at most `max_depth` scattering events.
+fn lit_cube_to_depth(lights: &Lights, max_depth: u32, n: usize, seed: u64) -> Vec<[f64; 3]> {
     let medium = common::unit_cube(1.0, [0.5; 3], [2.0, 1.0, 0.5], 0.5);
     let cam = camera(DVec3::new(0.0, 0.0, 10.0), 0.1, 1e6);
-    samples(&medium, lights, &cam, 64, n, seed)
+    samples(&medium, lights, &cam, max_depth, n, seed)
 }
 
 fn two_sample_z(a: &[[f64; 3]], b: &[[f64; 3]]) -> [f64; 3] {
@@ -604,9 +610,13 @@ fn two_sample_z(a: &[[f64; 3]], b: &[[f64; 3]]) -> [f64; 3] {
 }
 
 /// A dome textured with a constant image renders like the constant dome: two
-/// independent estimates (N = 50,000 each, seeds 21 and 22) of the cube's central
-/// pixel, two-sample |z| < 4 per channel. The texture goes through importance sampling
-/// (a sin θ-weighted piecewise-constant density, not exactly uniform) and MIS.
+/// independent estimates (N = 50,000 each, seeds 21 and 22; 40,000 at the small
+/// depths, seeds 31… and 41…) of the cube's central pixel, two-sample |z| < 4 per
+/// channel. The textured dome is sampled at every scattering vertex (importance
+/// sampling, a sin θ-weighted piecewise-constant density, combined with phase
+/// sampling by MIS); the constant dome only through the phase-sampled continuation,
+/// and by a shadow ray at a path's last vertex. At maximum depths 1 and 2 the last
+/// vertex carries a large share of the light, so a wrong weight there would show.
 #[test]
 fn constant_texture_dome_matches_constant_dome() {
     let value = [0.7, 1.1, 0.4];
@@ -620,10 +630,20 @@ fn constant_texture_dome_matches_constant_dome() {
         environment: value,
         ..Default::default()
     };
+    assert!(textured.environment_nee() && !constant.environment_nee());
     let a = lit_cube(&textured, 50_000, 21);
     let b = lit_cube(&constant, 50_000, 22);
     let z = two_sample_z(&a, &b);
     assert!(z.iter().all(|z| z.abs() < 4.0), "z = {z:?}");
+    for depth in [1, 2] {
+        let a = lit_cube_to_depth(&textured, depth, 40_000, 30 + depth as u64);
+        let b = lit_cube_to_depth(&constant, depth, 40_000, 40 + depth as u64);
+        let z = two_sample_z(&a, &b);
+        assert!(
+            z.iter().all(|z| z.abs() < 4.0),
+            "max depth {depth}: z = {z:?}"
+        );
+    }
 }
 
 /// A non-constant dome (a bright patch in a dim sky, rotated) plus a constant dome:

@@ -70,6 +70,7 @@ fn integrator_with<'a, F: FreePathSampler>(
         spp,
         max_depth,
         seed,
+        qmc_dims: 0,
         extras: Default::default(),
     }
 }

@@ -407,6 +407,7 @@ fn render(
                 spp: 64,
                 max_depth: 16,
                 seed: self.seed,
+                qmc_dims: 0,
                 extras: Default::default(),
             };
             let mut rng = nimbus::render::sampler::pixel_sampler(self.seed, 0);

@@ -15,6 +15,7 @@ use nimbus::output::OutputError as LibOutputError;
 use nimbus::render::analysis::Given;
 use nimbus::render::film::{Aov, Film};
 use nimbus::render::progressive::{Clock, Progress};
+use nimbus::render::sampler::SamplerKind;
 use nimbus::render::session::{ExtraOutputs, Overrides, Session, DEFAULT_OCTREE_PRUNE};
 use nimbus::scene::schema::tokens;
 use nimbus::scene::SceneError;
@@ -449,7 +450,7 @@ type Rendered = (Film, Progress, usize, bool);
 #[pyfunction]
 #[pyo3(signature = (
     stage=None, *, stage_text=None, base_dir=None,
-    spp=None, res=None, seed=None, threads=None, max_depth=None,
+    spp=None, res=None, seed=None, sampler=None, threads=None, max_depth=None,
     majorant_cell=None, octree_depth=None, octree_prune=DEFAULT_OCTREE_PRUNE,
     tracker=None, scheme=None, transmittance=None, control=None,
     reduced_termination=false, no_absorption_events=false, majorant_scale=1.0,
@@ -466,6 +467,7 @@ fn render(
     spp: Option<u32>,
     res: Option<(u32, u32)>,
     seed: Option<u64>,
+    sampler: Option<String>,
     threads: Option<usize>,
     max_depth: Option<u32>,
     majorant_cell: Option<u32>,
@@ -505,6 +507,7 @@ fn render(
         spp,
         res,
         seed,
+        sampler: parse_choice::<SamplerKind>("sampler", sampler)?,
         threads,
         max_depth,
         majorant_cell,

@@ -64,6 +64,8 @@ def test_exceptions(stage, tmp_path):
         nimbus.render(stage, tracker="no-such-tracker")
     with pytest.raises(nimbus.SettingsError, match="scheme"):
         nimbus.render(stage, scheme="no-such-scheme")
+    with pytest.raises(nimbus.SettingsError, match="sampler"):
+        nimbus.render(stage, sampler="no-such-sampler")
     with pytest.raises(nimbus.SettingsError, match="unknown AOV"):
         nimbus.render(stage, aovs=["nope"])
     with pytest.raises(nimbus.SettingsError, match="zero side"):

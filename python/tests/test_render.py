@@ -160,6 +160,20 @@ def test_output_keywords_write_like_the_cli(stage, nimbus_bin, tmp_path):
     assert r.stats["density_lookups"] == b["density_lookups"]
 
 
+def test_sampler_keyword_renders_like_the_cli(stage, nimbus_bin, tmp_path):
+    cli_exr = tmp_path / "cli.exr"
+    run_cli(nimbus_bin, "render", stage, "-o", cli_exr, "--seed", 3, "--spp", 2,
+            "--sampler", "independent")
+    r = nimbus.render(stage, seed=3, spp=2, sampler="independent")
+    cli = exr_channels(cli_exr)
+    for k, name in enumerate("RGBA"):
+        assert same_bits(r.rgba[..., k], cli[name]), f"channel {name} differs from the CLI's"
+    assert r.stats["sampler"] == "independent"
+    sobol = nimbus.render(stage, seed=3, spp=2)
+    assert sobol.stats["sampler"] == "sobol"
+    assert not same_bits(sobol.rgba[..., 0], r.rgba[..., 0]), "the sampler changed nothing"
+
+
 def test_tracker_keywords(stage):
     names = nimbus.tracker_names()
     assert "spectral" in names or len(names) > 3

@@ -7,6 +7,7 @@ use crate::output::products::{frame_path, requested_outputs, OutputRequest, Outp
 use crate::output::stats::RunFacts;
 use crate::render::film::Region;
 use crate::render::progressive::Clock;
+use crate::render::sampler::SamplerKind;
 use crate::render::session::{Overrides, Session, DEFAULT_OCTREE_PRUNE};
 use crate::render::tiles::{parse_region, Tile};
 use crate::track::select::{SchemeKind, TrackerKind, TransmittanceKind};
@@ -164,6 +165,9 @@ pub struct SamplingArgs {
     /// Worker threads (default: all cores). The image does not depend on it.
     #[arg(long)]
     pub threads: Option<usize>,
+    /// Where each sample's random numbers come from (default sobol).
+    #[arg(long, value_parser = choice::parser::<SamplerKind>())]
+    pub sampler: Option<SamplerKind>,
 }
 
 /// Parses "WxH" with both sides positive.
@@ -216,6 +220,7 @@ impl SamplingArgs {
             spp: self.spp,
             res: self.res,
             seed: self.seed,
+            sampler: self.sampler,
             threads: self.threads,
             majorant_cell: majorants.majorant_cell,
             octree_depth: majorants.octree_depth,

@@ -1,5 +1,6 @@
 //! The stats JSON written by `--stats`.
 
+use crate::track::select::Choice;
 use serde::Serialize;
 
 #[derive(Serialize, Debug, Clone)]
@@ -32,6 +33,8 @@ pub struct RenderStats {
     pub render_seconds: f64,
     pub threads: usize,
     pub seed: u64,
+    /// Where the samples' random numbers came from (`sobol`, `independent`).
+    pub sampler: String,
     pub tracker: String,
     pub scheme: String,
     pub transmittance: String,
@@ -126,6 +129,7 @@ impl RenderStats {
             render_seconds: p.seconds,
             threads: run.threads,
             seed: session.seed,
+            sampler: session.sampler.name().into(),
             tracker: t.tracker.name().into(),
             scheme: t.scheme.name().into(),
             transmittance: t.transmittance.name().into(),

@@ -24,6 +24,15 @@ use rayon::prelude::*;
 /// Path Russian roulette starts after this many scattering events.
 const RR_DEPTH: u32 = 3;
 
+/// Paths whose largest channel throughput is at least this never take part in the
+/// roulette; below it a path survives with probability throughput / this. Without
+/// absorption events a chromatic path's throughput falls by the albedo at every
+/// scattering event, and surviving with probability = throughput (a threshold of 1)
+/// killed half the paths of an albedo-0.8 cloud by the fourth event: multiple
+/// scattering, most of such a cloud's light and its variance, paid for that.
+/// Measured in docs/performance.md ("Fewer, better estimates").
+const RR_THROUGHPUT: f32 = 0.25;
+
 /// The cross-sections a path tracks: every channel at once (the spectral trackers; a
 /// grey medium's single-channel trackers are this too, with equal channels), or one
 /// channel chosen per path (naive delta tracking).
@@ -131,6 +140,9 @@ pub struct Integrator<'a, F: FreePathSampler, E: TransmittanceEstimator> {
     pub spp: u32,
     pub max_depth: u32,
     pub seed: u64,
+    /// Dimensions of each sample drawn from scrambled Sobol' points (0: every number
+    /// from the independent stream; [`Sampler::start_sample`]).
+    pub qmc_dims: u32,
     pub extras: Extras<'a>,
 }
 
@@ -209,6 +221,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         let mut scratch = [[0f64; 3]; MAX_LAYERS];
         let nl = extra.splits.as_ref().map_or(0, |(m, _)| m.len());
         for _ in 0..n {
+            rng.start_sample(self.qmc_dims);
             let fx = x as f64 + rng.gen::<f64>();
             let fy = y as f64 + rng.gen::<f64>();
             let sample_layers = &mut scratch[..nl];
@@ -363,7 +376,10 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                         // MIS with environment NEE; the phase sample's weight
                         // phase/pdf is 1.
                         let pdf_phase = hg(path.g, path.last_cos);
-                        let w = power_heuristic(pdf_phase, self.lights.environment_pdf(dir));
+                        let w = match self.lights.environment_nee() {
+                            true => power_heuristic(pdf_phase, self.lights.environment_pdf(dir)),
+                            false => 1.0,
+                        };
                         self.add_environment(&mut radiance, &path, dir, w);
                     }
                     break;
@@ -402,14 +418,15 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                         }
                     }
                     path.g = medium.g as f64;
-                    self.next_event(p, dir, &path, &mut radiance, rng, counters);
-                    if path.depth >= self.max_depth {
+                    let last = path.depth >= self.max_depth;
+                    self.next_event(p, dir, &path, last, &mut radiance, rng, counters);
+                    if last {
                         break;
                     }
                     if path.depth >= RR_DEPTH {
                         // Weighted trackers make throughputs signed: survive by magnitude.
-                        let q =
-                            crate::track::free_path::max3(path.throughput.map(f32::abs)).min(1.0);
+                        let m = crate::track::free_path::max3(path.throughput.map(f32::abs));
+                        let q = (m / RR_THROUGHPUT).min(1.0);
                         if !(rng.gen::<f32>() < q) {
                             break;
                         }
@@ -449,13 +466,15 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
     }
 
     /// Next-event estimation from scattering vertex `p` (arrived along `dir`; the
-    /// path's phase function, tracked channels and throughput).
+    /// path's phase function, tracked channels and throughput); `last`: the path ends
+    /// here (maximum depth), so no phase-sampled ray will reach the environment.
     #[allow(clippy::too_many_arguments)]
     fn next_event<C: Tally>(
         &self,
         p: DVec3,
         dir: DVec3,
         path: &PathState,
+        last: bool,
         radiance: &mut Radiance,
         rng: &mut Sampler,
         counters: &mut C,
@@ -479,11 +498,20 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             let source = sources.rect(i);
             self.add_light_sample(s, source, p, dir, path, radiance, rng, counters);
         }
-        if self.lights.has_environment() {
+        // A constant environment is reached by the phase-sampled continuation, whose
+        // density is the phase function itself: the ideal strategy for light of the
+        // same radiance from every direction, and free (the path is traced anyway).
+        // A shadow ray towards it only pays off at the path's last vertex.
+        let nee = self.lights.environment_nee();
+        if self.lights.has_environment() && (nee || last) {
             let (wi, le, pdf) = self.lights.sample_environment(rng.gen(), rng.gen());
             if pdf > 0.0 {
                 let f = hg(g, dir.dot(wi));
-                let w = power_heuristic(pdf, f);
+                let w = if nee && !last {
+                    power_heuristic(pdf, f)
+                } else {
+                    1.0
+                };
                 let tr = self.shadow(p, wi, f32::INFINITY, tracked, rng, counters);
                 let v = |l: [f64; 3]| -> [f64; 3] {
                     std::array::from_fn(|c| (throughput[c] * tr[c]) as f64 * l[c] * f / pdf * w)

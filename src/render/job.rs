@@ -6,6 +6,7 @@ use crate::render::camera::CameraRays;
 use crate::render::film::{Film, Region};
 use crate::render::integrator::{Extras, Integrator};
 use crate::render::lights::Lights;
+use crate::render::sampler::SamplerKind;
 use crate::scene::schema::tokens;
 use crate::scene::{Field, Scene, Volume};
 use crate::track::free_path::{FreePathSampler, TransmittanceEstimator};
@@ -29,6 +30,8 @@ pub struct RenderJob<'a> {
     pub spp: u32,
     pub max_depth: u32,
     pub seed: u64,
+    /// Where each sample's random numbers come from.
+    pub sampler: SamplerKind,
     pub tracking: TrackerSettings,
     /// Which specialised code paths run (counting, single-channel tracking).
     pub paths: CodePaths,
@@ -96,6 +99,7 @@ impl RenderJob<'_> {
                     spp: self.n,
                     max_depth: j.max_depth,
                     seed: j.seed,
+                    qmc_dims: j.sampler.qmc_dims(),
                     extras: j.extras,
                 }
                 .render_pass(self.film, self.n, self.progress)

@@ -247,6 +247,14 @@ impl Lights {
         nonzero(&self.environment) || !self.env_maps.is_empty()
     }
 
+    /// Whether scattering vertices sample the environment (next-event estimation,
+    /// combined with phase sampling by MIS): only a textured dome needs it. A constant
+    /// environment is left to the phase-sampled ray that continues the path, whose
+    /// density is proportional to what it collects.
+    pub fn environment_nee(&self) -> bool {
+        !self.env_maps.is_empty()
+    }
+
     /// Radiance arriving from world direction `w` (unit) from the environment.
     #[inline]
     pub fn environment_radiance(&self, w: DVec3) -> [f64; 3] {

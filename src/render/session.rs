@@ -15,6 +15,7 @@ use crate::render::integrator::Extras;
 use crate::render::job::{media_for_scene_with, RenderJob};
 use crate::render::lights::Lights;
 use crate::render::progressive::{render_progressive, Budget, Clock, Progress};
+use crate::render::sampler::SamplerKind;
 use crate::render::splits::{SplitLayer, SplitMap};
 use crate::scene::defaults::{add_default_lights, frame_box, has_no_lights, DEFAULT_CAMERA};
 use crate::scene::{
@@ -73,6 +74,8 @@ pub struct Overrides {
     /// Resolution (the render settings' `resolution`).
     pub res: Option<(u32, u32)>,
     pub seed: Option<u64>,
+    /// Where samples' random numbers come from (default: `sobol`).
+    pub sampler: Option<SamplerKind>,
     /// Worker threads (`None`: all cores). The image does not depend on it.
     pub threads: Option<usize>,
     pub max_depth: Option<u32>,
@@ -119,6 +122,7 @@ pub struct Session {
     pub spp: u32,
     pub max_depth: u32,
     pub seed: u64,
+    pub sampler: SamplerKind,
     pub time_limit: Option<f64>,
     pub tracking: TrackerSettings,
     /// The majorant structure the media carry (after `auto`).
@@ -258,6 +262,7 @@ impl Session {
             spp,
             max_depth: o.max_depth.unwrap_or(settings.max_depth),
             seed: o.seed.unwrap_or(settings.seed),
+            sampler: o.sampler.unwrap_or_default(),
             time_limit: o.time_limit,
             scene,
             media,
@@ -355,6 +360,7 @@ impl Session {
             spp: self.spp,
             max_depth: self.max_depth,
             seed: self.seed,
+            sampler: self.sampler,
             tracking: self.tracking,
             paths,
             extras: Extras {
@@ -459,12 +465,13 @@ impl Session {
         }
         put(&format!("{:?}", self.scene));
         put(&format!(
-            "{}x{} spp {} depth {} seed {} time limit {:?} {:?} {:?} prune {} specialise {} nimbus {}",
+            "{}x{} spp {} depth {} seed {} sampler {:?} time limit {:?} {:?} {:?} prune {} specialise {} nimbus {}",
             self.width,
             self.height,
             self.spp,
             self.max_depth,
             self.seed,
+            self.sampler,
             self.time_limit,
             self.tracking,
             self.spec,

@@ -182,6 +182,7 @@ impl Dispatch<Output> for Run<'_, '_> {
             spp: s.spp,
             max_depth: s.max_depth,
             seed: s.seed,
+            qmc_dims: 0,
             extras: Default::default(),
         };
         match self.mode {
