@@ -74,9 +74,7 @@ pub struct Sampler {
     pcg: Pcg32,
     /// Hash of the render seed and the pixel: the root of every scramble.
     key: u32,
-    /// The sample being drawn (counted by [`Sampler::start_sample`]).
-    index: u32,
-    /// Samples started so far.
+    /// Samples started so far: the current sample's index is one less.
     started: u32,
     /// The next dimension of the current sample.
     dim: u32,
@@ -93,7 +91,6 @@ pub fn pixel_sampler(seed: u64, pixel: u64) -> Sampler {
     Sampler {
         pcg: Pcg32::new(state, (pixel << 1) | 1),
         key: (splitmix(state ^ 0x5AB0_15EE_D00D_F00D) >> 32) as u32,
-        index: 0,
         started: 0,
         dim: 0,
         qmc_dims: 0,
@@ -102,12 +99,11 @@ pub fn pixel_sampler(seed: u64, pixel: u64) -> Sampler {
 }
 
 impl Sampler {
-    /// Begins the pixel's next sample: its first `qmc_dims` numbers (rounded up to a
-    /// pair) come from the Sobol' points of this sample index, the rest from the
-    /// independent stream. `qmc_dims` 0 leaves the stream independent.
+    /// Begins the pixel's next sample: its first `qmc_dims` numbers come from the
+    /// Sobol' points of this sample index, the rest from the independent stream.
+    /// `qmc_dims` 0 leaves the stream independent.
     #[inline]
     pub fn start_sample(&mut self, qmc_dims: u32) {
-        self.index = self.started;
         self.started = self.started.wrapping_add(1);
         self.dim = 0;
         self.qmc_dims = qmc_dims;
@@ -123,7 +119,7 @@ impl Sampler {
         }
         let pair = d >> 1;
         let h = mix32(self.key ^ mix32(pair.wrapping_mul(0x9E37_79B9).wrapping_add(1)));
-        let j = owen_scramble(self.index, h);
+        let j = owen_scramble(self.started.wrapping_sub(1), h);
         let x = owen_scramble(sobol0(j), mix32(h ^ 0x68E3_1DA4));
         self.pending = owen_scramble(sobol1(j), mix32(h ^ 0xB529_7A4D));
         x
