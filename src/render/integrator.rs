@@ -305,7 +305,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             .iter()
             .filter_map(|m| {
                 let r = m.index_ray(origin, dir);
-                m.majorants.walk(r.o, r.d, tmin, tmax).next().map(|s| s.t0)
+                m.majorants.entry(r.o, r.d, tmin, tmax)
             })
             .fold(f32::INFINITY, f32::min);
         // Distance from the camera to `origin`, for the depth of the first collision.

@@ -19,7 +19,7 @@
 //! occlude the medium and camera or scattered rays do not see them.
 
 use crate::color::{emission_scale, luminance, usd_blackbody_rgb};
-use crate::render::phase::{orthonormal_basis, sample_sphere, INV_4PI};
+use crate::render::phase::{azimuth, orthonormal_basis, sample_sphere, INV_4PI};
 use crate::scene::{DomeLight, Scene};
 use glam::{DMat3, DMat4, DVec3};
 use std::f64::consts::PI;
@@ -352,9 +352,9 @@ impl Sun {
 fn cone_direction(axis: DVec3, cos_max: f64, u1: f64, u2: f64) -> DVec3 {
     let cos_t = 1.0 - u1 * (1.0 - cos_max);
     let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-    let phi = 2.0 * PI * u2;
+    let (cos_phi, sin_phi) = azimuth(u2);
     let (t, b) = orthonormal_basis(axis);
-    (t * (sin_t * phi.cos()) + b * (sin_t * phi.sin()) + axis * cos_t).normalize()
+    (t * (sin_t * cos_phi) + b * (sin_t * sin_phi) + axis * cos_t).normalize()
 }
 
 /// One light sample seen from a point: direction, distance to the emitter, and the

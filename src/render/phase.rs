@@ -21,9 +21,19 @@ pub fn sample_hg(g: f64, dir: DVec3, u1: f64, u2: f64) -> DVec3 {
         ((1.0 + g * g - s * s) / (2.0 * g)).clamp(-1.0, 1.0)
     };
     let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
-    let phi = 2.0 * PI * u2;
+    let (cos_phi, sin_phi) = azimuth(u2);
     let (t, b) = orthonormal_basis(dir);
-    (t * (sin_theta * phi.cos()) + b * (sin_theta * phi.sin()) + dir * cos_theta).normalize()
+    (t * (sin_theta * cos_phi) + b * (sin_theta * sin_phi) + dir * cos_theta).normalize()
+}
+
+/// (cos φ, sin φ) of the azimuth φ = 2π·u. In single precision: every scattering
+/// vertex samples one or two azimuths, and the double-precision `sincos` cost about
+/// 120 instructions a call (3 % of a grey render's); an f32 angle resolves 2⁻²⁴ of a
+/// turn, far below anything a pixel shows, and the direction is normalised after.
+#[inline]
+pub fn azimuth(u: f64) -> (f64, f64) {
+    let (s, c) = (2.0 * std::f32::consts::PI * u as f32).sin_cos();
+    (c as f64, s as f64)
 }
 
 /// Two unit vectors completing `n` (unit) to an orthonormal basis (Duff et al. 2017).
@@ -41,8 +51,8 @@ pub fn orthonormal_basis(n: DVec3) -> (DVec3, DVec3) {
 pub fn sample_sphere(u1: f64, u2: f64) -> DVec3 {
     let z = 1.0 - 2.0 * u1;
     let r = (1.0 - z * z).max(0.0).sqrt();
-    let phi = 2.0 * PI * u2;
-    DVec3::new(r * phi.cos(), r * phi.sin(), z)
+    let (cos_phi, sin_phi) = azimuth(u2);
+    DVec3::new(r * cos_phi, r * sin_phi, z)
 }
 
 #[cfg(test)]
@@ -61,6 +71,22 @@ mod tests {
                 })
                 .sum();
             assert!((s - 1.0).abs() < 1e-4, "g={g}: {s}");
+        }
+    }
+
+    /// The single-precision azimuth is the angle 2πu: on 100,001 evenly spaced u its
+    /// angle is within 1e-6 rad of 2πu (f32 rounding of u and φ: |φ| ≤ 2π, so under
+    /// 2⁻²¹ each) and (cos, sin) has unit length within 1e-6.
+    #[test]
+    fn azimuth_is_the_angle() {
+        let n = 100_000;
+        for i in 0..=n {
+            let u = i as f64 / n as f64;
+            let (c, s) = azimuth(u);
+            assert!((c * c + s * s - 1.0).abs() < 1e-6, "u={u}");
+            let phi = s.atan2(c).rem_euclid(2.0 * PI);
+            let err = (phi - 2.0 * PI * u).abs();
+            assert!(err.min(2.0 * PI - err) < 1e-6, "u={u}: {phi}");
         }
     }
 

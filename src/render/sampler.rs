@@ -110,7 +110,9 @@ impl Sampler {
     }
 
     /// The next Sobol' dimension of the current sample, as 32 bits of fixed point.
-    #[inline]
+    /// Out of line: drawn for the first few numbers of a sample only, and inlined it
+    /// would keep every `gen()` (most of them plain PCG steps) from being inlined.
+    #[inline(never)]
     fn next_qmc(&mut self) -> u32 {
         let d = self.dim;
         self.dim += 1;

@@ -477,6 +477,25 @@ impl MajorantTree {
     pub fn walk(&self, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> TreeWalk<'_> {
         TreeWalk::new(self, o, d, tmin, tmax)
     }
+
+    /// Where a walk of the ray would start: the `t0` of its first segment, without
+    /// setting the walk up (`None` where it would yield none). The same slab test
+    /// as [`TreeWalk::new`], so the same bits.
+    #[inline]
+    pub fn entry(&self, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> Option<f32> {
+        let inv_d = d.recip().to_array();
+        let (lo, hi) = self.region?;
+        clip(
+            lo.to_array(),
+            hi.to_array(),
+            o.to_array(),
+            d.to_array(),
+            inv_d,
+            tmin,
+            tmax,
+        )
+        .map(|(t0, _)| t0)
+    }
 }
 
 fn cells(extent: [i64; 3], edge: [i64; 3]) -> u64 {
@@ -883,7 +902,7 @@ mod tests {
     /// The flat path hands out the general walk's segments bit for bit: 20,000 random
     /// rays (axis-parallel ones and ones starting inside included) through flat grids
     /// of 1-, 3- and 8-voxel cells over a sparse blob, each walked twice, once with the
-    /// flat path switched off.
+    /// flat path switched off; [`MajorantTree::entry`] is the first segment's start.
     #[test]
     fn flat_walk_is_the_general_walk() {
         let raw = grid_from_fn("density", [37, 29, 41], DVec3::ZERO, 1.0, |p| {
@@ -912,6 +931,12 @@ mod tests {
                 }
                 let (tmin, tmax) = (rng.gen_range(0.0..5.0), rng.gen_range(5.0..200.0));
                 let fast: Vec<Segment> = tree.walk(o, d, tmin, tmax).collect();
+                let entry = tree.entry(o, d, tmin, tmax).map(f32::to_bits);
+                assert_eq!(
+                    entry,
+                    fast.first().map(|s| s.t0.to_bits()),
+                    "entry, ray {n}"
+                );
                 let mut general = tree.walk(o, d, tmin, tmax);
                 assert!(!general.flat_bounds.is_empty());
                 general.flat_bounds = &[];
