@@ -8,25 +8,20 @@ getrusage. Prints the median per binary, their ratio, and whether the exact coun
 (density lookups, cells visited) agree. Relative stage paths are taken from the
 repository root.
 """
-import json, os, resource, statistics, subprocess, sys
-args = sys.argv[1:]
-extra = []
-if '--' in args:
-    i = args.index('--'); extra = args[i+1:]; args = args[:i]
+import json, os, statistics, sys
+
+from common import render_cpu, split_extra
+
+args, extra = split_extra(sys.argv[1:])
 if len(args) < 5:
     sys.exit(__doc__)
 bins = {"base": args[0], "new": args[1]}
-# Stage paths are taken relative to the repository root (two levels above this file's folder).
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 rounds, spp = int(args[2]), args[3]
 for sc in args[4:]:
     t = {k: [] for k in bins}
     for r in range(rounds):
         for k, b in bins.items():
-            before = resource.getrusage(resource.RUSAGE_CHILDREN)
-            subprocess.run([b, "render", sc, "-o", f"/tmp/ab_{k}.exr", "--res", os.environ.get("RES", "160x120"), "--spp", spp, "--threads", os.environ.get("THREADS", "1"), "--stats", f"/tmp/ab_{k}.json"] + extra, check=True, capture_output=True, cwd=ROOT)
-            after = resource.getrusage(resource.RUSAGE_CHILDREN)
-            t[k].append(after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime)
+            t[k].append(render_cpu([b, "render", sc, "-o", f"/tmp/ab_{k}.exr", "--res", os.environ.get("RES", "160x120"), "--spp", spp, "--threads", os.environ.get("THREADS", "1"), "--stats", f"/tmp/ab_{k}.json"] + extra))
     st = {k: json.load(open(f"/tmp/ab_{k}.json")) for k in bins}
     cnt = {k: (st[k]["density_lookups"], st[k]["cells_visited"]) for k in bins}
     mb, mn = statistics.median(t["base"]), statistics.median(t["new"])

@@ -16,10 +16,12 @@ its standard error, the median CPU seconds per render, the efficiency, and its r
 to the first configuration's: the equal-time relMSE of a configuration relative to the
 first is the inverse of that ratio. Needs the OpenEXR and numpy Python modules.
 """
-import os, resource, statistics, subprocess, sys
+import os, statistics, sys
 
 import numpy as np
 import OpenEXR
+
+from common import render_cpu
 
 args = sys.argv[1:]
 if len(args) < 5:
@@ -30,16 +32,12 @@ for c in args[4:]:
     name, rest = c.split("=", 1)
     parts = rest.split(",")
     configs.append((name, parts[0], parts[1:]))
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 threads = os.environ.get("THREADS", "2")
 
 
 def render(b, extra, seed, out):
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    subprocess.run([b, "render", stage, "-o", out, "--res", res, "--spp", spp, "--threads", threads,
-                    "--seed", str(seed)] + extra, check=True, capture_output=True, cwd=ROOT)
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
+    return render_cpu([b, "render", stage, "-o", out, "--res", res, "--spp", spp, "--threads", threads,
+                       "--seed", str(seed)] + extra)
 
 
 def rgb(path):

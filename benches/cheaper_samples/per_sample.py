@@ -14,29 +14,23 @@ excluded, wall clock, so one thread), and the exact counts per sample (density
 lookups, cells visited) at SPP_HI.
 Relative stage paths are taken from the repository root.
 """
-import json, os, resource, statistics, subprocess, sys
+import json, os, statistics, sys
 
-args = sys.argv[1:]
-extra = []
-if '--' in args:
-    i = args.index('--'); extra = args[i + 1:]; args = args[:i]
+from common import render_cpu, split_extra
+
+args, extra = split_extra(sys.argv[1:])
 if len(args) < 6:
     sys.exit(__doc__)
 bins = {"base": args[0], "new": args[1]}
 rounds, lo, hi = int(args[2]), int(args[3]), int(args[4])
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 res = os.environ.get("RES", "160x120")
 w, h = (int(v) for v in res.split("x"))
 threads = os.environ.get("THREADS", "1")
 
 
 def cpu(b, stage, spp, tag):
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    subprocess.run([b, "render", stage, "-o", f"/tmp/ps_{tag}.exr", "--res", res, "--spp", str(spp),
-                    "--threads", threads, "--stats", f"/tmp/ps_{tag}.json"] + extra,
-                   check=True, capture_output=True, cwd=ROOT)
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
+    return render_cpu([b, "render", stage, "-o", f"/tmp/ps_{tag}.exr", "--res", res, "--spp", str(spp),
+                       "--threads", threads, "--stats", f"/tmp/ps_{tag}.json"] + extra)
 
 
 for stage in args[5:]:

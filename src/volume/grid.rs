@@ -368,7 +368,7 @@ impl Grid {
                 if b == NO_BRICK {
                     self.background
                 } else {
-                    let off = (((ijk[0] & 7) << 6) | ((ijk[1] & 7) << 3) | (ijk[2] & 7)) as usize;
+                    let off = in_brick(ijk);
                     self.bricks[b as usize][off]
                 }
             }
@@ -388,17 +388,19 @@ impl Grid {
         let i = p.map(floor_small);
         let f = [0, 1, 2].map(|a| p[a] - i[a] as f32);
         // Fast path: the 2×2×2 stencil lies inside one brick (7 of 8 positions per axis).
+        // (Tested first on its own: folding it into the match below as `cross == 0`
+        // cost 0.5–1.2 % more instructions per sample.)
         let c = if (i[0] & 7) != 7 && (i[1] & 7) != 7 && (i[2] & 7) != 7 {
             let Some(v) = self.brick_at([i[0] >> 3, i[1] >> 3, i[2] >> 3]) else {
                 return self.background;
             };
-            let o = (((i[0] & 7) << 6) | ((i[1] & 7) << 3) | (i[2] & 7)) as usize;
+            let o = in_brick(i);
             // One bounds check for the stencil's span (o + 73 ≤ 511 here).
             let v = &v[o..o + 74];
             [v[0], v[1], v[8], v[9], v[64], v[65], v[72], v[73]]
         } else {
-            // The axes on which the stencil leaves its brick: one (a face) in 86% of
-            // these, so that case has its own straight-line path.
+            // The axes (x = 4, y = 2, z = 1) on which the stencil leaves its brick: one
+            // (a face) in 86 % of these, so that case has its own straight-line path.
             let cross = ((i[0] & 7) == 7) as u32 * 4
                 | ((i[1] & 7) == 7) as u32 * 2
                 | ((i[2] & 7) == 7) as u32;
@@ -439,7 +441,7 @@ impl Grid {
         let mut b1 = b0;
         b1[A] += 1;
         let (near, far) = (self.brick_at(b0), self.brick_at(b1));
-        let o = (((i[0] & 7) << 6) | ((i[1] & 7) << 3) | (i[2] & 7)) as usize;
+        let o = in_brick(i);
         // Stride of axis A in a brick; the far brick's voxels sit 8 strides back.
         let stride = [64, 8, 1][A];
         std::array::from_fn(|n| {
@@ -534,6 +536,12 @@ impl Grid {
     pub fn memory_bytes(&self) -> usize {
         self.index.len() * 4 + self.bricks.len() * BRICK_VOXELS * 4
     }
+}
+
+/// The slot of voxel `ijk` in its brick (x-major: x·64 + y·8 + z).
+#[inline(always)]
+fn in_brick(ijk: [i32; 3]) -> usize {
+    (((ijk[0] & 7) << 6) | ((ijk[1] & 7) << 3) | (ijk[2] & 7)) as usize
 }
 
 /// `x.floor() as i32` for finite |x| < 1e9 (callers check): [`floor_i32`] without the

@@ -479,22 +479,27 @@ impl MajorantTree {
     }
 
     /// Where a walk of the ray would start: the `t0` of its first segment, without
-    /// setting the walk up (`None` where it would yield none). The same slab test
-    /// as [`TreeWalk::new`], so the same bits.
+    /// setting the walk up (`None` where it would yield none).
     #[inline]
     pub fn entry(&self, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> Option<f32> {
         let inv_d = d.recip().to_array();
+        self.span(o.to_array(), d.to_array(), inv_d, tmin, tmax)
+            .map(|(t0, _)| t0)
+    }
+
+    /// The part `[t0, t1)` of `[tmin, tmax)` where the ray lies in the region: what a
+    /// walk covers ([`TreeWalk::new`] and [`Self::entry`] both take it from here).
+    #[inline(always)]
+    fn span(
+        &self,
+        o: [f32; 3],
+        d: [f32; 3],
+        inv_d: [f32; 3],
+        tmin: f32,
+        tmax: f32,
+    ) -> Option<(f32, f32)> {
         let (lo, hi) = self.region?;
-        clip(
-            lo.to_array(),
-            hi.to_array(),
-            o.to_array(),
-            d.to_array(),
-            inv_d,
-            tmin,
-            tmax,
-        )
-        .map(|(t0, _)| t0)
+        clip(lo.to_array(), hi.to_array(), o, d, inv_d, tmin, tmax)
     }
 }
 
@@ -627,10 +632,7 @@ impl<'a> TreeWalk<'a> {
             t_face: [f32::INFINITY; 3],
             relocate: true,
         };
-        if let Some((t0, t1)) = tree
-            .region
-            .and_then(|(lo, hi)| clip(lo.to_array(), hi.to_array(), o, d, inv_d, tmin, tmax))
-        {
+        if let Some((t0, t1)) = tree.span(o, d, inv_d, tmin, tmax) {
             walk.t = t0;
             walk.t_end = t1;
         }
