@@ -192,6 +192,7 @@ fn full_path(c: &mut Criterion) {
             seed: 1,
             qmc_dims: 0,
             extras: Default::default(),
+            select_segments: false,
         };
         let mut rng = pixel_sampler(5, 6);
         let mut counters = Counters::default();

@@ -158,6 +158,7 @@ fn trackers_agree_with_delta_reference() {
                 settings(SpectralDecomposition, HistAvg),
             ),
             ("spectral-mis", settings(SpectralMis, Avg)),
+            ("ratio-select", settings(RatioSelect, Avg)),
             (
                 "residual-ratio shadows",
                 TrackerSettings {
@@ -172,6 +173,13 @@ fn trackers_agree_with_delta_reference() {
             TrackerSettings {
                 majorant_scale: 0.5,
                 ..settings(WeightedDelta, Avg)
+            },
+        ));
+        configs.push((
+            "ratio-select, majorant × 0.5",
+            TrackerSettings {
+                majorant_scale: 0.5,
+                ..settings(RatioSelect, Avg)
             },
         ));
         configs.push((

@@ -250,6 +250,7 @@ fn estimators() -> Vec<(String, TrackerSettings)> {
             "spectral-decomposition/hist-avg, no absorption events".into(),
             s(TrackerKind::SpectralDecomposition, true),
         ),
+        ("ratio-select".into(), s(TrackerKind::RatioSelect, false)),
     ]
 }
 
@@ -272,8 +273,8 @@ fn z_diff(a: &[(f64, f64); 3], b: &[(f64, f64); 3]) -> [f64; 3] {
 /// constant albedo grid c = (0.3, 0.6, 0.9) renders like the same cube without the grid
 /// and σs' = c·σs, σa' = σa + (1 − c)·σs (same extinction).
 /// Estimator: the path tracer (NEE + MIS to the environment, max depth 64, Russian
-/// roulette), for delta, naive delta, and spectral decomposition (hist-avg; with and
-/// without absorption events); N = 40,000 independent paths through the image centre
+/// roulette), for delta, naive delta, spectral decomposition (hist-avg; with and
+/// without absorption events) and ratio-select; N = 40,000 independent paths through the image centre
 /// per medium and estimator, seeds 5 (grid) and 6 (reference); z = difference of the
 /// means over the standard error of the difference (sample variances); |z| < 4 per
 /// channel. Power: the grid medium *without* the scatter weight (no albedo grid) must

@@ -123,7 +123,9 @@ fn auto_follows_its_rules() {
         ..TrackerSettings::default()
     };
     let (t, reason) = a.choose(base, Given::default());
-    assert_eq!(t.tracker, TrackerKind::SpectralDecomposition);
+    assert_eq!(t.tracker, TrackerKind::RatioSelect);
+    // Its fallback where volumes overlap: spectral decomposition, hist-avg, no
+    // absorption events.
     assert_eq!(t.scheme, SchemeKind::HistAvg);
     assert_eq!(t.transmittance, TransmittanceKind::Ratio);
     assert!(t.options.no_absorption_events);
@@ -183,7 +185,7 @@ fn auto_follows_its_rules() {
 }
 
 /// The example scenes through the CLI: `auto` (the default) picks delta for the grey
-/// cloud and spectral decomposition without absorption events for the chromatic medium,
+/// cloud and ratio-select (no absorption events in its fallback) for the chromatic medium,
 /// and the stats say so and why; a named tracker is used as named, with no reason.
 #[test]
 fn auto_is_the_default_and_is_reported() {
@@ -220,7 +222,7 @@ fn auto_is_the_default_and_is_reported() {
         .unwrap()
         .contains("grey"));
     let chromatic = run("chromatic", &[]);
-    assert_eq!(chromatic["tracker"], "spectral-decomposition");
+    assert_eq!(chromatic["tracker"], "ratio-select");
     assert_eq!(chromatic["scheme"], "hist-avg");
     assert_eq!(chromatic["no_absorption_events"], true);
     assert_eq!(chromatic["analysis"]["grey"], false);

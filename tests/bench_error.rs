@@ -246,17 +246,11 @@ fn bench_error_resolves_auto_per_stage() {
     ]);
     assert_ok(&o);
     let out = String::from_utf8_lossy(&o.stdout);
-    assert!(out.contains("auto: chromatic medium"), "{out}");
+    assert!(out.contains("auto: chromatic, non-emissive"), "{out}");
     assert!(out.contains("wall clock"), "{out}");
     let (_, rows) = read_csv(&csv);
     let labels: Vec<&str> = rows.iter().map(|r| r.tracker.as_str()).collect();
-    assert_eq!(
-        labels,
-        [
-            "delta",
-            "auto=spectral-decomposition:hist-avg:no-absorption-events"
-        ]
-    );
+    assert_eq!(labels, ["delta", "auto=ratio-select:no-absorption-events"]);
 }
 
 #[test]

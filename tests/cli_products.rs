@@ -101,8 +101,9 @@ fn render_products_each_get_their_vars() {
         Some("/Render/Counters")
     );
     for (key, want) in [
-        // `auto` (the default) picks spectral decomposition: the medium is chromatic.
-        ("nimbus:tracker", "spectral-decomposition"),
+        // `auto` (the default) picks ratio-select: the medium is chromatic and
+        // heterogeneous, without emission.
+        ("nimbus:tracker", "ratio-select"),
         ("nimbus:scheme", "hist-avg"),
         ("nimbus:transmittance", "ratio"),
         ("nimbus:version", env!("CARGO_PKG_VERSION")),

@@ -816,6 +816,7 @@ fn check_grey_emission<F: FreePathSampler, E: TransmittanceEstimator>(
         seed: 5,
         qmc_dims: 0,
         extras: Default::default(),
+        select_segments: false,
     };
     let mut rng = pixel_sampler(5, 0);
     let mut c = Counters::default();

@@ -368,6 +368,7 @@ fn samples(
         seed,
         qmc_dims: 0,
         extras: Default::default(),
+        select_segments: false,
     };
     let mut rng = pixel_sampler(seed, 40);
     let mut c = Counters::default();

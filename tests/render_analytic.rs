@@ -72,11 +72,12 @@ fn integrator_with<'a, F: FreePathSampler>(
         seed,
         qmc_dims: 0,
         extras: Default::default(),
+        select_segments: false,
     }
 }
 
 fn samples(medium: &Medium, lights: &Lights, max_depth: u32, n: usize) -> Vec<[f64; 3]> {
-    samples_with(Delta, medium, lights, max_depth, n)
+    samples_with(Delta, medium, lights, max_depth, n, false)
 }
 
 fn samples_with<F: FreePathSampler>(
@@ -85,9 +86,11 @@ fn samples_with<F: FreePathSampler>(
     lights: &Lights,
     max_depth: u32,
     n: usize,
+    select_segments: bool,
 ) -> Vec<[f64; 3]> {
     let cam = camera();
-    let it = integrator_with(free_path, medium, lights, &cam, 1, max_depth, 5);
+    let mut it = integrator_with(free_path, medium, lights, &cam, 1, max_depth, 5);
+    it.select_segments = select_segments;
     let mut rng = pixel_sampler(5, 40);
     let mut c = Counters::default();
     (0..n)
@@ -105,7 +108,8 @@ fn z_scores(s: &[[f64; 3]], expected: [f64; 3]) -> [f64; 3] {
 }
 
 /// Albedo 0: the camera sees dome · exp(−σt). Estimator: one path per sample (delta
-/// tracking, then spectral MIS; escape carries the dome radiance), N = 100,000 each,
+/// tracking, then spectral MIS, escape carrying the dome radiance; then ratio-select,
+/// its ratio-tracked transmittance times the dome), N = 100,000 each,
 /// seed 5; |z| < 4 per channel.
 #[test]
 fn absorbing_cube_transmits_dome_exactly() {
@@ -121,16 +125,19 @@ fn absorbing_cube_transmits_dome_exactly() {
     let z = z_scores(&s, expected);
     assert!(z.iter().all(|z| z.abs() < 4.0), "z = {z:?}");
     let mis = SpectralMis::new(SchemeOptions::default());
-    let s = samples_with(mis, &m, &lights, 64, 100_000);
+    let s = samples_with(mis, &m, &lights, 64, 100_000, false);
     let z = z_scores(&s, expected);
     assert!(z.iter().all(|z| z.abs() < 4.0), "spectral-mis: z = {z:?}");
+    let s = samples_with(Delta, &m, &lights, 64, 100_000, true);
+    let z = z_scores(&s, expected);
+    assert!(z.iter().all(|z| z.abs() < 4.0), "ratio-select: z = {z:?}");
 }
 
 /// Albedo 1 inside a constant environment: radiance is the environment's everywhere,
 /// whatever the density, phase function or colour of σs (energy conservation; exact in
 /// the limit of unbounded depth, and depth 10,000 with Russian roulette leaves a bias far
 /// below the noise). Checks multiple scattering, environment NEE, phase sampling and
-/// their MIS together. Delta tracking, then spectral MIS: N = 50,000 each, seed 5;
+/// their MIS together. Delta tracking, spectral MIS, ratio-select: N = 50,000 each, seed 5;
 /// |z| < 4 per channel.
 #[test]
 fn conservative_cube_in_constant_environment_is_invisible() {
@@ -145,11 +152,17 @@ fn conservative_cube_in_constant_environment_is_invisible() {
         let z = z_scores(&s, lights.environment);
         assert!(z.iter().all(|z| z.abs() < 4.0), "g {g}: z = {z:?}");
         let mis = SpectralMis::new(SchemeOptions::default());
-        let s = samples_with(mis, &m, &lights, 10_000, 50_000);
+        let s = samples_with(mis, &m, &lights, 10_000, 50_000, false);
         let z = z_scores(&s, lights.environment);
         assert!(
             z.iter().all(|z| z.abs() < 4.0),
             "spectral-mis g {g}: z = {z:?}"
+        );
+        let s = samples_with(Delta, &m, &lights, 10_000, 50_000, true);
+        let z = z_scores(&s, lights.environment);
+        assert!(
+            z.iter().all(|z| z.abs() < 4.0),
+            "ratio-select g {g}: z = {z:?}"
         );
     }
 }

@@ -409,6 +409,7 @@ fn render(
                 seed: self.seed,
                 qmc_dims: 0,
                 extras: Default::default(),
+                select_segments: false,
             };
             let mut rng = nimbus::render::sampler::pixel_sampler(self.seed, 0);
             let mut out: [Vec<f64>; 3] = Default::default();

@@ -13,6 +13,7 @@ use crate::render::lights::Lights;
 use crate::render::phase::{hg, sample_hg};
 use crate::render::sampler::{pixel_sampler, Sampler};
 use crate::render::splits::{SplitMap, MAX_LAYERS};
+use crate::track::collision_select::{ratio_select, SegmentEstimate};
 use crate::track::free_path::{FreePath, FreePathSampler, Query, TransmittanceEstimator};
 use crate::track::race::MAX_MEDIA;
 use crate::volume::counters::{Counters, NoCounts, Tally};
@@ -144,6 +145,11 @@ pub struct Integrator<'a, F: FreePathSampler, E: TransmittanceEstimator> {
     /// from the independent stream; [`Sampler::start_sample`]).
     pub qmc_dims: u32,
     pub extras: Extras<'a>,
+    /// `ratio-select`: each path segment through one volume by one ratio-tracking walk
+    /// that estimates the transmittance to its end and picks the collision the path
+    /// scatters at ([`ratio_select`]); `free_path` runs where several volumes overlap
+    /// along a ray, and for camera rays of deep renders.
+    pub select_segments: bool,
 }
 
 /// One sample's result: radiance and alpha (1 − camera-ray transmittance estimate).
@@ -343,10 +349,19 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         let mut depth = f64::NAN;
         loop {
             let t0 = counters.tracker_start();
-            let (event, id) =
+            // Deep output bins a sample by its first real collision on the camera ray,
+            // which only free-path sampling gives.
+            let selecting =
+                self.select_segments && !(path.depth == 0 && self.extras.depth_bins.is_some());
+            let step =
                 self.with_queries(origin, dir, tmin, tmax, path.tracked, |qs, ids| match qs {
-                    [] => (FreePath::Escape, 0),
-                    [q] => (
+                    [] => Step::Tracked(FreePath::Escape, 0),
+                    [q] if selecting => {
+                        let emissive = self.media[ids[0]].emission.is_some();
+                        let s = ratio_select(q, path.throughput, emissive, rng, counters);
+                        Step::Selected(s, ids[0])
+                    }
+                    [q] => Step::Tracked(
                         self.free_path
                             .sample(q, &mut path.throughput, rng, counters),
                         ids[0],
@@ -355,10 +370,34 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                         let (event, lane) =
                             self.free_path
                                 .sample_race(qs, &mut path.throughput, rng, counters);
-                        (event, ids[lane])
+                        Step::Tracked(event, ids[lane])
                     }
                 });
             counters.tracker_stop(t0);
+            let (event, id, selected) = match step {
+                Step::Tracked(event, id) => (event, id, false),
+                Step::Selected(s, id) => {
+                    if path.depth == 0 {
+                        alpha = 1.0 - crate::track::free_path::avg(s.transmittance) as f64;
+                    }
+                    if !blocked && self.lights.has_environment() {
+                        let w = self.escape_weight(&path, dir);
+                        let mut tr = s.transmittance;
+                        crate::track::free_path::mul(&mut tr, path.throughput);
+                        self.add_environment(&mut radiance, tr, path.depth, dir, w);
+                    }
+                    if let (Some((t, w)), Some(emission)) = (s.emit, &self.media[id].emission) {
+                        let le = emission.radiance(origin + dir * t as f64, counters);
+                        let source = self.extras.splits.map_or(0, |m| m.emission_source(id));
+                        radiance.add(source, path.depth, scaled(w, le, 1.0));
+                    }
+                    let Some((t, w)) = s.scatter else {
+                        break;
+                    };
+                    path.throughput = w;
+                    (FreePath::Scatter { t }, id, true)
+                }
+            };
             // The medium whose collision it was (its phase function, emission, albedo).
             let medium = &self.media[id];
             match event {
@@ -370,17 +409,11 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                         // The ray ended at a holdout: black matte, nothing more.
                     } else if path.depth == 0 {
                         if self.lights.has_environment() {
-                            self.add_environment(&mut radiance, &path, dir, 1.0);
+                            self.add_environment(&mut radiance, path.throughput, 0, dir, 1.0);
                         }
                     } else if self.lights.has_environment() {
-                        // MIS with environment NEE; the phase sample's weight
-                        // phase/pdf is 1.
-                        let pdf_phase = hg(path.g, path.last_cos);
-                        let w = match self.lights.environment_nee() {
-                            true => power_heuristic(pdf_phase, self.lights.environment_pdf(dir)),
-                            false => 1.0,
-                        };
-                        self.add_environment(&mut radiance, &path, dir, w);
+                        let w = self.escape_weight(&path, dir);
+                        self.add_environment(&mut radiance, path.throughput, path.depth, dir, w);
                     }
                     break;
                 }
@@ -402,7 +435,9 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                 }
                 FreePath::Scatter { t } => {
                     if path.depth == 0 {
-                        alpha = 1.0;
+                        if !selected {
+                            alpha = 1.0;
+                        }
                         depth = (camera_shift + t as f64) * ray.depth_per_t;
                     }
                     path.depth += 1;
@@ -453,14 +488,31 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         }
     }
 
+    /// The MIS weight of environment light reached along `dir` by the path's last
+    /// phase-sampled ray (1 for a camera ray, and without environment NEE); the phase
+    /// sample's weight phase/pdf is 1.
+    fn escape_weight(&self, path: &PathState, dir: DVec3) -> f64 {
+        if path.depth == 0 || !self.lights.environment_nee() {
+            return 1.0;
+        }
+        power_heuristic(hg(path.g, path.last_cos), self.lights.environment_pdf(dir))
+    }
+
     /// Adds environment light arriving along `dir` with MIS weight `w`; the split
     /// layers get each dome's share.
-    fn add_environment(&self, radiance: &mut Radiance, path: &PathState, dir: DVec3, w: f64) {
+    fn add_environment(
+        &self,
+        radiance: &mut Radiance,
+        throughput: [f32; 3],
+        events: u32,
+        dir: DVec3,
+        w: f64,
+    ) {
         let le = self.lights.environment_radiance(dir);
-        radiance.add_total(scaled(path.throughput, le, w));
+        radiance.add_total(scaled(throughput, le, w));
         if radiance.splitting() {
             self.lights.environment_parts(dir, |source, part| {
-                radiance.add_split(source, path.depth, scaled(path.throughput, part, w));
+                radiance.add_split(source, events, scaled(throughput, part, w));
             });
         }
     }
@@ -644,6 +696,13 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         });
         f(&qs[..k], &ids[..k])
     }
+}
+
+/// One path segment's outcome: a free-path sampler's event in medium `.1`, or the
+/// estimates of a ratio-select walk through medium `.1`.
+enum Step {
+    Tracked(FreePath, usize),
+    Selected(SegmentEstimate, usize),
 }
 
 /// Per-pixel slices of a film's extra accumulators, for [`Integrator::add_samples`].

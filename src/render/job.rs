@@ -101,6 +101,7 @@ impl RenderJob<'_> {
                     seed: j.seed,
                     qmc_dims: j.sampler.qmc_dims(),
                     extras: j.extras,
+                    select_segments: j.tracking.tracker == TrackerKind::RatioSelect,
                 }
                 .render_pass(self.film, self.n, self.progress)
             }

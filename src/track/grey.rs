@@ -219,6 +219,6 @@ impl TransmittanceEstimator for GreyResidualRatio {
 impl TransmittanceEstimator for GreyRatio {
     #[inline]
     fn transmittance<R: Rng, C: Tally>(&self, q: &Query, rng: &mut R, c: &mut C) -> Spectrum {
-        ratio::<f32, R, C>(q, rng, c).spectrum()
+        ratio::<f32, R, C, false>(q, rng, c).spectrum()
     }
 }

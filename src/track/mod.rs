@@ -9,6 +9,7 @@
 //! selection and dispatch are in [`select`]; the integrator is generic over both and is
 //! instantiated once per render, so the collision loops have no dynamic dispatch.
 
+pub mod collision_select;
 pub mod decomposition;
 pub mod delta;
 pub mod free_path;

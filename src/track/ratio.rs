@@ -89,7 +89,7 @@ impl Estimate for f32 {
 
 /// Applies Russian roulette to `tr`; returns false when the estimate was killed.
 #[inline(always)]
-fn roulette<T: Estimate, R: Rng>(tr: &mut T, rng: &mut R) -> bool {
+pub(super) fn roulette<T: Estimate, R: Rng>(tr: &mut T, rng: &mut R) -> bool {
     let m = tr.magnitude();
     if m == 0.0 {
         return false; // nothing left to estimate (e.g. the control's exp underflowed)
@@ -104,13 +104,25 @@ fn roulette<T: Estimate, R: Rng>(tr: &mut T, rng: &mut R) -> bool {
     true
 }
 
-/// Ratio tracking along `q`'s ray.
+/// Ratio tracking along `q`'s ray; with `STOCHASTIC`, each collision reads one voxel
+/// of the trilinear stencil ([`Medium::density_estimate`]), which keeps the estimate
+/// unbiased because every factor is linear in the density.
+///
+/// [`Medium::density_estimate`]: crate::volume::medium::Medium::density_estimate
 #[inline(always)]
-pub(super) fn ratio<T: Estimate, R: Rng, C: Tally>(q: &Query, rng: &mut R, c: &mut C) -> T {
+pub(super) fn ratio<T: Estimate, R: Rng, C: Tally, const STOCHASTIC: bool>(
+    q: &Query,
+    rng: &mut R,
+    c: &mut C,
+) -> T {
     let sg = q.sigma;
     let mut tr = T::ONE;
     walk_collisions(q, rng, c, |t, mu_bar, rng, c| {
-        let d = q.medium.density(q.ray.at(t), c);
+        let d = if STOCHASTIC {
+            q.medium.density_estimate(q.ray.at(t), rng.gen::<u64>(), c)
+        } else {
+            q.medium.density(q.ray.at(t), c)
+        };
         c.null_collision();
         tr.attenuate(&sg.t, |st| 1.0 - d * st / mu_bar);
         if roulette(&mut tr, rng) {
@@ -166,7 +178,17 @@ pub(super) fn residual_ratio<T: Estimate, R: Rng, C: Tally>(
 
 impl TransmittanceEstimator for Ratio {
     fn transmittance<R: Rng, C: Tally>(&self, q: &Query, rng: &mut R, c: &mut C) -> Spectrum {
-        ratio::<Spectrum, R, C>(q, rng, c)
+        ratio::<Spectrum, R, C, false>(q, rng, c)
+    }
+}
+
+/// Ratio tracking with one-voxel stochastic lookups (`ratio-select`'s shadow rays).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct StochasticRatio;
+
+impl TransmittanceEstimator for StochasticRatio {
+    fn transmittance<R: Rng, C: Tally>(&self, q: &Query, rng: &mut R, c: &mut C) -> Spectrum {
+        ratio::<Spectrum, R, C, true>(q, rng, c)
     }
 }
 

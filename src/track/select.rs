@@ -51,6 +51,9 @@ pub enum TrackerKind {
     SpectralDecomposition,
     /// Hero-channel free paths combined over the channels by one-sample MIS.
     SpectralMis,
+    /// Ratio tracking over each path segment: transmittance and the scattering
+    /// collision from one walk.
+    RatioSelect,
 }
 
 impl Choice for TrackerKind {
@@ -63,6 +66,7 @@ impl Choice for TrackerKind {
         TrackerKind::Spectral,
         TrackerKind::SpectralDecomposition,
         TrackerKind::SpectralMis,
+        TrackerKind::RatioSelect,
     ];
 
     fn help(self) -> &'static str {
@@ -75,6 +79,7 @@ impl Choice for TrackerKind {
             TrackerKind::Spectral => "Spectral tracking with `--scheme`",
             TrackerKind::SpectralDecomposition => "Spectral tracking of an achromatic control and a chromatic residual",
             TrackerKind::SpectralMis => "Hero-channel delta tracking, channels combined by one-sample MIS (balance heuristic)",
+            TrackerKind::RatioSelect => "Ratio tracking along each path segment: transmittance to its end and one collision, chosen by weight, to scatter at",
         }
     }
 
@@ -95,6 +100,7 @@ impl TrackerKind {
             TrackerKind::Spectral => "spectral",
             TrackerKind::SpectralDecomposition => "spectral-decomposition",
             TrackerKind::SpectralMis => "spectral-mis",
+            TrackerKind::RatioSelect => "ratio-select",
         }
     }
 }
@@ -233,6 +239,10 @@ impl Default for TrackerSettings {
 /// select, as concrete types: the one place where the choice is turned into a type.
 pub fn dispatch<T>(s: &TrackerSettings, f: impl Dispatch<T>) -> T {
     let o = s.options;
+    // ratio-select's shadow rays read one voxel per collision, as its walks do.
+    if s.tracker == TrackerKind::RatioSelect && s.transmittance == TransmittanceKind::Ratio {
+        return dispatch_free_path(s, o, ratio::StochasticRatio, f);
+    }
     match s.transmittance {
         TransmittanceKind::Ratio => dispatch_free_path(s, o, ratio::Ratio, f),
         TransmittanceKind::ResidualRatio => dispatch_free_path(s, o, ratio::ResidualRatio, f),
@@ -299,6 +309,10 @@ fn dispatch_free_path<T, E: TransmittanceEstimator>(
             SchemeKind::HistAvg => f.run(Decomposition::<HistAvg>::new(0.0, o), e),
         },
         TrackerKind::SpectralMis => f.run(spectral_mis::SpectralMis::new(o), e),
+        // The integrator walks each segment through one volume itself
+        // (track::collision_select); segments where volumes overlap, and the camera
+        // rays of deep renders, take spectral decomposition tracking with hist-avg.
+        TrackerKind::RatioSelect => f.run(Decomposition::<HistAvg>::new(0.0, o), e),
     }
 }
 

@@ -279,6 +279,21 @@ impl Medium {
         }
     }
 
+    /// An unbiased one-voxel estimate of [`density`](Self::density) at `p` from the
+    /// 63 random bits `u` ([`Grid::sample_stochastic`]); one density lookup.
+    #[inline(always)]
+    pub fn density_estimate<C: Tally>(&self, p: Vec3, u: u64, counters: &mut C) -> f32 {
+        if counters.timing() {
+            let t0 = ticks::now();
+            let d = self.density.sample_stochastic(p.to_array(), u);
+            counters.density_lookup(ticks::now() - t0);
+            d
+        } else {
+            counters.density_lookup(0);
+            self.density.sample_stochastic(p.to_array(), u)
+        }
+    }
+
     /// Density (already scaled into extinction units by σ) at an index-space point.
     /// Every call is one density lookup.
     #[inline(always)]

@@ -184,6 +184,7 @@ impl Dispatch<Output> for Run<'_, '_> {
             seed: s.seed,
             qmc_dims: 0,
             extras: Default::default(),
+            select_segments: self.settings.tracker == TrackerKind::RatioSelect,
         };
         match self.mode {
             Mode::Film => Output::Film(it.render(&|| {})),
