@@ -3,6 +3,9 @@
 //! lights and the environment (domes, constant or textured) with ratio-tracking
 //! transmittance, MIS between environment NEE and phase sampling, and volume emission
 //! collected at absorption events; an albedo grid weights each scatter event by c(x).
+//! With `ratio-select` a segment's free path is replaced by one ratio-tracking walk
+//! ([`ratio_select`]) that weights the background by its transmittance and picks the
+//! collision to scatter at.
 
 use crate::color::Spectrum;
 use crate::render::camera::CameraRays;
@@ -380,17 +383,8 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                     if path.depth == 0 {
                         alpha = 1.0 - crate::track::free_path::avg(s.transmittance) as f64;
                     }
-                    if !blocked && self.lights.has_environment() {
-                        let w = self.escape_weight(&path, dir);
-                        let mut tr = s.transmittance;
-                        crate::track::free_path::mul(&mut tr, path.throughput);
-                        self.add_environment(&mut radiance, tr, path.depth, dir, w);
-                    }
-                    if let (Some((t, w)), Some(emission)) = (s.emit, &self.media[id].emission) {
-                        let le = emission.radiance(origin + dir * t as f64, counters);
-                        let source = self.extras.splits.map_or(0, |m| m.emission_source(id));
-                        radiance.add(source, path.depth, scaled(w, le, 1.0));
-                    }
+                    let ray = (origin, dir, blocked);
+                    self.add_walk_light(&s, id, &path, ray, &mut radiance, counters);
                     let Some((t, w)) = s.scatter else {
                         break;
                     };
@@ -485,6 +479,33 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             rgb: radiance.total,
             alpha,
             depth,
+        }
+    }
+
+    /// Adds what a ratio-select walk along `ray` (origin, direction, whether a holdout
+    /// ends it) through medium `id` estimated besides its scattering collision: the
+    /// environment behind it through the transmittance, and the emission at the
+    /// collision chosen for it.
+    fn add_walk_light<C: Tally>(
+        &self,
+        s: &SegmentEstimate,
+        id: usize,
+        path: &PathState,
+        ray: (DVec3, DVec3, bool),
+        radiance: &mut Radiance,
+        counters: &mut C,
+    ) {
+        let (origin, dir, blocked) = ray;
+        if !blocked && self.lights.has_environment() {
+            let w = self.escape_weight(path, dir);
+            let mut tr = s.transmittance;
+            crate::track::free_path::mul(&mut tr, path.throughput);
+            self.add_environment(radiance, tr, path.depth, dir, w);
+        }
+        if let (Some((t, w)), Some(emission)) = (s.emit, &self.media[id].emission) {
+            let le = emission.radiance(origin + dir * t as f64, counters);
+            let source = self.extras.splits.map_or(0, |m| m.emission_source(id));
+            radiance.add(source, path.depth, scaled(w, le, 1.0));
         }
     }
 
