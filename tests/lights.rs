@@ -611,9 +611,20 @@ fn lit_cube(lights: &Lights, n: usize, seed: u64) -> Vec<[f64; 3]> {
 
 /// [`lit_cube`] with at most `max_depth` scattering events.
 fn lit_cube_to_depth(lights: &Lights, max_depth: u32, n: usize, seed: u64) -> Vec<[f64; 3]> {
+    lit_cube_select(lights, max_depth, n, seed, false)
+}
+
+/// [`lit_cube_to_depth`], with `ratio-select`'s walks when `select`.
+fn lit_cube_select(
+    lights: &Lights,
+    max_depth: u32,
+    n: usize,
+    seed: u64,
+    select: bool,
+) -> Vec<[f64; 3]> {
     let medium = common::unit_cube(1.0, [0.5; 3], [2.0, 1.0, 0.5], 0.5);
     let cam = camera(DVec3::new(0.0, 0.0, 10.0), 0.1, 1e6);
-    samples(&medium, lights, &cam, max_depth, n, seed)
+    samples_select(&medium, lights, &cam, max_depth, n, seed, select)
 }
 
 fn two_sample_z(a: &[[f64; 3]], b: &[[f64; 3]]) -> [f64; 3] {
@@ -665,22 +676,8 @@ fn constant_texture_dome_matches_constant_dome() {
 /// seeds 23 and 24; two-sample |z| < 4 per channel.
 #[test]
 fn importance_sampled_dome_agrees_with_uniform_sampling() {
-    let make = |importance: bool| {
-        let mut map = EnvMap::new(
-            64,
-            32,
-            bright_patch_sky(64, 32),
-            DMat4::from_rotation_y(1.0),
-        );
-        map.importance = importance;
-        Lights {
-            env_maps: vec![map],
-            environment: [0.05, 0.05, 0.1],
-            ..Default::default()
-        }
-    };
-    let a = lit_cube(&make(true), 100_000, 23);
-    let b = lit_cube(&make(false), 100_000, 24);
+    let a = lit_cube(&patch_sky_lights(true), 100_000, 23);
+    let b = lit_cube(&patch_sky_lights(false), 100_000, 24);
     let z = two_sample_z(&a, &b);
     assert!(z.iter().all(|z| z.abs() < 4.0), "z = {z:?}");
 }
@@ -692,28 +689,32 @@ fn importance_sampled_dome_agrees_with_uniform_sampling() {
 /// the environment (N = 50,000, seeds 51… and 61…); two-sample |z| < 4 per channel.
 #[test]
 fn ratio_select_agrees_with_delta_under_a_textured_dome() {
+    let lights = patch_sky_lights(true);
+    for (depth, n, seed) in [(64, 100_000, 25), (1, 50_000, 51), (2, 50_000, 52)] {
+        let a = lit_cube_select(&lights, depth, n, seed, false);
+        let b = lit_cube_select(&lights, depth, n, seed + 10, true);
+        let z = two_sample_z(&a, &b);
+        assert!(
+            z.iter().all(|z| z.abs() < 4.0),
+            "max depth {depth}: z = {z:?}"
+        );
+    }
+}
+
+/// The bright-patch sky (64×32, rotated) plus a dim constant dome; the texture
+/// importance-sampled or sampled uniformly.
+fn patch_sky_lights(importance: bool) -> Lights {
     let mut map = EnvMap::new(
         64,
         32,
         bright_patch_sky(64, 32),
         DMat4::from_rotation_y(1.0),
     );
-    map.importance = true;
-    let lights = Lights {
+    map.importance = importance;
+    Lights {
         env_maps: vec![map],
         environment: [0.05, 0.05, 0.1],
         ..Default::default()
-    };
-    let medium = common::unit_cube(1.0, [0.5; 3], [2.0, 1.0, 0.5], 0.5);
-    let cam = camera(DVec3::new(0.0, 0.0, 10.0), 0.1, 1e6);
-    for (depth, n, seed) in [(64, 100_000, 25), (1, 50_000, 51), (2, 50_000, 52)] {
-        let a = samples_select(&medium, &lights, &cam, depth, n, seed, false);
-        let b = samples_select(&medium, &lights, &cam, depth, n, seed + 10, true);
-        let z = two_sample_z(&a, &b);
-        assert!(
-            z.iter().all(|z| z.abs() < 4.0),
-            "max depth {depth}: z = {z:?}"
-        );
     }
 }
 

@@ -31,12 +31,11 @@
 //!
 //! [`Medium::density_estimate`]: crate::volume::medium::Medium::density_estimate
 
-use super::ratio::roulette;
+use super::ratio::ratio_walk;
 use crate::color::Spectrum;
-use crate::track::free_path::{walk_collisions, Query};
+use crate::track::free_path::Query;
 use crate::volume::counters::Tally;
 use rand::Rng;
-use std::ops::ControlFlow;
 
 /// The estimates of one walk.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -112,31 +111,20 @@ pub fn ratio_select<R: Rng, C: Tally>(
     c: &mut C,
 ) -> SegmentEstimate {
     let sg = q.sigma;
-    let mut tr: Spectrum = [1.0; 3];
     let mut scatter = Reservoir::EMPTY;
     let mut emit = Reservoir::EMPTY;
-    walk_collisions(q, rng, c, |t, mu_bar, rng, c| {
-        // One voxel of the trilinear stencil, chosen by its weight: every use of d
-        // below is linear, so the estimates stay unbiased at an eighth of the reads.
-        let d = q.medium.density_estimate(q.ray.at(t), rng.gen::<u64>(), c);
-        c.null_collision();
-        let scale = d / mu_bar;
+    // One voxel of the trilinear stencil per collision, chosen by its weight: every use
+    // of d is linear, so the estimates stay unbiased at an eighth of the reads.
+    let tr = ratio_walk::<Spectrum, R, C, true>(q, rng, c, |t, d, mu_bar, tr, rng, c| {
         if d * sg.t_max > mu_bar {
             c.majorant_violation();
         }
+        let scale = d / mu_bar;
         // The path's weight of this collision before its own attenuation: T̂_i.
         let w: Spectrum = std::array::from_fn(|k| throughput[k] * tr[k] * scale);
         scatter.offer(t, std::array::from_fn(|k| w[k] * sg.s[k]), rng);
         if emission {
             emit.offer(t, std::array::from_fn(|k| w[k] * sg.a[k]), rng);
-        }
-        for k in 0..3 {
-            tr[k] *= 1.0 - sg.t[k] * scale;
-        }
-        if roulette(&mut tr, rng) {
-            ControlFlow::Continue(())
-        } else {
-            ControlFlow::Break(())
         }
     });
     let scatter = scatter.chosen();

@@ -89,7 +89,7 @@ impl Estimate for f32 {
 
 /// Applies Russian roulette to `tr`; returns false when the estimate was killed.
 #[inline(always)]
-pub(super) fn roulette<T: Estimate, R: Rng>(tr: &mut T, rng: &mut R) -> bool {
+fn roulette<T: Estimate, R: Rng>(tr: &mut T, rng: &mut R) -> bool {
     let m = tr.magnitude();
     if m == 0.0 {
         return false; // nothing left to estimate (e.g. the control's exp underflowed)
@@ -115,6 +115,19 @@ pub(super) fn ratio<T: Estimate, R: Rng, C: Tally, const STOCHASTIC: bool>(
     rng: &mut R,
     c: &mut C,
 ) -> T {
+    ratio_walk::<T, R, C, STOCHASTIC>(q, rng, c, |_, _, _, _, _, _| {})
+}
+
+/// [`ratio`], calling `at(t, d, μ̄, T̂, rng, counters)` at each tentative collision with
+/// its density and the product T̂ of the collisions before it (what `ratio-select`
+/// weighs the collision by).
+#[inline(always)]
+pub(super) fn ratio_walk<T: Estimate, R: Rng, C: Tally, const STOCHASTIC: bool>(
+    q: &Query,
+    rng: &mut R,
+    c: &mut C,
+    mut at: impl FnMut(f32, f32, f32, &T, &mut R, &mut C),
+) -> T {
     let sg = q.sigma;
     let mut tr = T::ONE;
     walk_collisions(q, rng, c, |t, mu_bar, rng, c| {
@@ -124,6 +137,7 @@ pub(super) fn ratio<T: Estimate, R: Rng, C: Tally, const STOCHASTIC: bool>(
             q.medium.density(q.ray.at(t), c)
         };
         c.null_collision();
+        at(t, d, mu_bar, &tr, rng, c);
         tr.attenuate(&sg.t, |st| 1.0 - d * st / mu_bar);
         if roulette(&mut tr, rng) {
             ControlFlow::Continue(())

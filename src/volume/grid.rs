@@ -623,29 +623,14 @@ mod tests {
         }
     }
 
-    /// Trilinear lookups read the stencil `voxel` gives, bit for bit, wherever it lies:
-    /// inside a brick, across a face, an edge or a corner of bricks, next to absent
-    /// bricks and outside the index range. 200,000 random points, a quarter of them
-    /// snapped onto the last voxel of a brick on random axes.
-    #[test]
-    fn trilinear_reads_the_voxel_stencil_across_bricks() {
-        use rand::{Rng, SeedableRng};
-        let mut leaves = Vec::new();
-        for (n, origin) in [
-            [0, 0, 0],
-            [8, 0, 0],
-            [0, 8, 0],
-            [8, 8, 8],
-            [16, 0, 8],
-            [-8, 0, 0],
-        ]
-        .into_iter()
-        .enumerate()
-        {
-            leaves.push(leaf(origin, |i| {
-                ((i * 37 + n * 101) % 113) as f32 * 0.01 + 0.1
-            }));
-        }
+    /// A grid of leaves at `origins` (background 0.25), leaf n's voxel i holding a value
+    /// of 0.1–1.22 that varies from voxel to voxel and from leaf to leaf.
+    fn patterned_grid(origins: &[[i32; 3]]) -> Grid {
+        let leaves = origins
+            .iter()
+            .enumerate()
+            .map(|(n, &o)| leaf(o, |i| ((i * 37 + n * 101) % 113) as f32 * 0.01 + 0.1))
+            .collect();
         let raw = RawGrid {
             name: "density".into(),
             class: "fog volume".into(),
@@ -654,7 +639,24 @@ mod tests {
             tiles: vec![],
             index_to_world: DMat4::IDENTITY,
         };
-        let g = Grid::from_raw(&raw).unwrap();
+        Grid::from_raw(&raw).unwrap()
+    }
+
+    /// Trilinear lookups read the stencil `voxel` gives, bit for bit, wherever it lies:
+    /// inside a brick, across a face, an edge or a corner of bricks, next to absent
+    /// bricks and outside the index range. 200,000 random points, a quarter of them
+    /// snapped onto the last voxel of a brick on random axes.
+    #[test]
+    fn trilinear_reads_the_voxel_stencil_across_bricks() {
+        use rand::{Rng, SeedableRng};
+        let g = patterned_grid(&[
+            [0, 0, 0],
+            [8, 0, 0],
+            [0, 8, 0],
+            [8, 8, 8],
+            [16, 0, 8],
+            [-8, 0, 0],
+        ]);
         let reference = |p: [f32; 3]| {
             let i = p.map(floor_i32);
             let f = [0, 1, 2].map(|a| p[a] - i[a] as f32);
@@ -700,20 +702,7 @@ mod tests {
     #[test]
     fn stochastic_lookup_estimates_the_trilinear_value() {
         use rand::{Rng, SeedableRng};
-        let leaves = [[0, 0, 0], [8, 0, 0], [0, 8, 0], [8, 8, 8], [-8, 0, 0]]
-            .into_iter()
-            .enumerate()
-            .map(|(n, o)| leaf(o, |i| ((i * 37 + n * 101) % 113) as f32 * 0.01 + 0.1))
-            .collect();
-        let raw = RawGrid {
-            name: "density".into(),
-            class: "fog volume".into(),
-            background: 0.25,
-            leaves,
-            tiles: vec![],
-            index_to_world: DMat4::IDENTITY,
-        };
-        let g = Grid::from_raw(&raw).unwrap();
+        let g = patterned_grid(&[[0, 0, 0], [8, 0, 0], [0, 8, 0], [8, 8, 8], [-8, 0, 0]]);
         let mut points = rand_pcg::Pcg32::seed_from_u64(11);
         let mut bits = rand_pcg::Pcg32::seed_from_u64(12);
         const N: usize = 20_000;

@@ -283,29 +283,27 @@ impl Medium {
     /// 63 random bits `u` ([`Grid::sample_stochastic`]); one density lookup.
     #[inline(always)]
     pub fn density_estimate<C: Tally>(&self, p: Vec3, u: u64, counters: &mut C) -> f32 {
-        if counters.timing() {
-            let t0 = ticks::now();
-            let d = self.density.sample_stochastic(p.to_array(), u);
-            counters.density_lookup(ticks::now() - t0);
-            d
-        } else {
-            counters.density_lookup(0);
-            self.density.sample_stochastic(p.to_array(), u)
-        }
+        lookup(counters, || self.density.sample_stochastic(p.to_array(), u))
     }
 
     /// Density (already scaled into extinction units by σ) at an index-space point.
     /// Every call is one density lookup.
     #[inline(always)]
     pub fn density<C: Tally>(&self, p: Vec3, counters: &mut C) -> f32 {
-        if counters.timing() {
-            let t0 = ticks::now();
-            let d = self.density.sample_trilinear(p.to_array());
-            counters.density_lookup(ticks::now() - t0);
-            d
-        } else {
-            counters.density_lookup(0);
-            self.density.sample_trilinear(p.to_array())
-        }
+        lookup(counters, || self.density.sample_trilinear(p.to_array()))
+    }
+}
+
+/// Runs the density lookup `read`, counted (and timed when the counters time).
+#[inline(always)]
+fn lookup<C: Tally>(counters: &mut C, read: impl FnOnce() -> f32) -> f32 {
+    if counters.timing() {
+        let t0 = ticks::now();
+        let d = read();
+        counters.density_lookup(ticks::now() - t0);
+        d
+    } else {
+        counters.density_lookup(0);
+        read()
     }
 }
