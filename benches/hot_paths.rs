@@ -9,7 +9,7 @@
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use glam::{DMat4, DVec3, Vec3};
 use nimbus::render::camera::CameraRays;
-use nimbus::render::integrator::Integrator;
+use nimbus::render::integrator::{Integrator, SelectSegments};
 use nimbus::render::lights::{Lights, Sun};
 use nimbus::render::sampler::pixel_sampler;
 use nimbus::scene::Camera;
@@ -192,7 +192,7 @@ fn full_path(c: &mut Criterion) {
             seed: 1,
             qmc_dims: 0,
             extras: Default::default(),
-            select_segments: false,
+            select_segments: SelectSegments::Off,
         };
         let mut rng = pixel_sampler(5, 6);
         let mut counters = Counters::default();

@@ -106,10 +106,14 @@ fn auto_follows_its_rules() {
     let grey = medium(ramp, [0.1; 3], [0.9; 3], 0.0);
     let a = Analysis::of_media(std::slice::from_ref(&grey), &sky([1.0; 3]), &cam, (32, 24));
     assert!(!a.homogeneous);
-    let (t, _) = a.choose(TrackerSettings::default(), Given::default());
-    assert_eq!(t.tracker, TrackerKind::Delta);
+    let (t, reason) = a.choose(TrackerSettings::default(), Given::default());
+    // Grey: ratio-select with the analog defaults, so it runs single-channel (its
+    // fallback is then analog decomposition); the emissive fire's delta is checked
+    // through the CLI below.
+    assert_eq!(t.tracker, TrackerKind::RatioSelect);
     assert_eq!(t.transmittance, TransmittanceKind::Ratio);
     assert!(!t.options.no_absorption_events);
+    assert!(reason.contains("grey"), "{reason}");
 
     let chroma = medium(ramp, [0.2, 0.3, 0.6], [1.1, 1.2, 1.0], 0.0);
     let a = Analysis::of_media(
@@ -184,8 +188,9 @@ fn auto_follows_its_rules() {
     assert_eq!(a.majorants(Given::default()), None);
 }
 
-/// The example scenes through the CLI: `auto` (the default) picks delta for the grey
-/// cloud and ratio-select (no absorption events in its fallback) for the chromatic medium,
+/// The example scenes through the CLI: `auto` (the default) picks ratio-select for
+/// both, single-channel with analog defaults for the grey cloud and with no absorption
+/// events in its fallback for the chromatic medium, and delta for the emissive fire,
 /// and the stats say so and why; a named tracker is used as named, with no reason.
 #[test]
 fn auto_is_the_default_and_is_reported() {
@@ -209,7 +214,8 @@ fn auto_is_the_default_and_is_reported() {
         serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap()
     };
     let cloud = run("cloud", &[]);
-    assert_eq!(cloud["tracker"], "delta");
+    assert_eq!(cloud["tracker"], "ratio-select");
+    assert_eq!(cloud["no_absorption_events"], false);
     // The grey cloud runs the single-channel trackers unless told not to; the stats
     // need the counts, so counting is on.
     assert_eq!(cloud["code_paths"]["grey_tracking"], true);
@@ -221,6 +227,9 @@ fn auto_is_the_default_and_is_reported() {
         .as_str()
         .unwrap()
         .contains("grey"));
+    let fire = run("fire", &[]);
+    assert_eq!(fire["tracker"], "delta");
+    assert_eq!(fire["code_paths"]["grey_tracking"], true);
     let chromatic = run("chromatic", &[]);
     assert_eq!(chromatic["tracker"], "ratio-select");
     assert_eq!(chromatic["scheme"], "hist-avg");

@@ -788,7 +788,7 @@ fn check_grey_emission<F: FreePathSampler, E: TransmittanceEstimator>(
     transmittance: E,
     what: &str,
 ) {
-    use nimbus::render::integrator::Integrator;
+    use nimbus::render::integrator::{Integrator, SelectSegments};
     use nimbus::render::sampler::pixel_sampler;
     let env = [0.3, 0.2, 0.1];
     let lights = Lights {
@@ -816,7 +816,7 @@ fn check_grey_emission<F: FreePathSampler, E: TransmittanceEstimator>(
         seed: 5,
         qmc_dims: 0,
         extras: Default::default(),
-        select_segments: false,
+        select_segments: SelectSegments::Off,
     };
     let mut rng = pixel_sampler(5, 0);
     let mut c = Counters::default();

@@ -9,7 +9,7 @@ use std::path::Path;
 
 use glam::{DMat4, DVec3};
 use nimbus::render::camera::CameraRays;
-use nimbus::render::integrator::Integrator;
+use nimbus::render::integrator::{Integrator, SelectSegments};
 use nimbus::render::lights::{EnvMap, Lights, RectEmitter, SphereEmitter, Sun};
 use nimbus::render::phase::hg;
 use nimbus::render::sampler::pixel_sampler;
@@ -381,7 +381,11 @@ fn samples_select(
         seed,
         qmc_dims: 0,
         extras: Default::default(),
-        select_segments: select,
+        select_segments: if select {
+            SelectSegments::Rgb
+        } else {
+            SelectSegments::Off
+        },
     };
     let mut rng = pixel_sampler(seed, 40);
     let mut c = Counters::default();

@@ -5,7 +5,7 @@ mod common;
 
 use glam::{DMat4, DVec3};
 use nimbus::render::camera::CameraRays;
-use nimbus::render::integrator::Integrator;
+use nimbus::render::integrator::{Integrator, SelectSegments};
 use nimbus::render::lights::Lights;
 use nimbus::render::sampler::pixel_sampler;
 use nimbus::scene::Camera;
@@ -72,7 +72,7 @@ fn integrator_with<'a, F: FreePathSampler>(
         seed,
         qmc_dims: 0,
         extras: Default::default(),
-        select_segments: false,
+        select_segments: SelectSegments::Off,
     }
 }
 
@@ -90,7 +90,11 @@ fn samples_with<F: FreePathSampler>(
 ) -> Vec<[f64; 3]> {
     let cam = camera();
     let mut it = integrator_with(free_path, medium, lights, &cam, 1, max_depth, 5);
-    it.select_segments = select_segments;
+    it.select_segments = if select_segments {
+        SelectSegments::Rgb
+    } else {
+        SelectSegments::Off
+    };
     let mut rng = pixel_sampler(5, 40);
     let mut c = Counters::default();
     (0..n)

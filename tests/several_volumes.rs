@@ -12,7 +12,7 @@ mod common;
 use common::{all_settings, label, mean_se};
 use glam::{DMat4, DVec3};
 use nimbus::render::camera::CameraRays;
-use nimbus::render::integrator::Integrator;
+use nimbus::render::integrator::{Integrator, SelectSegments};
 use nimbus::render::lights::Lights;
 use nimbus::track::free_path::{FreePath, FreePathSampler, Query, TransmittanceEstimator};
 use nimbus::track::select::{Dispatch, TrackerKind, TrackerSettings};
@@ -409,7 +409,7 @@ fn render(
                 seed: self.seed,
                 qmc_dims: 0,
                 extras: Default::default(),
-                select_segments: false,
+                select_segments: SelectSegments::Off,
             };
             let mut rng = nimbus::render::sampler::pixel_sampler(self.seed, 0);
             let mut out: [Vec<f64>; 3] = Default::default();

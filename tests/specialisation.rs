@@ -140,14 +140,16 @@ fn assert_same_decisions(s: &Scene, t: TrackerSettings, what: &str) {
 fn grey_single_channel_makes_the_general_paths_decisions() {
     let s = example("cloud");
     let t = auto(&s);
-    assert_eq!(t.tracker, TrackerKind::Delta);
+    assert_eq!(t.tracker, TrackerKind::RatioSelect);
     assert_same_decisions(&s, t, "auto");
     // Every single-channel twin: delta and analog decomposition (also spelled
     // spectral-decomposition with the avg scheme), with either shadow-ray estimator.
+    // ratio-select walks with one scalar T̂ (its weights formed per channel from it).
     for (tracker, scheme) in [
         (TrackerKind::Delta, SchemeKind::HistAvg),
         (TrackerKind::Decomposition, SchemeKind::HistAvg),
         (TrackerKind::SpectralDecomposition, SchemeKind::Avg),
+        (TrackerKind::RatioSelect, SchemeKind::HistAvg),
     ] {
         for transmittance in [TransmittanceKind::Ratio, TransmittanceKind::ResidualRatio] {
             let t = TrackerSettings {
@@ -179,7 +181,12 @@ fn grey_single_channel_makes_the_general_paths_decisions() {
         cube("/A", DVec3::new(-0.4, 0.0, 0.0), |p: DVec3| 0.5 + 0.4 * p.x),
         cube("/B", DVec3::new(0.5, 0.1, -0.3), |p: DVec3| 0.3 + 0.2 * p.y),
     ]);
-    for tracker in [TrackerKind::Delta, TrackerKind::Decomposition] {
+    // (ratio-select's segments through both take its fallback free path.)
+    for tracker in [
+        TrackerKind::Delta,
+        TrackerKind::Decomposition,
+        TrackerKind::RatioSelect,
+    ] {
         for transmittance in [TransmittanceKind::Ratio, TransmittanceKind::ResidualRatio] {
             let t = TrackerSettings {
                 tracker,
@@ -218,6 +225,15 @@ fn weighted_choices_keep_the_general_path_on_grey_media() {
         },
         TrackerSettings {
             tracker: TrackerKind::Spectral,
+            ..d
+        },
+        // Its fallback free path (overlaps, deep camera rays) carries the options.
+        TrackerSettings {
+            tracker: TrackerKind::RatioSelect,
+            options: SchemeOptions {
+                no_absorption_events: true,
+                reduced_termination: false,
+            },
             ..d
         },
     ];

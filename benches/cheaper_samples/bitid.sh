@@ -1,9 +1,10 @@
 #!/bin/bash
 # usage: benches/cheaper_samples/bitid.sh BASEBIN NEWBIN [extra args] : renders 9 stages x 6 trackers, compares uint32 bits of every channel
+# (TRACKERS="a b" replaces the 6 trackers)
 B=$1; N=$2; shift 2
 cd "$(dirname "$0")/../.."
 eq=0; tot=0; diff=""
-for st in scenes/*/*.usda benches/*/*.usda; do for tr in auto delta decomposition spectral-decomposition spectral spectral-mis; do
+for st in scenes/*/*.usda benches/*/*.usda; do for tr in ${TRACKERS:-auto delta decomposition spectral-decomposition spectral spectral-mis}; do
   $B render $st -o /tmp/bi_b.exr --res 24x18 --spp 2 --tracker $tr --aovs lookups,real_collisions,null_collisions "$@" >/dev/null 2>&1 || { echo "base fail $st $tr"; continue; }
   $N render $st -o /tmp/bi_n.exr --res 24x18 --spp 2 --tracker $tr --aovs lookups,real_collisions,null_collisions "$@" >/dev/null 2>&1 || { echo "new fail $st $tr"; continue; }
   r=$(python3 -c "

@@ -3,12 +3,14 @@
 # a noisy machine). Each build renders STAGE at 80x60 on one thread with 4 and with 12
 # spp; (I12 - I4) / (8 * 4800) is what one sample costs, loading excluded, and
 # I4 - (I12 - I4) / 2 the fixed cost of the process (start, loading, majorants).
-# usage: benches/cheaper_samples/instructions.sh STAGE BIN...
+# usage: benches/cheaper_samples/instructions.sh STAGE BIN[,ARGS]...  (ARGS: extra render
+# arguments, comma-separated, e.g. /tmp/nimbus,--tracker,ratio-select)
 st=$1; shift
 cd "$(dirname "$0")/../.."
 count() {
-  valgrind --tool=callgrind --callgrind-out-file=/dev/null "$1" render "$st" -o /tmp/instr.exr \
-    --res 80x60 --spp "$2" --threads 1 2>&1 | grep refs | tr -d ',' | awk '{print $NF}'
+  IFS=, read -ra cmd <<< "$1"
+  valgrind --tool=callgrind --callgrind-out-file=/dev/null "${cmd[0]}" render "$st" -o /tmp/instr.exr \
+    --res 80x60 --spp "$2" --threads 1 "${cmd[@]:1}" 2>&1 | grep refs | tr -d ',' | awk '{print $NF}'
 }
 for b in "$@"; do
   a=$(count "$b" 4)

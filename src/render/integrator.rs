@@ -152,7 +152,18 @@ pub struct Integrator<'a, F: FreePathSampler, E: TransmittanceEstimator> {
     /// that estimates the transmittance to its end and picks the collision the path
     /// scatters at ([`ratio_select`]); `free_path` runs where several volumes overlap
     /// along a ray, and for camera rays of deep renders.
-    pub select_segments: bool,
+    pub select_segments: SelectSegments,
+}
+
+/// Whether path segments are walked by [`ratio_select`] (`ratio-select`), and with
+/// which transmittance estimate: per channel, or one scalar for grey media (the
+/// same choices from the same numbers, [`grey`](crate::track::grey)).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SelectSegments {
+    /// Free-path sampling only (every other tracker).
+    Off,
+    Rgb,
+    Grey,
 }
 
 /// One sample's result: radiance and alpha (1 − camera-ray transmittance estimate).
@@ -354,14 +365,20 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             let t0 = counters.tracker_start();
             // Deep output bins a sample by its first real collision on the camera ray,
             // which only free-path sampling gives.
-            let selecting =
-                self.select_segments && !(path.depth == 0 && self.extras.depth_bins.is_some());
+            let selecting = self.select_segments != SelectSegments::Off
+                && !(path.depth == 0 && self.extras.depth_bins.is_some());
             let step =
                 self.with_queries(origin, dir, tmin, tmax, path.tracked, |qs, ids| match qs {
                     [] => Step::Tracked(FreePath::Escape, 0),
                     [q] if selecting => {
                         let emissive = self.media[ids[0]].emission.is_some();
-                        let s = ratio_select(q, path.throughput, emissive, rng, counters);
+                        let beta = path.throughput;
+                        let s = match self.select_segments {
+                            SelectSegments::Grey => {
+                                ratio_select::<f32, _, _>(q, beta, emissive, rng, counters)
+                            }
+                            _ => ratio_select::<Spectrum, _, _>(q, beta, emissive, rng, counters),
+                        };
                         Step::Selected(s, ids[0])
                     }
                     [q] => Step::Tracked(

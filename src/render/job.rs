@@ -4,7 +4,7 @@
 use crate::render::analysis::CodePaths;
 use crate::render::camera::CameraRays;
 use crate::render::film::{Film, Region};
-use crate::render::integrator::{Extras, Integrator};
+use crate::render::integrator::{Extras, Integrator, SelectSegments};
 use crate::render::lights::Lights;
 use crate::render::sampler::SamplerKind;
 use crate::scene::schema::tokens;
@@ -101,7 +101,11 @@ impl RenderJob<'_> {
                     seed: j.seed,
                     qmc_dims: j.sampler.qmc_dims(),
                     extras: j.extras,
-                    select_segments: j.tracking.tracker == TrackerKind::RatioSelect,
+                    select_segments: match j.tracking.tracker {
+                        TrackerKind::RatioSelect if j.grey_tracking() => SelectSegments::Grey,
+                        TrackerKind::RatioSelect => SelectSegments::Rgb,
+                        _ => SelectSegments::Off,
+                    },
                 }
                 .render_pass(self.film, self.n, self.progress)
             }

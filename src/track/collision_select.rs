@@ -31,7 +31,7 @@
 //!
 //! [`Medium::density_estimate`]: crate::volume::medium::Medium::density_estimate
 
-use super::ratio::ratio_walk;
+use super::ratio::{ratio_walk, Estimate};
 use crate::color::Spectrum;
 use crate::track::free_path::Query;
 use crate::volume::counters::Tally;
@@ -102,8 +102,13 @@ impl Reservoir {
 /// for emission when `emission`), for a path of `throughput`: the choice is in
 /// proportion to the path's contribution, throughput × T̂ × μ/μ̄, averaged over the
 /// channels (the history-aware choice of spectral tracking's hist-avg).
+///
+/// `T` is the walk's estimate T̂: one value per channel, or one scalar for a grey
+/// medium (`f32`), whose three channels would hold the same product. The weights are
+/// formed per channel from it either way, so on a grey medium both make the same
+/// choices from the same random numbers.
 #[inline(always)]
-pub fn ratio_select<R: Rng, C: Tally>(
+pub fn ratio_select<T: Estimate, R: Rng, C: Tally>(
     q: &Query,
     throughput: Spectrum,
     emission: bool,
@@ -115,11 +120,12 @@ pub fn ratio_select<R: Rng, C: Tally>(
     let mut emit = Reservoir::EMPTY;
     // One voxel of the trilinear stencil per collision, chosen by its weight: every use
     // of d is linear, so the estimates stay unbiased at an eighth of the reads.
-    let tr = ratio_walk::<Spectrum, R, C, true>(q, rng, c, |t, d, mu_bar, tr, rng, c| {
+    let tr = ratio_walk::<T, R, C, true>(q, rng, c, |t, d, mu_bar, tr, rng, c| {
         if d * sg.t_max > mu_bar {
             c.majorant_violation();
         }
         let scale = d / mu_bar;
+        let tr = tr.spectrum();
         // The path's weight of this collision before its own attenuation: T̂_i.
         let w: Spectrum = std::array::from_fn(|k| throughput[k] * tr[k] * scale);
         scatter.offer(t, std::array::from_fn(|k| w[k] * sg.s[k]), rng);
@@ -133,7 +139,7 @@ pub fn ratio_select<R: Rng, C: Tally>(
         c.observe_throughput(w);
     }
     SegmentEstimate {
-        transmittance: tr,
+        transmittance: tr.spectrum(),
         scatter,
         emit: emit.chosen(),
     }

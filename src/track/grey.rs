@@ -40,6 +40,11 @@ pub struct GreyDecomposition;
 #[derive(Clone, Copy, Debug, Default)]
 pub struct GreyRatio;
 
+/// [`StochasticRatio`](super::ratio::StochasticRatio) (one voxel per collision,
+/// `ratio-select`'s shadow rays) of a grey medium with one scalar estimate.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct GreyStochasticRatio;
+
 /// Residual ratio tracking (control = cell minimum) of a grey medium with one scalar
 /// estimate.
 #[derive(Clone, Copy, Debug, Default)]
@@ -220,5 +225,12 @@ impl TransmittanceEstimator for GreyRatio {
     #[inline]
     fn transmittance<R: Rng, C: Tally>(&self, q: &Query, rng: &mut R, c: &mut C) -> Spectrum {
         ratio::<f32, R, C, false>(q, rng, c).spectrum()
+    }
+}
+
+impl TransmittanceEstimator for GreyStochasticRatio {
+    #[inline]
+    fn transmittance<R: Rng, C: Tally>(&self, q: &Query, rng: &mut R, c: &mut C) -> Spectrum {
+        ratio::<f32, R, C, true>(q, rng, c).spectrum()
     }
 }

@@ -257,8 +257,16 @@ pub fn dispatch_specialised<T>(s: &TrackerSettings, grey: bool, f: impl Dispatch
     if !grey_tracking(s, grey) {
         return dispatch(s, f);
     }
-    use grey::{GreyDecomposition, GreyDelta, GreyRatio, GreyResidualRatio};
+    use grey::{GreyDecomposition, GreyDelta, GreyRatio, GreyResidualRatio, GreyStochasticRatio};
     use TransmittanceKind::{Ratio, ResidualRatio};
+    // ratio-select: the integrator walks segments single-channel; its fallback free
+    // path is analog decomposition, its shadow rays read one voxel per collision.
+    if s.tracker == TrackerKind::RatioSelect {
+        return match s.transmittance {
+            Ratio => f.run(GreyDecomposition, GreyStochasticRatio),
+            ResidualRatio => f.run(GreyDecomposition, GreyResidualRatio),
+        };
+    }
     match (s.tracker == TrackerKind::Delta, s.transmittance) {
         (true, Ratio) => f.run(GreyDelta, GreyRatio),
         (true, ResidualRatio) => f.run(GreyDelta, GreyResidualRatio),
@@ -271,11 +279,14 @@ pub fn dispatch_specialised<T>(s: &TrackerSettings, grey: bool, f: impl Dispatch
 /// for the trackers that are analog there and have a single-channel twin — delta
 /// tracking, and decomposition tracking with the cell minimum as control and the avg
 /// scheme (`decomposition`, or `spectral-decomposition --scheme avg`) without the
-/// scheme options, which put weights other than 1 into the throughput.
+/// scheme options, which put weights other than 1 into the throughput; and
+/// `ratio-select`, whose walk keeps one scalar T̂ (its fallback free path is then
+/// analog decomposition, hence also without the options).
 pub fn grey_tracking(s: &TrackerSettings, grey: bool) -> bool {
     let analog = s.options == scheme::SchemeOptions::default();
     grey && match s.tracker {
         TrackerKind::Delta => true,
+        TrackerKind::RatioSelect => analog,
         TrackerKind::Decomposition => analog,
         TrackerKind::SpectralDecomposition => analog && s.scheme == SchemeKind::Avg,
         _ => false,

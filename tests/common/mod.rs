@@ -13,7 +13,7 @@ pub use data::{missing, pxr_fixtures, pxr_python, python_imports, repo, shared_d
 use glam::{DMat4, DVec3};
 use nimbus::render::camera::CameraRays;
 use nimbus::render::film::{Aov, Film};
-use nimbus::render::integrator::Integrator;
+use nimbus::render::integrator::{Integrator, SelectSegments};
 use nimbus::render::lights::Lights;
 use nimbus::render::sampler::pixel_sampler;
 use nimbus::scene::Camera;
@@ -184,7 +184,11 @@ impl Dispatch<Output> for Run<'_, '_> {
             seed: s.seed,
             qmc_dims: 0,
             extras: Default::default(),
-            select_segments: self.settings.tracker == TrackerKind::RatioSelect,
+            select_segments: if self.settings.tracker == TrackerKind::RatioSelect {
+                SelectSegments::Rgb
+            } else {
+                SelectSegments::Off
+            },
         };
         match self.mode {
             Mode::Film => Output::Film(it.render(&|| {})),
