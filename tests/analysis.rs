@@ -108,8 +108,8 @@ fn auto_follows_its_rules() {
     assert!(!a.homogeneous);
     let (t, reason) = a.choose(TrackerSettings::default(), Given::default());
     // Grey: ratio-select with the analog defaults, so it runs single-channel (its
-    // fallback is then analog decomposition); the emissive fire's delta is checked
-    // through the CLI below.
+    // fallback is then analog decomposition); the emissive fire is checked through the
+    // CLI below.
     assert_eq!(t.tracker, TrackerKind::RatioSelect);
     assert_eq!(t.transmittance, TransmittanceKind::Ratio);
     assert!(!t.options.no_absorption_events);
@@ -189,8 +189,8 @@ fn auto_follows_its_rules() {
 }
 
 /// The example scenes through the CLI: `auto` (the default) picks ratio-select for
-/// both, single-channel with analog defaults for the grey cloud and with no absorption
-/// events in its fallback for the chromatic medium, and delta for the emissive fire,
+/// all three, single-channel with analog defaults for the grey cloud and the emissive
+/// fire and with no absorption events in its fallback for the chromatic medium,
 /// and the stats say so and why; a named tracker is used as named, with no reason.
 #[test]
 fn auto_is_the_default_and_is_reported() {
@@ -228,7 +228,8 @@ fn auto_is_the_default_and_is_reported() {
         .unwrap()
         .contains("grey"));
     let fire = run("fire", &[]);
-    assert_eq!(fire["tracker"], "delta");
+    assert_eq!(fire["tracker"], "ratio-select");
+    assert_eq!(fire["no_absorption_events"], false);
     assert_eq!(fire["code_paths"]["grey_tracking"], true);
     let chromatic = run("chromatic", &[]);
     assert_eq!(chromatic["tracker"], "ratio-select");
@@ -236,6 +237,36 @@ fn auto_is_the_default_and_is_reported() {
     assert_eq!(chromatic["no_absorption_events"], true);
     assert_eq!(chromatic["analysis"]["grey"], false);
     assert_eq!(chromatic["code_paths"]["grey_tracking"], false);
+    // A chromatic copy of the fire: ratio-select, with the absorption events that
+    // collect emission left on in its fallback.
+    let fire_dir = format!("{}/scenes/fire", env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(format!("{fire_dir}/fire.usda"))
+        .unwrap()
+        .replace("@./fire.vdb@", &format!("@{fire_dir}/fire.vdb@"))
+        .replace(
+            "color3f nimbus:absorption = (0.5, 0.5, 0.5)",
+            "color3f nimbus:absorption = (0.3, 0.5, 0.8)",
+        );
+    assert!(text.contains("(0.3, 0.5, 0.8)"));
+    let chroma_fire = dir.path().join("chroma_fire.usda");
+    std::fs::write(&chroma_fire, text).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_nimbus"))
+        .arg("info")
+        .arg(&chroma_fire)
+        .output()
+        .unwrap();
+    let info = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        info.contains("grey false, emissive true")
+            && info.contains("tracker auto: ratio-select")
+            && info.contains("absorption events collect the emission"),
+        "{info}"
+    );
     let named = run("chromatic", &["--tracker", "delta"]);
     assert_eq!(named["tracker"], "delta");
     assert!(named["tracker_auto_reason"].is_null());

@@ -771,24 +771,40 @@ fn example_fire_scene_emits() {
     assert!(film.totals().0.emission_lookups > 0);
 }
 
-/// The single-channel trackers of grey media (`GreyDelta` with `GreyRatio`, which
-/// `auto` runs for grey media, and `GreyDecomposition` with `GreyResidualRatio`, its
-/// pick for homogeneous grey media) collect emission too: grey σa = 1, the closed form
-/// of `absorbing_emitting_cube_matches_closed_form`. N = 40,000 paths through the
-/// centre, seed 5; |z| < 4 per channel.
+/// The single-channel trackers of grey media (`GreyDelta` with `GreyRatio`;
+/// `GreyDecomposition` with `GreyResidualRatio`, `auto`'s pick for homogeneous grey
+/// media; and the single-channel ratio-select walk with `GreyStochasticRatio`, its
+/// pick for heterogeneous ones) collect emission too: grey σa = 1, the closed form of
+/// `absorbing_emitting_cube_matches_closed_form`. N = 40,000 paths through the centre,
+/// seed 5; |z| < 4 per channel.
 #[test]
 fn grey_single_channel_trackers_collect_emission() {
-    use nimbus::track::grey::{GreyDecomposition, GreyDelta, GreyRatio, GreyResidualRatio};
-    check_grey_emission(GreyDelta, GreyRatio, "delta");
-    check_grey_emission(GreyDecomposition, GreyResidualRatio, "decomposition");
+    use nimbus::render::integrator::SelectSegments;
+    use nimbus::track::grey::{
+        GreyDecomposition, GreyDelta, GreyRatio, GreyResidualRatio, GreyStochasticRatio,
+    };
+    check_grey_emission(GreyDelta, GreyRatio, SelectSegments::Off, "delta");
+    check_grey_emission(
+        GreyDecomposition,
+        GreyResidualRatio,
+        SelectSegments::Off,
+        "decomposition",
+    );
+    check_grey_emission(
+        GreyDecomposition,
+        GreyStochasticRatio,
+        SelectSegments::Grey,
+        "ratio-select",
+    );
 }
 
 fn check_grey_emission<F: FreePathSampler, E: TransmittanceEstimator>(
     free_path: F,
     transmittance: E,
+    select_segments: nimbus::render::integrator::SelectSegments,
     what: &str,
 ) {
-    use nimbus::render::integrator::{Integrator, SelectSegments};
+    use nimbus::render::integrator::Integrator;
     use nimbus::render::sampler::pixel_sampler;
     let env = [0.3, 0.2, 0.1];
     let lights = Lights {
@@ -816,7 +832,7 @@ fn check_grey_emission<F: FreePathSampler, E: TransmittanceEstimator>(
         seed: 5,
         qmc_dims: 0,
         extras: Default::default(),
-        select_segments: SelectSegments::Off,
+        select_segments,
     };
     let mut rng = pixel_sampler(5, 0);
     let mut c = Counters::default();

@@ -99,19 +99,20 @@ impl Analysis {
     ///   transmittance come in closed form and only the rim cells, where the field
     ///   falls off, need lookups; for grey media analog `decomposition`, which runs
     ///   single-channel;
-    /// - grey, non-emissive, heterogeneous media: `ratio-select`, run single-channel
+    /// - grey, heterogeneous media: `ratio-select`, run single-channel
     ///   ([`CodePaths::specialise`]): 1.05–1.96× the efficiency of `delta` on the grey
-    ///   stages (`docs/performance.md`, "One walk for both terms"); its fallback where
-    ///   volumes overlap is analog decomposition;
-    /// - other grey media (emissive; homogeneous with a global majorant): `delta` —
+    ///   stages, 3.5× on the emissive fire (`docs/performance.md`, "One walk for both
+    ///   terms"); its fallback where volumes overlap is analog decomposition;
+    /// - other grey media (homogeneous with a global majorant): `delta` —
     ///   every spectral scheme reduces to it, and it ties spectral tracking without
     ///   absorption events while beating decomposition with the default flat majorant
     ///   grid (`benches/auto/cloud.csv`); it runs single-channel;
-    /// - chromatic, non-emissive, heterogeneous media: `ratio-select`
+    /// - chromatic, heterogeneous media: `ratio-select`
     ///   ([`crate::track::collision_select`]), 1.09–2.47× the efficiency of the rule
-    ///   below on the chromatic stages (`docs/performance.md`, "One walk for both
-    ///   terms"); its fallback where volumes overlap is the rule below;
-    /// - other chromatic media: `spectral-decomposition` with history-aware avg
+    ///   below on the chromatic stages, 3.6× on a chromatic copy of the fire
+    ///   (`docs/performance.md`, "One walk for both terms"); its fallback where volumes
+    ///   overlap is the rule below;
+    /// - other (homogeneous) chromatic media: `spectral-decomposition` with history-aware avg
     ///   (throughput bounded by Theorem 2 at any albedo) and no absorption events (the
     ///   absorption lives in the weights; legal only without emission), the best at equal
     ///   time on both chromatic benchmarks (`benches/error/chromatic.csv`,
@@ -129,9 +130,9 @@ impl Analysis {
             reason.push(GLOBAL_MAJORANT_REASON);
         }
         if self.grey && !closed_form {
-            if !self.emissive && !self.homogeneous {
+            if !self.homogeneous {
                 t.tracker = TrackerKind::RatioSelect;
-                reason.push("grey, non-emissive, heterogeneous medium: ratio-select (each segment's transmittance and scattering collision from one ratio-tracking walk: no coin flip between the background and the cloud), run single-channel; where volumes overlap, analog decomposition tracking");
+                reason.push("grey, heterogeneous medium: ratio-select (each segment's transmittance and scattering collision from one ratio-tracking walk: no coin flip between the background and the cloud), run single-channel; where volumes overlap, analog decomposition tracking");
                 return (t, reason.join("; "));
             }
             t.tracker = TrackerKind::Delta;
@@ -153,10 +154,16 @@ impl Analysis {
         if !given.scheme {
             t.scheme = SchemeKind::HistAvg;
         }
-        if !self.emissive && !self.homogeneous {
+        if !self.homogeneous {
             t.tracker = TrackerKind::RatioSelect;
-            t.options.no_absorption_events = true;
-            reason.push("chromatic, non-emissive, heterogeneous medium: ratio-select (each segment's transmittance and scattering collision from one ratio-tracking walk: no coin flip between the background and the cloud); where volumes overlap, spectral decomposition tracking with history-aware avg and no absorption events");
+            if !self.emissive {
+                t.options.no_absorption_events = true;
+            }
+            reason.push(if self.emissive {
+                "chromatic, heterogeneous, emissive medium: ratio-select (each segment's transmittance, scattering collision and emission point from one ratio-tracking walk); where volumes overlap, spectral decomposition tracking with history-aware avg (absorption events collect the emission)"
+            } else {
+                "chromatic, non-emissive, heterogeneous medium: ratio-select (each segment's transmittance and scattering collision from one ratio-tracking walk: no coin flip between the background and the cloud); where volumes overlap, spectral decomposition tracking with history-aware avg and no absorption events"
+            });
             return (t, reason.join("; "));
         }
         reason.push(
