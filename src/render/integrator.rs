@@ -377,7 +377,9 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                             SelectSegments::Grey => {
                                 ratio_select::<f32, _, _>(q, beta, emissive, rng, counters)
                             }
-                            _ => ratio_select::<Spectrum, _, _>(q, beta, emissive, rng, counters),
+                            SelectSegments::Rgb | SelectSegments::Off => {
+                                ratio_select::<Spectrum, _, _>(q, beta, emissive, rng, counters)
+                            }
                         };
                         Step::Selected(s, ids[0])
                     }

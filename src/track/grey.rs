@@ -5,9 +5,12 @@
 //! residual ratio tracking hold the same product. These trackers skip the per-channel
 //! weights and keep one scalar, while making the same decisions from the same random
 //! numbers as [`Delta`](super::delta::Delta), [`Decomposition`] with the cell minimum
-//! as control and the avg scheme, [`Ratio`](super::ratio::Ratio) and
+//! as control and the avg scheme, [`Ratio`](super::ratio::Ratio),
+//! [`StochasticRatio`](super::ratio::StochasticRatio) and
 //! [`ResidualRatio`](super::ratio::ResidualRatio): on a grey medium the image differs
 //! from the general path's only by the rounding of weights that are 1 there.
+//! (`ratio-select`'s own walk runs single-channel by instantiating
+//! [`ratio_select`](super::collision_select::ratio_select) with a scalar estimate.)
 //! [`dispatch_specialised`](super::dispatch_specialised) picks them only for grey media.
 //!
 //! [`Decomposition`]: super::decomposition::Decomposition
