@@ -11,7 +11,7 @@
 //! from the general path's only by the rounding of weights that are 1 there.
 //! (`ratio-select`'s own walk runs single-channel by instantiating
 //! [`ratio_select`](super::collision_select::ratio_select) with a scalar estimate.)
-//! [`dispatch_specialised`](super::dispatch_specialised) picks them only for grey media.
+//! [`dispatch_specialised`](super::select::dispatch_specialised) picks them only for grey media.
 //!
 //! [`Decomposition`]: super::decomposition::Decomposition
 
