@@ -351,10 +351,10 @@ fn samples(
     n: usize,
     seed: u64,
 ) -> Vec<[f64; 3]> {
-    samples_select(medium, lights, cam, max_depth, n, seed, false)
+    samples_select(medium, lights, cam, max_depth, n, seed, SelectSegments::Off)
 }
 
-/// [`samples`], with `ratio-select`'s walks for every segment when `select`.
+/// [`samples`], with `ratio-select`'s walks for every segment when `select` says so.
 fn samples_select(
     medium: &Medium,
     lights: &Lights,
@@ -362,7 +362,7 @@ fn samples_select(
     max_depth: u32,
     n: usize,
     seed: u64,
-    select: bool,
+    select: SelectSegments,
 ) -> Vec<[f64; 3]> {
     let it = Integrator {
         free_path: Delta,
@@ -381,11 +381,7 @@ fn samples_select(
         seed,
         qmc_dims: 0,
         extras: Default::default(),
-        select_segments: if select {
-            SelectSegments::Rgb
-        } else {
-            SelectSegments::Off
-        },
+        select_segments: select,
     };
     let mut rng = pixel_sampler(seed, 40);
     let mut c = Counters::default();
@@ -615,16 +611,16 @@ fn lit_cube(lights: &Lights, n: usize, seed: u64) -> Vec<[f64; 3]> {
 
 /// [`lit_cube`] with at most `max_depth` scattering events.
 fn lit_cube_to_depth(lights: &Lights, max_depth: u32, n: usize, seed: u64) -> Vec<[f64; 3]> {
-    lit_cube_select(lights, max_depth, n, seed, false)
+    lit_cube_select(lights, max_depth, n, seed, SelectSegments::Off)
 }
 
-/// [`lit_cube_to_depth`], with `ratio-select`'s walks when `select`.
+/// [`lit_cube_to_depth`], with `ratio-select`'s walks as `select` says.
 fn lit_cube_select(
     lights: &Lights,
     max_depth: u32,
     n: usize,
     seed: u64,
-    select: bool,
+    select: SelectSegments,
 ) -> Vec<[f64; 3]> {
     let medium = common::unit_cube(1.0, [0.5; 3], [2.0, 1.0, 0.5], 0.5);
     let cam = camera(DVec3::new(0.0, 0.0, 10.0), 0.1, 1e6);
@@ -695,8 +691,8 @@ fn importance_sampled_dome_agrees_with_uniform_sampling() {
 fn ratio_select_agrees_with_delta_under_a_textured_dome() {
     let lights = patch_sky_lights(true);
     for (depth, n, seed) in [(64, 100_000, 25), (1, 50_000, 51), (2, 50_000, 52)] {
-        let a = lit_cube_select(&lights, depth, n, seed, false);
-        let b = lit_cube_select(&lights, depth, n, seed + 10, true);
+        let a = lit_cube_select(&lights, depth, n, seed, SelectSegments::Off);
+        let b = lit_cube_select(&lights, depth, n, seed + 10, SelectSegments::Rgb);
         let z = two_sample_z(&a, &b);
         assert!(
             z.iter().all(|z| z.abs() < 4.0),

@@ -77,7 +77,7 @@ fn integrator_with<'a, F: FreePathSampler>(
 }
 
 fn samples(medium: &Medium, lights: &Lights, max_depth: u32, n: usize) -> Vec<[f64; 3]> {
-    samples_with(Delta, medium, lights, max_depth, n, false)
+    samples_with(Delta, medium, lights, max_depth, n, SelectSegments::Off)
 }
 
 fn samples_with<F: FreePathSampler>(
@@ -86,15 +86,11 @@ fn samples_with<F: FreePathSampler>(
     lights: &Lights,
     max_depth: u32,
     n: usize,
-    select_segments: bool,
+    select_segments: SelectSegments,
 ) -> Vec<[f64; 3]> {
     let cam = camera();
     let mut it = integrator_with(free_path, medium, lights, &cam, 1, max_depth, 5);
-    it.select_segments = if select_segments {
-        SelectSegments::Rgb
-    } else {
-        SelectSegments::Off
-    };
+    it.select_segments = select_segments;
     let mut rng = pixel_sampler(5, 40);
     let mut c = Counters::default();
     (0..n)
@@ -129,10 +125,10 @@ fn absorbing_cube_transmits_dome_exactly() {
     let z = z_scores(&s, expected);
     assert!(z.iter().all(|z| z.abs() < 4.0), "z = {z:?}");
     let mis = SpectralMis::new(SchemeOptions::default());
-    let s = samples_with(mis, &m, &lights, 64, 100_000, false);
+    let s = samples_with(mis, &m, &lights, 64, 100_000, SelectSegments::Off);
     let z = z_scores(&s, expected);
     assert!(z.iter().all(|z| z.abs() < 4.0), "spectral-mis: z = {z:?}");
-    let s = samples_with(Delta, &m, &lights, 64, 100_000, true);
+    let s = samples_with(Delta, &m, &lights, 64, 100_000, SelectSegments::Rgb);
     let z = z_scores(&s, expected);
     assert!(z.iter().all(|z| z.abs() < 4.0), "ratio-select: z = {z:?}");
 }
@@ -156,13 +152,13 @@ fn conservative_cube_in_constant_environment_is_invisible() {
         let z = z_scores(&s, lights.environment);
         assert!(z.iter().all(|z| z.abs() < 4.0), "g {g}: z = {z:?}");
         let mis = SpectralMis::new(SchemeOptions::default());
-        let s = samples_with(mis, &m, &lights, 10_000, 50_000, false);
+        let s = samples_with(mis, &m, &lights, 10_000, 50_000, SelectSegments::Off);
         let z = z_scores(&s, lights.environment);
         assert!(
             z.iter().all(|z| z.abs() < 4.0),
             "spectral-mis g {g}: z = {z:?}"
         );
-        let s = samples_with(Delta, &m, &lights, 10_000, 50_000, true);
+        let s = samples_with(Delta, &m, &lights, 10_000, 50_000, SelectSegments::Rgb);
         let z = z_scores(&s, lights.environment);
         assert!(
             z.iter().all(|z| z.abs() < 4.0),

@@ -91,6 +91,14 @@ impl Analysis {
     /// `--tracker auto`: the tracker, scheme and options for this scene, and why.
     /// Each rule is measured with `nimbus bench error`; the figures are in
     /// `docs/trackers.md` ("Scene analysis and `--tracker auto`") and the CSVs in `benches/auto/`:
+    /// - heterogeneous media: `ratio-select` ([`crate::track::collision_select`]):
+    ///   1.05–1.96× the efficiency of `delta` on the grey stages, 1.09–2.47× that of
+    ///   spectral decomposition on the chromatic ones, 3.5–3.6× on the emissive fire and
+    ///   a chromatic copy of it (`docs/performance.md`, "One walk for both terms"). On
+    ///   grey media it runs single-channel ([`CodePaths::specialise`]) with analog
+    ///   decomposition as its fallback where volumes overlap; on chromatic media the
+    ///   fallback is spectral decomposition with history-aware avg, without absorption
+    ///   events unless the medium emits (they collect its emission);
     /// - homogeneous media with no majorant structure named: one global majorant
     ///   ([`Analysis::majorants`]) and the tracker of their colour below;
     /// - homogeneous media in a named structure of cells: the decomposition family with
@@ -99,20 +107,11 @@ impl Analysis {
     ///   transmittance come in closed form and only the rim cells, where the field
     ///   falls off, need lookups; for grey media analog `decomposition`, which runs
     ///   single-channel;
-    /// - grey, heterogeneous media: `ratio-select`, run single-channel
-    ///   ([`CodePaths::specialise`]): 1.05–1.96× the efficiency of `delta` on the grey
-    ///   stages, 3.5× on the emissive fire (`docs/performance.md`, "One walk for both
-    ///   terms"); its fallback where volumes overlap is analog decomposition;
-    /// - other grey media (homogeneous with a global majorant): `delta` —
-    ///   every spectral scheme reduces to it, and it ties spectral tracking without
-    ///   absorption events while beating decomposition with the default flat majorant
-    ///   grid (`benches/auto/cloud.csv`); it runs single-channel;
-    /// - chromatic, heterogeneous media: `ratio-select`
-    ///   ([`crate::track::collision_select`]), 1.09–2.47× the efficiency of the rule
-    ///   below on the chromatic stages, 3.6× on a chromatic copy of the fire
-    ///   (`docs/performance.md`, "One walk for both terms"); its fallback where volumes
-    ///   overlap is the rule below;
-    /// - other (homogeneous) chromatic media: `spectral-decomposition` with history-aware avg
+    /// - other (homogeneous, global majorant) grey media: `delta` — every spectral
+    ///   scheme reduces to it, and it ties spectral tracking without absorption events
+    ///   while beating decomposition with the default flat majorant grid
+    ///   (`benches/auto/cloud.csv`); it runs single-channel;
+    /// - other chromatic media: `spectral-decomposition` with history-aware avg
     ///   (throughput bounded by Theorem 2 at any albedo) and no absorption events (the
     ///   absorption lives in the weights; legal only without emission), the best at equal
     ///   time on both chromatic benchmarks (`benches/error/chromatic.csv`,
@@ -121,20 +120,20 @@ impl Analysis {
     /// `given`: what the user set (a named scheme or shadow-ray estimator is kept).
     pub fn choose(&self, base: TrackerSettings, given: Given) -> (TrackerSettings, String) {
         let mut t = base;
+        if !self.homogeneous {
+            let reason = self.ratio_select(&mut t, given);
+            return (t, reason.to_string());
+        }
+        // Homogeneous from here on.
         let mut reason = Vec::new();
         // The closed form needs majorant cells inside the volume: with the global
         // majorant `auto` builds when no structure is named (see `majorants`), the one
         // cell's minimum is the rim's 0 and decomposition would be delta tracking.
-        let closed_form = self.homogeneous && given.majorants;
-        if self.homogeneous && !given.majorants {
+        let closed_form = given.majorants;
+        if !closed_form {
             reason.push(GLOBAL_MAJORANT_REASON);
         }
         if self.grey && !closed_form {
-            if !self.homogeneous {
-                t.tracker = TrackerKind::RatioSelect;
-                reason.push("grey, heterogeneous medium: ratio-select (each segment's transmittance and scattering collision from one ratio-tracking walk: no coin flip between the background and the cloud), run single-channel; where volumes overlap, analog decomposition tracking");
-                return (t, reason.join("; "));
-            }
             t.tracker = TrackerKind::Delta;
             reason.push("grey medium: delta tracking is exact with unit weights (spectral schemes reduce to it), run single-channel");
             return (t, reason.join("; "));
@@ -154,18 +153,6 @@ impl Analysis {
         if !given.scheme {
             t.scheme = SchemeKind::HistAvg;
         }
-        if !self.homogeneous {
-            t.tracker = TrackerKind::RatioSelect;
-            if !self.emissive {
-                t.options.no_absorption_events = true;
-            }
-            reason.push(if self.emissive {
-                "chromatic, heterogeneous, emissive medium: ratio-select (each segment's transmittance, scattering collision and emission point from one ratio-tracking walk); where volumes overlap, spectral decomposition tracking with history-aware avg (absorption events collect the emission)"
-            } else {
-                "chromatic, non-emissive, heterogeneous medium: ratio-select (each segment's transmittance and scattering collision from one ratio-tracking walk: no coin flip between the background and the cloud); where volumes overlap, spectral decomposition tracking with history-aware avg and no absorption events"
-            });
-            return (t, reason.join("; "));
-        }
         reason.push(
             "chromatic medium: spectral decomposition tracking with history-aware avg (bounded throughput)",
         );
@@ -174,6 +161,23 @@ impl Analysis {
             reason.push("no emission, so absorption lives in the weights (no absorption events)");
         }
         (t, reason.join("; "))
+    }
+
+    /// [`Self::choose`]'s rule for heterogeneous media: `ratio-select` in `t`, with its
+    /// fallback's scheme and options; returns why.
+    fn ratio_select(&self, t: &mut TrackerSettings, given: Given) -> &'static str {
+        t.tracker = TrackerKind::RatioSelect;
+        if self.grey {
+            return "grey, heterogeneous medium: ratio-select (each segment's transmittance and scattering collision from one ratio-tracking walk: no coin flip between the background and the cloud), run single-channel; where volumes overlap, analog decomposition tracking";
+        }
+        if !given.scheme {
+            t.scheme = SchemeKind::HistAvg;
+        }
+        if self.emissive {
+            return "chromatic, heterogeneous, emissive medium: ratio-select (each segment's transmittance, scattering collision and emission point from one ratio-tracking walk); where volumes overlap, spectral decomposition tracking with history-aware avg (absorption events collect the emission)";
+        }
+        t.options.no_absorption_events = true;
+        "chromatic, non-emissive, heterogeneous medium: ratio-select (each segment's transmittance and scattering collision from one ratio-tracking walk: no coin flip between the background and the cloud); where volumes overlap, spectral decomposition tracking with history-aware avg and no absorption events"
     }
 
     /// The majorant structure `auto` builds in place of the one the media were loaded
