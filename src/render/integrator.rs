@@ -418,16 +418,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                     if path.depth == 0 {
                         alpha = 1.0 - crate::track::free_path::avg(path.throughput) as f64;
                     }
-                    if blocked {
-                        // The ray ended at a holdout: black matte, nothing more.
-                    } else if path.depth == 0 {
-                        if self.lights.has_environment() {
-                            self.add_environment(&mut radiance, path.throughput, 0, dir, 1.0);
-                        }
-                    } else if self.lights.has_environment() {
-                        let w = self.escape_weight(&path, dir);
-                        self.add_environment(&mut radiance, path.throughput, path.depth, dir, w);
-                    }
+                    self.add_escape(path.throughput, &path, dir, blocked, &mut radiance);
                     break;
                 }
                 FreePath::Absorb { t } => {
@@ -438,12 +429,8 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                     // Emission is collected at absorption events: the tracker has
                     // applied the absorption weight μa(λ)/(μ̄·Pa), so path.throughput × Le is
                     // the collision estimate of ∫ T·μa·Le (the source term μa·Le).
-                    if let Some(emission) = &medium.emission {
-                        let le = emission.radiance(origin + dir * t as f64, counters);
-                        let v = scaled(path.throughput, le, 1.0);
-                        let source = self.extras.splits.map_or(0, |m| m.emission_source(id));
-                        radiance.add(source, path.depth, v);
-                    }
+                    let p = origin + dir * t as f64;
+                    self.add_emission(id, p, path.throughput, path.depth, &mut radiance, counters);
                     break;
                 }
                 FreePath::Scatter { t } => {
@@ -515,16 +502,47 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         counters: &mut C,
     ) {
         let (origin, dir, blocked) = ray;
+        let mut tr = s.transmittance;
+        crate::track::free_path::mul(&mut tr, path.throughput);
+        self.add_escape(tr, path, dir, blocked, radiance);
+        if let Some((t, w)) = s.emit {
+            let p = origin + dir * t as f64;
+            self.add_emission(id, p, w, path.depth, radiance, counters);
+        }
+    }
+
+    /// Adds the environment seen along `dir` past the path's last vertex with
+    /// `throughput` (nothing past a holdout, which `blocked` says ended the ray).
+    fn add_escape(
+        &self,
+        throughput: Spectrum,
+        path: &PathState,
+        dir: DVec3,
+        blocked: bool,
+        radiance: &mut Radiance,
+    ) {
         if !blocked && self.lights.has_environment() {
             let w = self.escape_weight(path, dir);
-            let mut tr = s.transmittance;
-            crate::track::free_path::mul(&mut tr, path.throughput);
-            self.add_environment(radiance, tr, path.depth, dir, w);
+            self.add_environment(radiance, throughput, path.depth, dir, w);
         }
-        if let (Some((t, w)), Some(emission)) = (s.emit, &self.media[id].emission) {
-            let le = emission.radiance(origin + dir * t as f64, counters);
+    }
+
+    /// Adds the emission of medium `id` at `p` with `weight`, the estimate of the
+    /// source term ∫ T·μa·Le the tracker's event made (an absorption event's weight, or
+    /// ratio-select's emission collision).
+    fn add_emission<C: Tally>(
+        &self,
+        id: usize,
+        p: DVec3,
+        weight: Spectrum,
+        depth: u32,
+        radiance: &mut Radiance,
+        counters: &mut C,
+    ) {
+        if let Some(emission) = &self.media[id].emission {
+            let le = emission.radiance(p, counters);
             let source = self.extras.splits.map_or(0, |m| m.emission_source(id));
-            radiance.add(source, path.depth, scaled(w, le, 1.0));
+            radiance.add(source, depth, scaled(weight, le, 1.0));
         }
     }
 
