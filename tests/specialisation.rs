@@ -5,7 +5,9 @@
 //! - compiling the counting out changes no pixel;
 //! - the closed-form path `auto` picks for homogeneous media (the decomposition
 //!   family with residual ratio tracking) has the same image mean as delta tracking
-//!   (a z-test) for a fraction of the lookups.
+//!   (a z-test) for a fraction of the lookups;
+//! - prefetching the next tentative collision's stencil (on for grids beyond the
+//!   caches) changes no pixel and no count of any tracker.
 
 mod common;
 
@@ -283,6 +285,84 @@ fn counting_compiled_out_changes_no_pixel() {
             "{name}: nothing is counted"
         );
     }
+}
+
+/// `Medium::prefetch` is a hint: with it on, every tracker (both shadow estimators,
+/// grey and chromatic media, specialised paths) makes the same decisions and the same
+/// pixels as with it off. The example grids are below the threshold, so the test
+/// turns it on; a grid above the threshold has it on by itself.
+#[test]
+fn prefetching_changes_no_pixel() {
+    let trackers = [
+        TrackerKind::NaiveDelta,
+        TrackerKind::Delta,
+        TrackerKind::Decomposition,
+        TrackerKind::Spectral,
+        TrackerKind::SpectralDecomposition,
+        TrackerKind::SpectralMis,
+        TrackerKind::RatioSelect,
+    ];
+    for name in ["cloud", "chromatic"] {
+        let mut s = example(name);
+        assert!(
+            !s.media[0].prefetch,
+            "{name}: a small grid does not prefetch"
+        );
+        for tracker in trackers {
+            for transmittance in [TransmittanceKind::Ratio, TransmittanceKind::ResidualRatio] {
+                let t = TrackerSettings {
+                    tracker,
+                    transmittance,
+                    ..TrackerSettings::default()
+                };
+                let what = format!("{name} {tracker:?} {transmittance:?}");
+                s.media[0].prefetch = false;
+                let off = job(&s, t, SPECIALISED, 2, 11).render(&|| {});
+                s.media[0].prefetch = true;
+                let on = job(&s, t, SPECIALISED, 2, 11).render(&|| {});
+                assert_eq!(rgba(&off), rgba(&on), "{what}");
+                let (a, b) = (totals(&off), totals(&on));
+                assert!(a.density_lookups > 1_000, "{what}: {a:?}");
+                assert_eq!(
+                    (
+                        a.density_lookups,
+                        a.real_collisions,
+                        a.null_collisions,
+                        a.cells_visited
+                    ),
+                    (
+                        b.density_lookups,
+                        b.real_collisions,
+                        b.null_collisions,
+                        b.cells_visited
+                    ),
+                    "{what}"
+                );
+            }
+        }
+    }
+    // 224³ voxels: 21,952 bricks, 42.9 MiB, above PREFETCH_BYTES (32 MiB).
+    let big = cube("/Big", DVec3::ZERO, |_| 0.5);
+    assert!(!big.prefetch && big.density.memory_bytes() < nimbus::volume::medium::PREFETCH_BYTES);
+    let n = 224;
+    let vs = 2.0 / n as f64;
+    let raw = grid_from_fn("density", [n; 3], DVec3::splat(-1.0 + 0.5 * vs), vs, |_| {
+        0.5
+    });
+    let grid = Grid::from_raw(&raw).unwrap();
+    assert!(grid.memory_bytes() > nimbus::volume::medium::PREFETCH_BYTES);
+    let m = Medium::with_majorants(
+        "/Big",
+        grid,
+        DMat4::IDENTITY,
+        1.0,
+        [0.5; 3],
+        [4.5; 3],
+        0.0,
+        MajorantSpec::Octree { depth: 4 },
+    )
+    .unwrap();
+    assert!(m.prefetch);
 }
 
 /// A constant-density cube of 64³ voxels over [-1, 1]³, optical thickness 5 across,

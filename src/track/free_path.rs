@@ -107,12 +107,28 @@ pub fn walk_collisions<R: Rng, C: Tally, T>(
             };
             t = tc;
             tau = OpticalDepth::sample(rng);
+            prefetch_next(q, tau, t, seg.t1, mu_bar);
             if let ControlFlow::Break(v) = at(t, mu_bar, rng, c) {
                 return Some(v);
             }
         }
     }
     None
+}
+
+/// Where the medium asks for it ([`Medium::prefetch`]), starts the lookup of the
+/// tentative collision that follows one at `t` should that one be null: `tau`, drawn
+/// before the current lookup, already fixes it (at rate `mu` up to the cell exit `t1`;
+/// past the exit the next cell's rate decides, and nothing is prefetched). The current
+/// lookup's miss and the next one's then overlap instead of queueing.
+#[inline(always)]
+pub fn prefetch_next(q: &Query, tau: OpticalDepth, t: f32, t1: f32, mu: f32) {
+    if q.medium.prefetch {
+        let next = tau.time(t, mu);
+        if next < t1 {
+            q.medium.density.prefetch(q.ray.at(next).to_array());
+        }
+    }
 }
 
 /// The achromatic majorant μ̄ = d_max·max σt (times the query's majorant scale) of a

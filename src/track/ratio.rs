@@ -11,7 +11,9 @@
 //! channel magnitude drops below [`RR_THRESHOLD`], the estimate survives with
 //! probability [`RR_SURVIVAL`] and is divided by it, which keeps it unbiased.
 
-use crate::track::free_path::{walk_collisions, OpticalDepth, Query, TransmittanceEstimator};
+use crate::track::free_path::{
+    prefetch_next, walk_collisions, OpticalDepth, Query, TransmittanceEstimator,
+};
 
 use crate::color::Spectrum;
 use crate::volume::counters::Tally;
@@ -178,6 +180,7 @@ pub(super) fn residual_ratio<T: Estimate, R: Rng, C: Tally>(
         while let Some(tc) = tau.collide(t, seg.t1, mu_r) {
             t = tc;
             tau = OpticalDepth::sample(rng);
+            prefetch_next(q, tau, t, seg.t1, mu_r);
             let d = q.medium.density(q.ray.at(t), c);
             c.residual_lookup();
             c.null_collision();

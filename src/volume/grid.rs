@@ -422,6 +422,30 @@ impl Grid {
         c0 + (c1 - c0) * f[0]
     }
 
+    /// Starts loading the cache lines of the trilinear stencil at `p` without waiting
+    /// for them: a hint, no value, no effect on any result. Trackers call it for the
+    /// next tentative collision while the current one's lookup is still in flight, so
+    /// on a grid far larger than the caches the two misses overlap instead of queueing
+    /// (the next position depends only on random numbers already drawn). Covers the
+    /// stencil's brick only (a stencil crossing a brick face is rare and still exact).
+    #[inline(always)]
+    pub fn prefetch(&self, p: [f32; 3]) {
+        if !(p[0].abs() < 1.0e9 && p[1].abs() < 1.0e9 && p[2].abs() < 1.0e9) {
+            return;
+        }
+        let i = p.map(floor_small);
+        let Some(v) = self.brick_at([i[0] >> 3, i[1] >> 3, i[2] >> 3]) else {
+            return;
+        };
+        let o = in_brick(i);
+        // x-major slots: the stencil's rows start at o, o + 8, o + 64 and o + 72 and
+        // hold two voxels each; the lines of o, o + 9, o + 64 and o + 73 cover them
+        // (min keeps the hint inside the brick where the stencil leaves it at x = 7).
+        for k in [o, o + 9, o + 64, o + 73] {
+            prefetch_line(&v[k.min(BRICK_VOXELS - 1)]);
+        }
+    }
+
     /// One corner of the trilinear stencil at `p`, corner `d` on each axis chosen with
     /// probability `f` (`d` = 1) or 1 − `f` (`d` = 0) from 21 bits of `u` per axis: an
     /// unbiased estimate of [`sample_trilinear`](Self::sample_trilinear) (its weights
@@ -556,6 +580,20 @@ impl Grid {
     pub fn memory_bytes(&self) -> usize {
         self.index.len() * 4 + self.bricks.len() * BRICK_VOXELS * 4
     }
+}
+
+/// A software prefetch of the cache line holding `x` into every cache level.
+#[inline(always)]
+fn prefetch_line(x: &f32) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: a prefetch is a hint: it never faults and reads nothing into the
+    // program's state; the pointer comes from a live reference anyway.
+    unsafe {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        _mm_prefetch::<_MM_HINT_T0>((x as *const f32).cast::<i8>());
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = x;
 }
 
 /// The slot of voxel `ijk` in its brick (x-major: x·64 + y·8 + z).
