@@ -380,12 +380,9 @@ impl Grid {
     /// integer coordinates, as in OpenVDB's `BoxSampler`).
     #[inline]
     pub fn sample_trilinear(&self, p: [f32; 3]) -> f32 {
-        // Far outside the index range a cast would saturate; the background answers
-        // (NaN coordinates too).
-        if !(p[0].abs() < 1.0e9 && p[1].abs() < 1.0e9 && p[2].abs() < 1.0e9) {
+        let Some(i) = base_voxel(p) else {
             return self.background;
-        }
-        let i = p.map(floor_small);
+        };
         let f = [0, 1, 2].map(|a| p[a] - i[a] as f32);
         // Fast path: the 2×2×2 stencil lies inside one brick (7 of 8 positions per axis).
         // (Tested first on its own: folding it into the match below as `cross == 0`
@@ -427,13 +424,13 @@ impl Grid {
     /// next tentative collision while the current one's lookup is still in flight, so
     /// on a grid far larger than the caches the two misses overlap instead of queueing
     /// (the next position depends only on random numbers already drawn). Covers the
-    /// stencil's brick only (a stencil crossing a brick face is rare and still exact).
+    /// stencil's part in its own brick only: where the stencil crosses a brick face
+    /// (rare) the rest is simply not prefetched.
     #[inline(always)]
     pub fn prefetch(&self, p: [f32; 3]) {
-        if !(p[0].abs() < 1.0e9 && p[1].abs() < 1.0e9 && p[2].abs() < 1.0e9) {
+        let Some(i) = base_voxel(p) else {
             return;
-        }
-        let i = p.map(floor_small);
+        };
         let Some(v) = self.brick_at([i[0] >> 3, i[1] >> 3, i[2] >> 3]) else {
             return;
         };
@@ -454,10 +451,9 @@ impl Grid {
     /// to a multiple of 2⁻²¹ (an error of at most 4.8e-7 in each weight).
     #[inline(always)]
     pub fn sample_stochastic(&self, p: [f32; 3], u: u64) -> f32 {
-        if !(p[0].abs() < 1.0e9 && p[1].abs() < 1.0e9 && p[2].abs() < 1.0e9) {
+        let Some(i) = base_voxel(p) else {
             return self.background;
-        }
-        let i = p.map(floor_small);
+        };
         let corner = |a: usize| {
             let f = p[a] - i[a] as f32;
             let v = ((u >> (21 * a)) & 0x1F_FFFF) as f32 * (1.0 / 2_097_152.0);
@@ -600,6 +596,14 @@ fn prefetch_line(x: &f32) {
 #[inline(always)]
 fn in_brick(ijk: [i32; 3]) -> usize {
     (((ijk[0] & 7) << 6) | ((ijk[1] & 7) << 3) | (ijk[2] & 7)) as usize
+}
+
+/// The voxel at the low corner of the trilinear stencil at `p` (the floor per axis),
+/// `None` far outside the index range, where a cast would saturate and the background
+/// answers (NaN coordinates too).
+#[inline(always)]
+fn base_voxel(p: [f32; 3]) -> Option<[i32; 3]> {
+    (p[0].abs() < 1.0e9 && p[1].abs() < 1.0e9 && p[2].abs() < 1.0e9).then(|| p.map(floor_small))
 }
 
 /// `x.floor() as i32` for finite |x| < 1e9 (callers check): [`floor_i32`] without the

@@ -117,7 +117,8 @@ pub struct Medium {
 /// Grids holding more brick bytes than this get [`Medium::prefetch`]: the L3 of the
 /// machines measured (docs/performance.md, "Prefetching the next lookup"). On
 /// smoke_thick's 6.1 MiB grid the hint cost 17 % more instructions and 28 % more time;
-/// on 74.5 MiB and 928 MiB grids it saved 10 % and 9 % of the render time.
+/// on 74.5 MiB and 928 MiB grids it saved 6 % of the render time on each (medians of 6
+/// interleaved rounds).
 pub const PREFETCH_BYTES: usize = 32 << 20;
 
 impl Medium {
