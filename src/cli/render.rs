@@ -135,6 +135,15 @@ pub struct RenderArgs {
     /// that crosses the interval, so a stopped render keeps its finished passes.
     #[arg(long, value_name = "SECONDS")]
     pub checkpoint: Option<f64>,
+    /// Refuse to render anything the stage asks for that the render would not show as
+    /// authored (each stage warning is an error), and refuse the default camera and
+    /// lights; as nimbus:strict on the RenderSettings prim.
+    #[arg(long)]
+    pub strict: bool,
+    /// Never add the default sun and sky to a stage that has no light prim and no
+    /// emissive volume: render it unlit.
+    #[arg(long)]
+    pub no_default_lights: bool,
 }
 
 /// The majorant structure flags of `render` and the benchmarks.
@@ -248,6 +257,8 @@ impl RenderArgs {
             no_specialise: self.no_specialise,
             time_limit: self.time_limit,
             grid: self.grid.clone(),
+            strict: self.strict,
+            no_default_lights: self.no_default_lights,
             ..self.sampling.overrides(&self.majorants)
         }
     }

@@ -83,6 +83,9 @@ pub struct RenderStats {
     /// The specialised code paths the render ran (`grey_tracking`: grey media tracked
     /// with one channel).
     pub code_paths: CodePathsUsed,
+    /// Everything on the stage the render does not show as authored, one entry per
+    /// prim and attribute (`kind`, `prim`, `attribute`, `message`).
+    pub stage_warnings: crate::scene::Diagnostics,
 }
 
 /// The code paths of a render, as the stats report them.
@@ -176,6 +179,7 @@ impl RenderStats {
                 counting: job.paths.count,
                 grey_tracking: job.grey_tracking(),
             },
+            stage_warnings: session.scene.warnings.clone(),
         }
     }
 }

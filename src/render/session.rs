@@ -17,7 +17,7 @@ use crate::render::lights::Lights;
 use crate::render::progressive::{render_progressive, Budget, Clock, Progress};
 use crate::render::sampler::SamplerKind;
 use crate::render::splits::{SplitLayer, SplitMap};
-use crate::scene::defaults::{add_default_lights, frame_box, has_no_lights, DEFAULT_CAMERA};
+use crate::scene::defaults::{add_default_lights, frame_box, wants_default_lights, DEFAULT_CAMERA};
 use crate::scene::{
     load_stage, Emitter, Field, LoadOptions, RenderSettings, Scene, Volume, VolumeEmission,
 };
@@ -105,6 +105,11 @@ pub struct Overrides {
     /// The density grid of a VDB file rendered directly (default: its first float
     /// grid); an error for a stage.
     pub grid: Option<String>,
+    /// Refuse to render what the stage asks for and the render would not show as
+    /// authored (as `nimbus:strict`): stage warnings and made-up defaults are errors.
+    pub strict: bool,
+    /// Never add the default sun and sky to a stage without lights.
+    pub no_default_lights: bool,
 }
 
 /// A loaded, validated, analysed stage ready to render, with every setting resolved.
@@ -167,10 +172,21 @@ impl Session {
             }
             load_stage(stage, &opts)?
         };
-        if has_no_lights(&scene) {
+        let strict = o.strict || scene.settings.strict;
+        if strict {
+            refuse_warnings(stage, &scene)?;
+        }
+        warnings.extend(scene.warnings.lines());
+        if !o.no_default_lights && wants_default_lights(&scene) {
+            if strict {
+                bail!(
+                    "{}: the stage has no lights and no emissive volume (--strict refuses to add the default sun and sky; --no-default-lights renders it unlit)",
+                    stage.display()
+                );
+            }
             add_default_lights(&mut scene);
             warnings.push(
-                "the stage has no lights: lighting it with a default sun and sky".to_string(),
+                "the stage has no lights: lighting it with a default sun and sky (--no-default-lights leaves it unlit)".to_string(),
             );
         }
         let settings = &scene.settings;
@@ -205,6 +221,12 @@ impl Session {
         let mut media = media_for_scene_with(&scene, spec)?;
         let load_seconds = start.elapsed().as_secs_f64();
         if scene.camera.prim_path == DEFAULT_CAMERA {
+            if strict {
+                bail!(
+                    "{}: no camera named and none on the stage (--strict refuses the default camera; name one with --camera)",
+                    stage.display()
+                );
+            }
             let bounds = media
                 .iter()
                 .filter_map(|m| m.world_bounds())
@@ -500,6 +522,24 @@ impl Session {
     }
 }
 
+/// Under `--strict` (or `nimbus:strict`): an error listing every stage warning.
+fn refuse_warnings(stage: &Path, scene: &Scene) -> Result<()> {
+    if scene.warnings.is_empty() {
+        return Ok(());
+    }
+    let list: Vec<String> = scene
+        .warnings
+        .iter()
+        .map(|w| format!("  {}: {}", w.location(), w.message))
+        .collect();
+    bail!(
+        "{}: {} thing(s) on the stage would not render as authored (strict mode: --strict or nimbus:strict):\n{}",
+        stage.display(),
+        scene.warnings.len(),
+        list.join("\n")
+    )
+}
+
 /// The tracker settings the overrides and the stage ask for: `auto` (no tracker named,
 /// or `auto`) leaves the tracker to [`Analysis::choose`].
 struct TrackerRequest {
@@ -755,5 +795,7 @@ fn scene_for_vdb(path: &Path, grid: Option<&str>) -> Result<Scene> {
         volumes: vec![volume],
         holdouts: Vec::new(),
         settings: RenderSettings::default(),
+        light_prims: 0,
+        warnings: Default::default(),
     })
 }

@@ -47,12 +47,16 @@ pub fn frame_box(lo: DVec3, hi: DVec3, aspect: f64) -> Camera {
     c
 }
 
-/// Whether the stage has no light of any kind.
-pub fn has_no_lights(scene: &Scene) -> bool {
-    scene.distant_lights.is_empty()
+/// Whether the stage has no light prim at all (read by Nimbus or not) and no emissive
+/// volume: only such a stage gets the default lights. A fire lit by itself stays lit by
+/// itself, and a stage whose only light Nimbus cannot render is not lit by others.
+pub fn wants_default_lights(scene: &Scene) -> bool {
+    scene.light_prims == 0
+        && scene.distant_lights.is_empty()
         && scene.dome_lights.is_empty()
         && scene.sphere_lights.is_empty()
         && scene.rect_lights.is_empty()
+        && !scene.volumes.iter().any(|v| v.emission.is_emissive())
 }
 
 /// Adds the default lights: a sun of illuminance 3 from above, in front and to the

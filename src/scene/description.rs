@@ -3,6 +3,7 @@
 //! and vars — with
 //! world-space transforms already evaluated and asset paths already resolved.
 
+use super::diagnostics::Diagnostics;
 use crate::volume::asset::AssetLocation;
 use crate::volume::emission::EmissionParams;
 use glam::DMat4;
@@ -25,6 +26,11 @@ pub struct Scene {
     /// stage has none).
     pub holdouts: Vec<HoldoutMesh>,
     pub settings: RenderSettings,
+    /// Light prims on the stage of any type, read or not, visible or not: a stage with
+    /// one gets no default lights, even when Nimbus cannot render it.
+    pub light_prims: usize,
+    /// What the stage asks for that the render does not show as authored.
+    pub warnings: Diagnostics,
 }
 
 /// Something that puts light into the scene, as the light-group AOVs name it: a UsdLux
@@ -300,6 +306,8 @@ pub struct RenderSettings {
     pub control: Option<f64>,
     /// `nimbus:octreeDepth` when the stage sets it (0 = the flat majorant grid).
     pub octree_depth: Option<i64>,
+    /// `nimbus:strict`: a stage warning is an error (as `--strict`).
+    pub strict: bool,
 }
 
 impl Default for RenderSettings {
@@ -316,6 +324,7 @@ impl Default for RenderSettings {
             transmittance: None,
             control: None,
             octree_depth: None,
+            strict: false,
         }
     }
 }

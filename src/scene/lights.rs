@@ -40,6 +40,38 @@ pub(super) fn is_light(prim: &Prim) -> Result<bool, openusd::Error> {
     Ok(false)
 }
 
+/// UsdLux's light base classes and the API schemas that make any prim a light: a prim
+/// matching one is a light to its author, whether or not Nimbus renders it.
+const LIGHT_BASES: [&str; 3] = ["BoundableLightBase", "NonboundableLightBase", "PluginLight"];
+// The specific APIs first: each includes LightAPI.
+const LIGHT_APIS: [&str; 3] = ["MeshLightAPI", "VolumeLightAPI", "LightAPI"];
+
+/// Whether `prim` is a light of any kind (read by Nimbus or not): a stage with one gets
+/// no default lights.
+pub(super) fn is_any_light(prim: &Prim) -> Result<bool, openusd::Error> {
+    Ok(is_light_type(prim)? || light_api(prim)?.is_some())
+}
+
+/// Whether `prim`'s type is a UsdLux light (of any kind, read or not).
+pub(super) fn is_light_type(prim: &Prim) -> Result<bool, openusd::Error> {
+    for ty in LIGHT_BASES {
+        if prim.is_a(ty)? {
+            return Ok(true);
+        }
+    }
+    Ok(false)
+}
+
+/// The light API schema applied to `prim`, if any.
+pub(super) fn light_api(prim: &Prim) -> Result<Option<&'static str>, openusd::Error> {
+    for api in LIGHT_APIS {
+        if prim.has_api_schema(api)? {
+            return Ok(Some(api));
+        }
+    }
+    Ok(None)
+}
+
 /// Reads every (visible) light prim, given with its local → world transform.
 pub(super) fn read_lights(
     prims: &[(Prim, DMat4)],

@@ -10,6 +10,7 @@
 mod attrs;
 pub mod defaults;
 pub mod description;
+pub mod diagnostics;
 pub mod geometry;
 mod lights;
 pub mod schema;
@@ -18,4 +19,5 @@ pub mod stage;
 
 pub use attrs::SceneError;
 pub use description::*;
+pub use diagnostics::{Diagnostics, StageWarning};
 pub use stage::{load_stage, LoadOptions};

@@ -59,6 +59,7 @@ pub mod tokens {
     pub const TRANSMITTANCE: &str = "nimbus:transmittance";
     pub const CONTROL: &str = "nimbus:control";
     pub const OCTREE_DEPTH: &str = "nimbus:octreeDepth";
+    pub const STRICT: &str = "nimbus:strict";
     pub const PREVIEW_NAME: &str = "nimbus:previewName";
     pub const LIGHT_GROUP: &str = "nimbus:lightGroup";
     pub const HOLDOUT: &str = "nimbus:holdout";

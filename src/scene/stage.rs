@@ -10,6 +10,7 @@
 use super::attrs::*;
 use super::defaults;
 use super::description::*;
+use super::diagnostics::Diagnostics;
 use super::geometry;
 use super::lights;
 use super::schema::{self, tokens};
@@ -19,6 +20,7 @@ use openusd::sdf;
 use openusd::usd::{Prim, PrimPredicate, Stage, TimeCode};
 use openusd_schemas::geom::{self, ImageableExt};
 use openusd_schemas::render::StageMetadata;
+use std::cell::RefCell;
 use std::path::Path;
 
 #[derive(Clone, Debug, Default)]
@@ -55,6 +57,7 @@ pub fn load_stage(path: &Path, opts: &LoadOptions) -> Result<Scene, SceneError> 
         stage: &stage,
         time: opts.frame.map(TimeCode::new),
         xforms: geom::XformCache::new(opts.frame.map(TimeCode::new)),
+        warnings: RefCell::default(),
     };
     let scene = loader.load(path, opts);
     // Reference and payload diagnostics accrue while prims are composed, so they
@@ -117,12 +120,19 @@ struct Inventory {
     /// PointInstancers: the gprims beneath them are prototypes, drawn only where the
     /// instancer places them (which Nimbus does not read), never in place.
     point_instancers: Vec<Prim>,
+    /// Light prims of every kind, read or not (see [`Scene::light_prims`]).
+    light_prims: usize,
+    /// Light prims of a type Nimbus does not read (each gets a warning).
+    unread_lights: Vec<Prim>,
 }
 
 struct Loader<'a> {
     stage: &'a Stage,
     time: Option<TimeCode>,
     xforms: geom::XformCache,
+    /// What the stage asks for that the render will not show as authored; readers
+    /// that only borrow the loader add to it too.
+    warnings: RefCell<Diagnostics>,
 }
 
 impl Loader<'_> {
@@ -140,7 +150,14 @@ impl Loader<'_> {
         };
         let volumes = self.visible(&inventory.volumes)?;
         let lights = self.lights(&inventory)?;
+        for prim in &inventory.unread_lights {
+            self.unread_light(prim)?;
+        }
         let holdouts = self.holdouts(&inventory)?;
+        let volumes = volumes
+            .iter()
+            .map(|p| self.volume(p))
+            .collect::<Result<_, _>>()?;
         Ok(Scene {
             stage_path: path.to_path_buf(),
             // USD's default time code is NaN (`UsdTimeCode::Default()`).
@@ -150,12 +167,11 @@ impl Loader<'_> {
             dome_lights: lights.dome,
             sphere_lights: lights.sphere,
             rect_lights: lights.rect,
-            volumes: volumes
-                .iter()
-                .map(|p| self.volume(p))
-                .collect::<Result<_, _>>()?,
+            volumes,
             holdouts,
             settings,
+            light_prims: inventory.light_prims,
+            warnings: self.warnings.into_inner(),
         })
     }
 
@@ -169,6 +185,12 @@ impl Loader<'_> {
         let mut inventory = Inventory::default();
         for path in paths {
             let prim = self.stage.prim(path)?;
+            if lights::is_any_light(&prim)? {
+                inventory.light_prims += 1;
+                if !lights::is_light(&prim)? {
+                    inventory.unread_lights.push(prim.clone());
+                }
+            }
             let bucket = if prim.is_a(types::VOLUME)? {
                 &mut inventory.volumes
             } else if prim.is_a(types::CAMERA)? {
@@ -187,6 +209,32 @@ impl Loader<'_> {
             bucket.push(prim);
         }
         Ok(inventory)
+    }
+
+    /// A light prim of a type (or a light API on a prim) Nimbus does not render: one
+    /// warning naming its type, so the render is never lit differently without a word.
+    fn unread_light(&self, prim: &Prim) -> Result<(), SceneError> {
+        let err = |e| prim_error(prim.path(), e);
+        let ty = prim
+            .type_name()
+            .map_err(err)?
+            .map(|t| t.to_string())
+            .filter(|t| !t.is_empty())
+            .unwrap_or_else(|| "untyped prim".to_string());
+        let (kind, message) = match lights::light_api(prim).map_err(err)? {
+            Some(api) if !lights::is_light_type(prim).map_err(err)? => (
+                format!("{api} on a {ty}"),
+                format!("{api} makes this {ty} a light; Nimbus does not render its emission"),
+            ),
+            _ => (
+                format!("{ty} light"),
+                format!("{ty} lights are not supported: this light is left out of the render"),
+            ),
+        };
+        self.warnings
+            .borrow_mut()
+            .warn(kind, prim.path().to_string(), None, message);
+        Ok(())
     }
 
     /// The visible lights, read by [`lights`] with their world transforms.
@@ -611,6 +659,7 @@ impl Loader<'_> {
             octree_depth: if_authored(prim, tokens::OCTREE_DEPTH, || {
                 read_i64(prim, tokens::OCTREE_DEPTH, t)
             })?,
+            strict: read_bool(prim, tokens::STRICT, t)?.unwrap_or(defaults.strict),
         })
     }
 
