@@ -4,6 +4,7 @@
 
 pub mod analysis;
 pub mod camera;
+pub mod dome;
 pub mod film;
 pub mod holdouts;
 pub mod integrator;
