@@ -280,42 +280,49 @@ fn against_cycles(case: &str) {
     );
 }
 
-#[test]
-fn sun() {
-    against_cycles("sun");
-}
+/// One test per case, in a module of their own so that `.ci/run` can run them timed in
+/// their own step (`cargo t --test blender_export`) and skip them in the main run
+/// (`--skip vs_cycles::`).
+mod vs_cycles {
+    use super::against_cycles;
 
-#[test]
-fn point() {
-    against_cycles("point");
-}
+    #[test]
+    fn sun() {
+        against_cycles("sun");
+    }
 
-#[test]
-fn spot() {
-    against_cycles("spot");
-}
+    #[test]
+    fn point() {
+        against_cycles("point");
+    }
 
-#[test]
-fn square() {
-    against_cycles("square");
-}
+    #[test]
+    fn spot() {
+        against_cycles("spot");
+    }
 
-#[test]
-fn disk() {
-    against_cycles("disk");
-}
+    #[test]
+    fn square() {
+        against_cycles("square");
+    }
 
-#[test]
-fn ellipse() {
-    against_cycles("ellipse");
-}
+    #[test]
+    fn disk() {
+        against_cycles("disk");
+    }
 
-#[test]
-fn world() {
-    against_cycles("world");
-}
+    #[test]
+    fn ellipse() {
+        against_cycles("ellipse");
+    }
 
-#[test]
-fn hdri() {
-    against_cycles("hdri");
+    #[test]
+    fn world() {
+        against_cycles("world");
+    }
+
+    #[test]
+    fn hdri() {
+        against_cycles("hdri");
+    }
 }
