@@ -3,8 +3,8 @@
 //! already resolved.
 //!
 //! Loading lives in [`stage`] (UsdLux lights in `lights`, other tools' volume materials
-//! in [`shading`], holdout gprims in [`geometry`], the attribute readers and errors they
-//! share in `attrs`); Nimbus' codeless schema (see `schemas/`) is registered by
+//! in [`shading`], holdout gprims in [`geometry`], what it does not read besides lights
+//! in `unsupported`, the attribute readers and errors they share in `attrs`); Nimbus' codeless schema (see `schemas/`) is registered by
 //! [`schema`].
 
 mod attrs;
@@ -16,6 +16,7 @@ mod lights;
 pub mod schema;
 pub mod shading;
 pub mod stage;
+mod unsupported;
 
 pub use attrs::SceneError;
 pub use description::*;

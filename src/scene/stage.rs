@@ -15,6 +15,7 @@ use super::geometry;
 use super::lights;
 use super::schema::{self, tokens};
 use super::shading;
+use super::unsupported;
 use glam::DMat4;
 use openusd::sdf;
 use openusd::usd::{Prim, PrimPredicate, Stage, TimeCode};
@@ -154,6 +155,7 @@ impl Loader<'_> {
             self.unread_light(prim)?;
         }
         let holdouts = self.holdouts(&inventory)?;
+        self.unsupported(&inventory, settings_prim.as_ref())?;
         let volumes = volumes
             .iter()
             .map(|p| self.volume(p))
@@ -237,6 +239,28 @@ impl Loader<'_> {
         Ok(())
     }
 
+    /// Warnings for what the stage authors besides lights and holdout gprims that the
+    /// render does not show ([`unsupported`]): point instancers, and render settings
+    /// and products asking for what the render does not do.
+    fn unsupported(
+        &self,
+        inventory: &Inventory,
+        settings: Option<&Prim>,
+    ) -> Result<(), SceneError> {
+        let mut warnings = self.warnings.borrow_mut();
+        for prim in self.visible(&inventory.point_instancers)? {
+            unsupported::point_instancer(&prim, &mut warnings);
+        }
+        if let Some(settings) = settings {
+            unsupported::render_settings_base(settings, false, self.time, &mut warnings)?;
+            for target in targets(settings, "products")? {
+                let product = self.target_prim(settings, &target, types::RENDER_PRODUCT)?;
+                unsupported::render_settings_base(&product, true, self.time, &mut warnings)?;
+            }
+        }
+        Ok(())
+    }
+
     /// The visible lights, read by [`lights`] with their world transforms.
     fn lights(&mut self, inventory: &Inventory) -> Result<lights::StageLights, SceneError> {
         let mut prims = Vec::new();
@@ -254,9 +278,6 @@ impl Loader<'_> {
     fn holdouts(&mut self, inventory: &Inventory) -> Result<Vec<HoldoutMesh>, SceneError> {
         let mut holdouts = Vec::new();
         for prim in self.visible(&inventory.gprims)? {
-            let Some(prim_type) = geometry::holdout_type(&prim)? else {
-                continue;
-            };
             let prototype = inventory
                 .point_instancers
                 .iter()
@@ -278,6 +299,10 @@ impl Loader<'_> {
             if read_bool(&prim, tokens::HOLDOUT, self.time)? == Some(false) {
                 continue;
             }
+            let Some(prim_type) = geometry::holdout_type(&prim)? else {
+                unsupported::unread_gprim(&prim, &mut self.warnings.borrow_mut())?;
+                continue;
+            };
             let to_world = self.world_transform(&prim)?;
             holdouts.push(geometry::read_holdout(
                 &prim, prim_type, &to_world, self.time,
@@ -390,6 +415,11 @@ impl Loader<'_> {
             true => None,
             false => shading::bound_volume_material(self.stage, prim, t)?,
         };
+        if !nimbus_api && material.is_none() {
+            if let Some(bound) = shading::bound_material_path(self.stage, prim)? {
+                unsupported::unread_material(prim, &bound, &mut self.warnings.borrow_mut());
+            }
+        }
         if let Some(m) = material {
             let density = self.density_field(prim, &m.density_field, &fields)?;
             return Ok(Volume {
@@ -556,6 +586,13 @@ impl Loader<'_> {
                 .map_err(|e| prim_error(&target, e))?
             {
                 fields.push((name, self.field(&target_prim)?));
+            } else {
+                unsupported::unread_field(
+                    prim,
+                    rel.name(),
+                    &target_prim,
+                    &mut self.warnings.borrow_mut(),
+                )?;
             }
         }
         fields.sort_by(|a, b| a.0.cmp(&b.0));
