@@ -748,6 +748,36 @@ fn holdout_shadow_linking_excludes_exactly_the_named_occluder() {
     );
 }
 
+/// A dome with linking leaves the environment scattered rays find and is reached by
+/// next-event estimation alone: linked to every volume, a constant one renders bit for
+/// bit as the same constant dome without linking (at maximum depth 1 both are sampled
+/// uniformly at the vertex, with the same numbers, and camera rays see both).
+#[test]
+fn linked_dome_renders_as_the_unlinked_dome() {
+    use nimbus::render::lights::LinkedDome;
+    let setup = slab(1);
+    let env = [0.3, 0.5, 0.8];
+    let plain = Lights {
+        environment: env,
+        ..Default::default()
+    };
+    let linked = Lights {
+        linked_domes: vec![LinkedDome {
+            constant: env,
+            map: None,
+            link: Link {
+                holdouts: HoldoutSet::None,
+                ..Link::ALL
+            },
+        }],
+        ..Default::default()
+    };
+    let a = setup.samples(&plain, 50_000, 51);
+    let b = setup.samples(&linked, 50_000, 51);
+    assert!(a.iter().any(|v| *v != [0.0; 3]));
+    assert_eq!(a, b);
+}
+
 // ----- checks and warnings -----------------------------------------------------------
 
 /// Non-finite intensity, exposure, colour or shaping values are errors naming the
@@ -812,6 +842,17 @@ fn light_warnings_name_prim_and_attribute_and_fail_strict() {
     }}
     def RectLight "Textured" {{
         asset inputs:texture:file = @{}@
+    }}
+    def SphereLight "Tinted" {{
+        color3f inputs:color = (1, -0.5, 1)
+        float inputs:shaping:focus = -1
+        float inputs:shaping:cone:softness = 2
+    }}
+    def DomeLight "Sky" (
+        prepend apiSchemas = ["ShapingAPI"]
+    ) {{
+        float inputs:diffuse = 0.5
+        float inputs:shaping:cone:angle = 30
     }}"#,
             ies.display(),
             ies.display()
@@ -855,6 +896,11 @@ fn light_warnings_name_prim_and_attribute_and_fail_strict() {
             "collection:lightLink:membershipExpression",
         ),
         ("/World/Textured", "inputs:texture:file"),
+        ("/World/Tinted", "inputs:color"),
+        ("/World/Tinted", "inputs:shaping:focus"),
+        ("/World/Tinted", "inputs:shaping:cone:softness"),
+        ("/World/Sky", "inputs:diffuse"),
+        ("/World/Sky", "inputs:shaping:cone:angle"),
     ];
     for (prim, attr) in expected {
         assert!(
