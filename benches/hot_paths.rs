@@ -168,6 +168,7 @@ fn full_path(c: &mut Criterion) {
             direction: DVec3::new(0.3, 1.0, 0.4).normalize(),
             irradiance: [3.0; 3],
             cos_half_angle: 0.9999,
+            ..Default::default()
         }],
         environment: [0.3, 0.4, 0.6],
         ..Default::default()

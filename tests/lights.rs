@@ -465,6 +465,7 @@ fn point_light_single_scattering_matches_quadrature() {
             center: c,
             radius: 0.0,
             radiance: intensity,
+            ..Default::default()
         }],
         ..Default::default()
     };
@@ -495,6 +496,7 @@ fn sphere_light_single_scattering_matches_quadrature() {
             center: c,
             radius: r,
             radiance,
+            ..Default::default()
         }],
         ..Default::default()
     };
@@ -526,6 +528,7 @@ fn rect_facing(normal: DVec3) -> RectEmitter {
         normal,
         area: 1.2 * 0.8,
         radiance: [2.0, 4.0, 1.0],
+        ..Default::default()
     }
 }
 
@@ -588,6 +591,7 @@ fn sun_disk_single_scattering_matches_quadrature() {
             direction: DVec3::Y,
             irradiance: radiance.map(|l| l * solid_angle),
             cos_half_angle: theta_max.cos(),
+            ..Default::default()
         }],
         ..Default::default()
     };

@@ -99,6 +99,32 @@ pub fn run(args: InfoArgs) -> Result<()> {
             l.normalize
         );
     }
+    for l in &scene.disk_lights {
+        println!(
+            "disk light: {} position {:?} radius {} intensity {} exposure {} color {:?} normalize {}",
+            l.prim_path,
+            l.light_to_world.w_axis.truncate().to_array(),
+            l.radius,
+            l.intensity,
+            l.exposure,
+            l.color,
+            l.normalize
+        );
+    }
+    for l in &scene.cylinder_lights {
+        println!(
+            "cylinder light: {} position {:?} length {} radius {} intensity {} exposure {} color {:?} normalize {} treatAsLine {}",
+            l.prim_path,
+            l.light_to_world.w_axis.truncate().to_array(),
+            l.length,
+            l.radius,
+            l.intensity,
+            l.exposure,
+            l.color,
+            l.normalize,
+            l.treat_as_line
+        );
+    }
     let s = &scene.settings;
     println!(
         "render settings: {} resolution {}x{} samples {} maxDepth {} seed {}",

@@ -792,6 +792,8 @@ fn scene_for_vdb(path: &Path, grid: Option<&str>) -> Result<Scene> {
         dome_lights: Vec::new(),
         sphere_lights: Vec::new(),
         rect_lights: Vec::new(),
+        disk_lights: Vec::new(),
+        cylinder_lights: Vec::new(),
         volumes: vec![volume],
         holdouts: Vec::new(),
         settings: RenderSettings::default(),

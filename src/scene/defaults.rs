@@ -56,6 +56,8 @@ pub fn wants_default_lights(scene: &Scene) -> bool {
         && scene.dome_lights.is_empty()
         && scene.sphere_lights.is_empty()
         && scene.rect_lights.is_empty()
+        && scene.disk_lights.is_empty()
+        && scene.cylinder_lights.is_empty()
         && !scene.volumes.iter().any(|v| v.emission.is_emissive())
 }
 
@@ -67,6 +69,7 @@ pub fn add_default_lights(scene: &mut Scene) {
     scene.distant_lights.push(DistantLight {
         light_group: None,
         prim_path: "(default sun)".into(),
+        controls: Default::default(),
         direction: towards.to_array(),
         intensity: 3.0,
         exposure: 0.0,
@@ -78,6 +81,7 @@ pub fn add_default_lights(scene: &mut Scene) {
     scene.dome_lights.push(DomeLight {
         light_group: None,
         prim_path: "(default sky)".into(),
+        controls: Default::default(),
         light_to_world: DMat4::IDENTITY,
         intensity: 0.5,
         exposure: 0.0,

@@ -169,6 +169,8 @@ impl Loader<'_> {
             dome_lights: lights.dome,
             sphere_lights: lights.sphere,
             rect_lights: lights.rect,
+            disk_lights: lights.disk,
+            cylinder_lights: lights.cylinder,
             volumes,
             holdouts,
             settings,
@@ -268,7 +270,7 @@ impl Loader<'_> {
             let to_world = self.world_transform(&prim)?;
             prims.push((prim, to_world));
         }
-        lights::read_lights(&prims, self.time)
+        lights::read_lights(&prims, self.time, &mut self.warnings.borrow_mut())
     }
 
     /// The visible gprims of a type Nimbus reads, with the `default` or `render`
