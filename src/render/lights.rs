@@ -173,18 +173,26 @@ impl Lights {
         for d in &scene.dome_lights {
             let source = next.next().unwrap_or(NO_SOURCE);
             let s = light_scale(d.intensity, d.exposure, d.color, d.color_temperature);
-            match &d.texture_file {
+            let map = match &d.texture_file {
+                None => None,
+                Some(file) => Some(EnvMap::load(d, file, s).map_err(|message| LightError {
+                    prim: d.prim_path.clone(),
+                    message,
+                })?),
+            };
+            // A texture of one colour is the constant dome of that colour, bit for bit.
+            let (s, map) = match map {
+                Some(map) => map.constant().map_or((s, Some(map)), |c| (c, None)),
+                None => (s, None),
+            };
+            match map {
                 None => {
                     for c in 0..3 {
                         lights.environment[c] += s[c];
                     }
                     lights.sources.constant_domes.push((source, s));
                 }
-                Some(file) => {
-                    let map = EnvMap::load(d, file, s).map_err(|message| LightError {
-                        prim: d.prim_path.clone(),
-                        message,
-                    })?;
+                Some(map) => {
                     if map.power > 0.0 {
                         lights.sources.env_maps.push(source);
                         lights.env_maps.push(map);
