@@ -164,9 +164,9 @@ fn moments(img: &[f64], w: usize) -> (f64, f64, f64, f64) {
 /// uniform disk of radius R has E[x² + y²] = R²/2, a square of side a has a²/6, the box
 /// 1/6): the measured radius is R = √(2 (M − a²/6 − 1/6)). Its standard error comes from the delta method over
 /// the pixels, each pixel's alpha a mean of 256 values in [0, 1] (variance ≤ α(1 − α)
-/// per value); the test allows 5 of them plus 2 % for the cube's depth (its faces
-/// at 5 ± 0.05 blur by 25 ± 0.5 px, and the near face bounds the silhouette) and the pixel grid. In focus, the same cube
-/// stays within its own 4 px.
+/// per value); the test allows 5 of them plus 2 % for the cube's depth (its faces at
+/// 5 ± 0.05 blur by 25 ± 0.5 px, and the near face bounds the silhouette) and the pixel
+/// grid. In focus, the same cube stays within its own 2 px.
 #[test]
 fn depth_of_field_blurs_into_the_thin_lens_circle_of_confusion() {
     let dir = tempfile::tempdir().unwrap();
