@@ -273,11 +273,12 @@ fn exr_with_window(path: &Path, window: [i32; 4]) {
     std::fs::write(path, bytes).unwrap();
 }
 
-/// Issue 34: a header claiming 1,000,000 × 1,000,000 pixels is refused from the header
-/// (this test would abort on a 24 TB allocation otherwise), and so is a data window
-/// whose max is below its min; the message names the light and the file.
+/// Issue 34: an OpenEXR or PNG header claiming 1,000,000 × 1,000,000 pixels is refused
+/// from the header (this test would abort on a 24 TB allocation otherwise), and so is
+/// an OpenEXR data window whose max is below its min; the message names the light and
+/// the file.
 #[test]
-fn hostile_exr_headers_are_refused_before_reading() {
+fn hostile_image_headers_are_refused_before_reading() {
     let dir = tempfile::tempdir().unwrap();
     exr_with_window(&dir.path().join("huge.exr"), [0, 0, 999_999, 999_999]);
     let e = dome_lights(dir.path(), "asset inputs:texture:file = @./huge.exr@")
@@ -298,4 +299,41 @@ fn hostile_exr_headers_are_refused_before_reading() {
     // The unpatched file reads.
     write_exr(&dir.path().join("fine.exr"), 4, 2, |x, _| [x as f32; 3]);
     dome_lights(dir.path(), "asset inputs:texture:file = @./fine.exr@").expect("fine.exr reads");
+
+    // A PNG whose IHDR claims 1,000,000 × 1,000,000 (its CRC recomputed, so the
+    // header is valid): refused from the header too.
+    let path = dir.path().join("huge.png");
+    image::RgbImage::from_pixel(2, 2, image::Rgb([9, 9, 9]))
+        .save(&path)
+        .unwrap();
+    let mut bytes = std::fs::read(&path).unwrap();
+    assert_eq!(&bytes[12..16], b"IHDR");
+    bytes[16..20].copy_from_slice(&1_000_000u32.to_be_bytes());
+    bytes[20..24].copy_from_slice(&1_000_000u32.to_be_bytes());
+    let crc = crc32(&bytes[12..29]);
+    bytes[29..33].copy_from_slice(&crc.to_be_bytes());
+    std::fs::write(&path, bytes).unwrap();
+    let e = dome_lights(dir.path(), "asset inputs:texture:file = @./huge.png@")
+        .err()
+        .expect("the huge PNG is refused");
+    assert!(
+        e.contains("/Sky") && e.contains("huge.png") && e.contains("1000000×1000000"),
+        "{e}"
+    );
+}
+
+/// CRC-32 (ISO-HDLC, PNG's chunk checksum), bit by bit.
+fn crc32(data: &[u8]) -> u32 {
+    let mut crc = !0u32;
+    for &b in data {
+        crc ^= b as u32;
+        for _ in 0..8 {
+            crc = if crc & 1 != 0 {
+                (crc >> 1) ^ 0xEDB8_8320
+            } else {
+                crc >> 1
+            };
+        }
+    }
+    !crc
 }

@@ -18,8 +18,8 @@
 //!   parallel ray (orthographic) meets at depth `focusDistance`, so that plane is sharp
 //!   and a point at depth z is blurred into a disk of diameter
 //!   `2 r · |z − focusDistance| / z` on the focus plane's scale (pbrt-v4's
-//!   `ProjectiveCamera`; hdPrman passes the same `focalLength · 0.1` and `fStop` to
-//!   RenderMan, whose lens diameter is their ratio).
+//!   `ProjectiveCamera`; the diameter is the f-number's definition, focal length over
+//!   fStop).
 //!
 //! Clipping planes are depths along the view axis, whatever the ray: a ray whose camera-
 //! space direction falls `D` units in depth per unit parameter reaches depth z at

@@ -51,7 +51,9 @@ pub(super) fn read_camera(
             "camera focus",
             &path,
             Some("focusDistance"),
-            format!("fStop = {f_stop} without a focusDistance: no depth of field (everything in focus, as hdPrman renders it)"),
+            format!(
+                "fStop = {f_stop} without a focusDistance: no depth of field (everything in focus)"
+            ),
         );
     }
     unrendered_attributes(prim, t, &path, warnings)?;
