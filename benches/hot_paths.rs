@@ -161,6 +161,9 @@ fn full_path(c: &mut Criterion) {
         horizontal_aperture_offset: 0.0,
         vertical_aperture_offset: 0.0,
         clipping_range: (0.1, 1e6),
+        projection: Default::default(),
+        f_stop: 0.0,
+        focus_distance: 0.0,
     };
     let camera = CameraRays::new(&cam, 64, 64);
     let lights = Lights {

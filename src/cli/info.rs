@@ -50,9 +50,18 @@ pub fn run(args: InfoArgs) -> Result<()> {
     );
     println!("vdb reader: {}", vdb::active_reader().name());
     let c = &scene.camera;
+    let lens = match c.f_stop > 0.0 && c.focus_distance > 0.0 {
+        true => format!(" fStop {} focusDistance {}", c.f_stop, c.focus_distance),
+        false => String::new(),
+    };
     println!(
-        "camera: {} focal {} aperture {}x{} clipping {:?}",
-        c.prim_path, c.focal_length, c.horizontal_aperture, c.vertical_aperture, c.clipping_range
+        "camera: {} {:?} focal {} aperture {}x{} clipping {:?}{lens}",
+        c.prim_path,
+        c.projection,
+        c.focal_length,
+        c.horizontal_aperture,
+        c.vertical_aperture,
+        c.clipping_range
     );
     for l in &scene.distant_lights {
         println!(

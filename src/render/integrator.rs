@@ -239,8 +239,9 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         // One sample's split layers, added to the pixel's when the sample is finite.
         let mut scratch = [[0f64; 3]; MAX_LAYERS];
         let nl = extra.splits.as_ref().map_or(0, |(m, _)| m.len());
+        let dims = self.sample_dims();
         for _ in 0..n {
-            rng.start_sample(self.qmc_dims);
+            rng.start_sample(dims);
             let fx = x as f64 + rng.gen::<f64>();
             let fy = y as f64 + rng.gen::<f64>();
             let sample_layers = &mut scratch[..nl];
@@ -283,6 +284,19 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         }
     }
 
+    /// Dimensions of each sample drawn from Sobol' points: `qmc_dims`, plus the lens's
+    /// two when the camera has depth of field. The lens point is drawn right after the
+    /// pixel position (dimensions 2 and 3): it decides the camera ray as much as the
+    /// pixel position does, so it gets a stratified pair of its own, and the numbers the
+    /// path draws next keep the `qmc_dims − 2` Sobol' dimensions they had. A camera
+    /// without depth of field draws no lens numbers at all: its renders are unchanged.
+    fn sample_dims(&self) -> u32 {
+        match self.qmc_dims {
+            0 => 0,
+            d => d + self.camera.lens_dims(),
+        }
+    }
+
     /// One path through image position (`fx`, `fy`).
     pub fn sample<C: Tally>(
         &self,
@@ -303,7 +317,10 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         counters: &mut C,
         split: Option<(&SplitMap, &mut [[f64; 3]])>,
     ) -> SampleResult {
-        let ray = self.camera.ray(fx, fy);
+        let ray = match self.camera.lens_dims() {
+            0 => self.camera.ray(fx, fy),
+            _ => self.camera.ray_through_lens(fx, fy, rng.gen(), rng.gen()),
+        };
         let mut origin = ray.origin;
         let mut dir = ray.dir;
         let (mut tmin, mut tmax) = (ray.tmin as f32, ray.tmax as f32);

@@ -551,6 +551,11 @@ impl Lights {
                     message,
                 })?),
             };
+            // A texture of one colour is the constant dome of that colour, bit for bit.
+            let (s, map) = match map {
+                Some(map) => map.constant().map_or((s, Some(map)), |c| (c, None)),
+                None => (s, None),
+            };
             if !link.is_everything() {
                 lights.sources.linked_domes.push(source);
                 lights.linked_domes.push(LinkedDome {

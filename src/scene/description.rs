@@ -68,14 +68,18 @@ impl Scene {
     }
 }
 
-/// A pinhole camera (UsdGeomCamera). Lengths in the stage's units as USD defines them:
-/// focal length and apertures in tenths of a scene unit ("mm" when the unit is cm);
-/// only their ratios matter to a pinhole camera.
+/// A UsdGeomCamera. Lengths in the stage's units as USD defines them: focal length and
+/// apertures in tenths of a scene unit ("mm" when the unit is cm), the clipping range
+/// and focus distance in scene units. A perspective pinhole depends only on the ratios
+/// of focal length and apertures; an orthographic view is `aperture / 10` units wide,
+/// and a thin lens is `focalLength / 10 / fStop` units across (see `render::camera`).
 #[derive(Clone, Debug)]
 pub struct Camera {
     pub prim_path: String,
     /// Camera → world. The camera looks down its local −Z with +Y up.
     pub camera_to_world: DMat4,
+    /// `projection`: perspective or orthographic.
+    pub projection: Projection,
     pub focal_length: f64,
     pub horizontal_aperture: f64,
     pub vertical_aperture: f64,
@@ -83,6 +87,18 @@ pub struct Camera {
     pub vertical_aperture_offset: f64,
     /// (near, far) clipping range.
     pub clipping_range: (f64, f64),
+    /// `fStop`: 0 is a pinhole (everything in focus).
+    pub f_stop: f64,
+    /// `focusDistance`: depth of the plane in focus (used when `f_stop` > 0).
+    pub focus_distance: f64,
+}
+
+/// UsdGeomCamera's `projection`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Projection {
+    #[default]
+    Perspective,
+    Orthographic,
 }
 
 /// UsdLuxDistantLight. Its emission scale is `intensity · 2^exposure · color`: radiance

@@ -8,11 +8,13 @@
 //! [`schema`].
 
 mod attrs;
+mod camera;
 pub mod defaults;
 pub mod description;
 pub mod diagnostics;
 pub mod geometry;
 mod lights;
+mod motion;
 pub mod schema;
 pub mod shading;
 pub mod stage;

@@ -8,11 +8,13 @@
 //! (or the bytes of a .usdz member).
 
 use super::attrs::*;
+use super::camera;
 use super::defaults;
 use super::description::*;
 use super::diagnostics::Diagnostics;
 use super::geometry;
 use super::lights;
+use super::motion;
 use super::schema::{self, tokens};
 use super::shading;
 use super::unsupported;
@@ -46,6 +48,17 @@ mod types {
     pub const POINT_INSTANCER: &str = "PointInstancer";
 }
 
+/// The camera attributes whose change during the exposure would blur the image.
+const LENS_ATTRIBUTES: [&str; 7] = [
+    "focalLength",
+    "horizontalAperture",
+    "verticalAperture",
+    "horizontalApertureOffset",
+    "verticalApertureOffset",
+    "fStop",
+    "focusDistance",
+];
+
 /// Prefix of a volume's field relationships (`field:density`).
 const FIELD_PREFIX: &str = "field:";
 /// Density field used when `nimbus:densityField` resolves no value at all.
@@ -59,6 +72,7 @@ pub fn load_stage(path: &Path, opts: &LoadOptions) -> Result<Scene, SceneError> 
         time: opts.frame.map(TimeCode::new),
         xforms: geom::XformCache::new(opts.frame.map(TimeCode::new)),
         warnings: RefCell::default(),
+        shutter: None,
     };
     let scene = loader.load(path, opts);
     // Reference and payload diagnostics accrue while prims are composed, so they
@@ -134,6 +148,9 @@ struct Loader<'a> {
     /// What the stage asks for that the render will not show as authored; readers
     /// that only borrow the loader add to it too.
     warnings: RefCell<Diagnostics>,
+    /// The render camera's shutter interval, when it is open (set before any other
+    /// prim's transform is read): what moves within it warns ([`motion`]).
+    shutter: Option<(f64, f64)>,
 }
 
 impl Loader<'_> {
@@ -335,8 +352,15 @@ impl Loader<'_> {
         Ok(out)
     }
 
-    /// Local → world of `prim` as a column-vector matrix.
+    /// Local → world of `prim` as a column-vector matrix. Every prim the render uses
+    /// (camera, volumes, lights, holdouts) comes through here, so this is where a
+    /// transform that moves while the shutter is open warns.
     fn world_transform(&mut self, prim: &Prim) -> Result<DMat4, SceneError> {
+        if let Some(shutter) = self.shutter {
+            if let Some((owner, op)) = motion::moving_op(prim, self.time, shutter)? {
+                self.motion_warning(&owner, &op, shutter);
+            }
+        }
         let m = self
             .xforms
             .local_to_world_transform(prim)
@@ -375,21 +399,28 @@ impl Loader<'_> {
         Ok(inventory.cameras.first().cloned())
     }
 
+    /// The render camera (read first: its shutter decides whether moving prims warn).
     fn camera(&mut self, prim: &Prim) -> Result<Camera, SceneError> {
-        let t = self.time;
-        let clip =
-            read_vec2(prim, "clippingRange", t)?.ok_or_else(|| missing(prim, "clippingRange"))?;
-        Ok(Camera {
-            prim_path: prim.path().to_string(),
-            camera_to_world: self.world_transform(prim)?,
-            focal_length: require_f64(prim, "focalLength", t)?,
-            horizontal_aperture: require_f64(prim, "horizontalAperture", t)?,
-            vertical_aperture: require_f64(prim, "verticalAperture", t)?,
-            horizontal_aperture_offset: read_f64(prim, "horizontalApertureOffset", t)?
-                .unwrap_or(0.0),
-            vertical_aperture_offset: read_f64(prim, "verticalApertureOffset", t)?.unwrap_or(0.0),
-            clipping_range: (clip[0], clip[1]),
-        })
+        self.shutter = camera::shutter(prim, self.time)?;
+        if let Some(shutter) = self.shutter {
+            if let Some(name) =
+                motion::moving_attribute(prim, &LENS_ATTRIBUTES, self.time, shutter)?
+            {
+                self.motion_warning(prim, name, shutter);
+            }
+        }
+        let to_world = self.world_transform(prim)?;
+        camera::read_camera(prim, self.time, to_world, &mut self.warnings.borrow_mut())
+    }
+
+    /// One "motion blur" warning: `attribute` of `prim` changes while the shutter is open.
+    fn motion_warning(&self, prim: &Prim, attribute: &str, (open, close): (f64, f64)) {
+        self.warnings.borrow_mut().warn(
+            "motion blur",
+            prim.path().to_string(),
+            Some(attribute),
+            format!("time-sampled, and it changes while the camera's shutter is open ({open} to {close}): Nimbus renders no motion blur, only the scene at the frame's time"),
+        );
     }
 
     // ----- volumes ------------------------------------------------------------
