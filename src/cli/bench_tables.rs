@@ -202,7 +202,13 @@ fn print_tables(stage: &Path, t: &Tables) {
                 let v = t.row(d, tracker).map_or(f64::NAN, value);
                 line.push_str(&format!("{:>W$}", fmt(v)));
             }
-            line.push_str(&format!("{:>W$.3}", t.ratio(d, value)));
+            // A ratio over a zero (delta's residual lookups) is left blank.
+            let ratio = t.ratio(d, value);
+            if ratio.is_finite() {
+                line.push_str(&format!("{ratio:>W$.3}"));
+            } else {
+                line.push_str(&format!("{:>W$}", "-"));
+            }
         }
         println!("{line}");
     }
