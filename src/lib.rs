@@ -5,6 +5,7 @@
 //! USD stage → [`scene`] → [`volume`] grids → majorant structure → [`track`]ers →
 //! [`render`] integrator → film/AOVs → [`output`] EXR.
 
+pub mod bench;
 pub mod cli;
 pub mod color;
 pub mod farm;

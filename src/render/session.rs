@@ -24,7 +24,7 @@ use crate::scene::{
 use crate::track::scheme::SchemeOptions;
 use crate::track::select::{Choice, SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
 use crate::volume::asset::AssetLocation;
-use crate::volume::majorant::{MajorantSpec, MAX_DEPTH};
+use crate::volume::majorant::{MajorantSpec, MajorantTree, MAX_DEPTH};
 use crate::volume::medium::Medium;
 use crate::volume::vdb;
 use anyhow::{anyhow, bail, Context, Result};
@@ -327,6 +327,11 @@ impl Session {
         &self.media
     }
 
+    /// The octree pruning cost (`--octree-prune`; 0: not pruned).
+    pub fn octree_prune(&self) -> f32 {
+        self.octree_prune
+    }
+
     /// Switches to other tracker settings (a benchmark's next tracker), with the
     /// majorant structure rebuilt and pruned as a render with those settings prunes it.
     pub fn retrack(&mut self, tracking: TrackerSettings) {
@@ -340,6 +345,40 @@ impl Session {
     pub fn set_majorants(&mut self, spec: MajorantSpec) {
         self.spec = spec;
         self.rebuild_majorants();
+    }
+
+    /// The majorant structures (one per medium) a render with `tracking` uses at the
+    /// session's `spec`, built and pruned as [`retrack`](Self::retrack) would, without
+    /// switching to them: a benchmark that alternates trackers builds each once.
+    pub fn majorants_for(&self, tracking: &TrackerSettings) -> Vec<MajorantTree> {
+        let residual = tracking.pays_residual();
+        self.media
+            .iter()
+            .map(|m| m.build_majorants(self.spec, self.octree_prune, residual))
+            .collect()
+    }
+
+    /// Switches to `tracking` with `trees` from [`majorants_for`](Self::majorants_for)
+    /// (same `spec`, same settings) in place of the media's structures, which are
+    /// handed back: the same render as after [`retrack`](Self::retrack), without the
+    /// rebuild.
+    pub fn switch_tracking(
+        &mut self,
+        tracking: TrackerSettings,
+        trees: Vec<MajorantTree>,
+    ) -> Vec<MajorantTree> {
+        assert_eq!(
+            trees.len(),
+            self.media.len(),
+            "one majorant structure per medium"
+        );
+        self.tracking = tracking;
+        self.auto_reason = None;
+        self.media
+            .iter_mut()
+            .zip(trees)
+            .map(|(m, t)| m.replace_majorants(t))
+            .collect()
     }
 
     fn rebuild_majorants(&mut self) {

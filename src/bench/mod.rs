@@ -1,0 +1,2 @@
+pub mod cumulus;
+pub mod octree_tables;
