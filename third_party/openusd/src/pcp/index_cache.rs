@@ -124,6 +124,11 @@ pub struct IndexCache {
     /// O(depth) ancestor walk into O(1) amortized. Retired alongside
     /// `redirected_prims` by [`Self::invalidate_population`].
     pub(super) populated_prims: HashMap<Path, bool>,
+    /// Memoized nearest instance at or above each prim (see
+    /// `IndexCache::enclosing_instance`), `None` outside every instance. It
+    /// records what `redirected_prims` derives from, so it is retired with it.
+    /// (Nimbus patch: third_party/openusd/PATCHES.md.)
+    pub(super) nearest_instances: HashMap<Path, Option<Path>>,
     /// Advanced whenever the composed population may differ — see
     /// [`Self::invalidate_population`]. Distinct from
     /// [`revision`](Self::revision), which every edit batch advances: a
@@ -1092,6 +1097,7 @@ impl IndexCache {
             prototypes: PrototypeRegistry::default(),
             redirected_prims: HashMap::new(),
             populated_prims: HashMap::new(),
+            nearest_instances: HashMap::new(),
             population_epoch: 0,
             type_opinion_epoch: 0,
             collection_diagnostics,
@@ -1304,6 +1310,7 @@ impl IndexCache {
     pub(super) fn clear_population_memos(&mut self) {
         self.populated_prims.clear();
         self.redirected_prims.clear();
+        self.nearest_instances.clear();
     }
 
     /// Returns the recoverable composition errors encountered so far: the
@@ -3126,7 +3133,12 @@ impl IndexCache {
             return;
         };
 
-        let ancestor_arcs = self.collect_ancestor_arcs(&parent);
+        // Nimbus patch (third_party/openusd/PATCHES.md): the ancestor arcs are
+        // collected only once a target is found. The walk looks up every
+        // ancestor's context, hashing a path as long as that ancestor's depth,
+        // so collecting them for every prim cost O(n³) on a stage n prims deep,
+        // where most prims author no inherit or specialize at all.
+        let mut ancestor_arcs: Option<Vec<&AncestorArc>> = None;
 
         // Scan each parent composition node for inherit/specialize targets: the
         // parent's own path in that node's namespace, and the prim's path there
@@ -3162,7 +3174,8 @@ impl IndexCache {
                     // composed parent would mis-resolve `../` targets by a level.
                     let raw = scan_path.make_absolute(target);
                     // Try composed-namespace versions via ancestor arcs.
-                    for a in &ancestor_arcs {
+                    let ancestor_arcs = ancestor_arcs.get_or_insert_with(|| self.collect_ancestor_arcs(&parent));
+                    for a in ancestor_arcs.iter() {
                         if let Some(composed) = a.map.map_source_to_target(&raw)
                             && composed != raw
                             && !targets_to_cache.contains(&composed)

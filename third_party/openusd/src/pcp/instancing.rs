@@ -860,24 +860,56 @@ impl IndexCache {
     /// instance prim (spec 11.3.3), or `None` when `path` is not inside an
     /// instance.
     //
-    // TODO(perf): each [`is_instance`](Self::is_instance) here itself redirects
-    // through `effective_path`, which walks back up via this function — so a cold
-    // first query on a depth-d path is O(d²) (cheap path/hashmap ops, no extra
-    // composition). The `redirected_prims` memo collapses it to O(d) once the
-    // ancestors are warm, which a top-down traversal keeps it; a dedicated
-    // `is_instance` memo would remove the cold-cache factor entirely.
+    // Nimbus patch (third_party/openusd/PATCHES.md): the ancestor walk was
+    // repeated for every prim, and each step hashes and scans a path as long
+    // as the prim's depth, so a top-down traversal of a stage n prims deep cost
+    // O(n³) (a 1,000-deep chain of Xforms took 9 s to traverse). The answer is
+    // now memoized per prim in `nearest_instances`, so each prim pays one
+    // lookup of its parent.
     pub(crate) fn enclosing_instance(&mut self, graph: &LayerGraph, path: &Path) -> Result<Option<Path>, QueryError> {
-        let mut ancestor = path.parent();
-        while let Some(current) = ancestor {
-            if current.is_abs_root() {
+        match path.parent() {
+            Some(parent) if !parent.is_abs_root() => self.nearest_instance(graph, &parent),
+            _ => Ok(None),
+        }
+    }
+
+    /// The nearest prim at or above `path` that resolves as an instance,
+    /// memoized in `nearest_instances`. The ancestors not yet memoized are
+    /// decided top down, so each one's own [`is_instance`](Self::is_instance)
+    /// (which redirects through [`effective_path`](Self::effective_path) and so
+    /// asks for its parent's answer) finds its parent memoized instead of
+    /// recursing up the chain. That decides `is_instance` for the same
+    /// ancestors the unmemoized walk did through that recursion. An answer is
+    /// memoized under the rule `effective_path` follows
+    /// ([`provisional`](Self::provisional)); once one is provisional, nothing
+    /// below it is memoized either, since it was computed from that answer.
+    fn nearest_instance(&mut self, graph: &LayerGraph, path: &Path) -> Result<Option<Path>, QueryError> {
+        let mut chain = Vec::new();
+        let mut nearest = None;
+        let mut current = Some(path.clone());
+        while let Some(prim) = current {
+            if prim.is_abs_root() {
                 break;
             }
-            if self.is_instance(graph, &current)? {
-                return Ok(Some(current));
+            if let Some(hit) = self.nearest_instances.get(&prim) {
+                nearest = hit.clone();
+                break;
             }
-            ancestor = current.parent();
+            current = prim.parent();
+            chain.push(prim);
         }
-        Ok(None)
+        let mut memoize = true;
+        for prim in chain.into_iter().rev() {
+            let pending_before = self.pending_loads.len();
+            if self.is_instance(graph, &prim)? {
+                nearest = Some(prim.clone());
+            }
+            memoize &= !self.provisional(&prim, pending_before);
+            if memoize {
+                self.nearest_instances.insert(prim, nearest.clone());
+            }
+        }
+        Ok(nearest)
     }
 
     /// Maps a prim path to the path that actually composes it. An instance proxy

@@ -239,6 +239,12 @@ impl LoadRules {
     /// first), doing a point lookup at each step, since only that chain can
     /// ever match.
     fn nearest_prefix_entry(&self, path: &Path) -> Option<(Path, Rule)> {
+        // Nimbus patch (third_party/openusd/PATCHES.md): without entries (load
+        // everything, the default) there is nothing to find, and building each
+        // ancestor of a prim n deep costs O(n²).
+        if self.rules.is_empty() {
+            return None;
+        }
         path.ancestors().find_map(|p| self.rules.get(&p).map(|&r| (p, r)))
     }
 
