@@ -6,9 +6,25 @@
 
 mod common;
 
-use common::cli::{channels, nimbus, stderr};
+use common::cli::{assert_clean_error, channels, nimbus, stderr};
 use common::repo;
 use std::path::{Path, PathBuf};
+
+/// The example cloud's stage text, its VDB named by absolute path, with `edits` (each
+/// `(from, to)`, `from` present once) applied, written to `dir/name`.
+fn cloud_stage(dir: &Path, name: &str, edits: &[(&str, &str)]) -> PathBuf {
+    let vdb = repo().join("scenes/cloud/cloud.vdb");
+    let mut text = std::fs::read_to_string(repo().join("scenes/cloud/cloud.usda"))
+        .unwrap()
+        .replace("@./cloud.vdb@", &format!("@{}@", vdb.display()));
+    for (from, to) in edits {
+        assert_eq!(text.matches(from).count(), 1, "{from}");
+        text = text.replace(from, to);
+    }
+    let path = dir.join(name);
+    std::fs::write(&path, text).unwrap();
+    path
+}
 
 /// Renders `stage` to `dir/out.exr` at 16x12, 1 spp; returns the run and the output.
 fn render(dir: &Path, stage: &Path, extra: &[&str]) -> (std::process::Output, PathBuf) {
@@ -17,6 +33,18 @@ fn render(dir: &Path, stage: &Path, extra: &[&str]) -> (std::process::Output, Pa
     let mut args = vec!["render", &s, "-o", &o, "--res", "16x12", "--spp", "1"];
     args.extend_from_slice(extra);
     (nimbus(&args), out)
+}
+
+/// Asserts `stage` is refused with a message naming the stage file and every needle,
+/// and that nothing was written.
+fn assert_refused(dir: &Path, stage: &Path, extra: &[&str], needles: &[&str]) {
+    let (o, out) = render(dir, stage, extra);
+    let name = stage.file_name().unwrap().to_str().unwrap();
+    assert_clean_error(&o, name);
+    for n in needles {
+        assert_clean_error(&o, n);
+    }
+    assert!(!out.exists(), "{name}: wrote {}", out.display());
 }
 
 /// The cloud under `depth` nested Xforms (/World/L0/…/L{depth-1}/Cloud) with a camera, a
@@ -103,4 +131,60 @@ fn a_stage_2000_levels_deep_loads_and_renders() {
     let c = channels(&out);
     let alpha = common::cli::channel(&c, "A");
     assert!(alpha.iter().any(|&a| a > 0.1), "{alpha:?}");
+}
+
+/// A camera whose transform is NaN/infinite or scales to zero is an error naming the
+/// camera prim (it rendered an empty sky, the warning naming the volume).
+#[test]
+fn a_camera_with_a_non_finite_or_zero_scale_transform_is_refused_naming_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let camera_ops = "double3 xformOp:translate = (0, -0.5, 4.2)\n        float3 xformOp:rotateXYZ = (5, 0, 0)\n        uniform token[] xformOpOrder = [\"xformOp:translate\", \"xformOp:rotateXYZ\"]";
+    for (case, ops, needle) in [
+        (
+            "infinite.usda",
+            "double3 xformOp:translate = (inf, -0.5, 4.2)\n        uniform token[] xformOpOrder = [\"xformOp:translate\"]",
+            "not finite",
+        ),
+        (
+            "zero_scale.usda",
+            "double3 xformOp:translate = (0, -0.5, 4.2)\n        float3 xformOp:scale = (0, 0, 0)\n        uniform token[] xformOpOrder = [\"xformOp:translate\", \"xformOp:scale\"]",
+            "singular",
+        ),
+        (
+            "flat_scale.usda",
+            "double3 xformOp:translate = (0, -0.5, 4.2)\n        float3 xformOp:scale = (1, 0, 1)\n        uniform token[] xformOpOrder = [\"xformOp:translate\", \"xformOp:scale\"]",
+            "singular",
+        ),
+    ] {
+        let stage = cloud_stage(d, case, &[(camera_ops, ops)]);
+        assert_refused(d, &stage, &[], &["/World/Camera", needle]);
+    }
+}
+
+/// A holdout, or any prim the render uses, under a non-finite transform is an error
+/// naming it (the holdout was silently left out).
+#[test]
+fn a_prim_under_a_non_finite_transform_is_refused_naming_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sky = "    def DomeLight \"Sky\"";
+    let holdout = "    def Xform \"Set\"\n    {\n        double3 xformOp:translate = (0, inf, 0)\n        uniform token[] xformOpOrder = [\"xformOp:translate\"]\n        def Cube \"Wall\"\n        {\n            double size = 0.5\n        }\n    }\n\n    def DomeLight \"Sky\"";
+    let stage = cloud_stage(d, "holdout.usda", &[(sky, holdout)]);
+    assert_refused(d, &stage, &[], &["/World/Set/Wall", "not finite"]);
+    // The same for a light and for the volume.
+    let sun_ops = "float3 xformOp:rotateXYZ = (-30, 80, 0)";
+    let stage = cloud_stage(
+        d,
+        "light.usda",
+        &[(sun_ops, "float3 xformOp:rotateXYZ = (-30, inf, 0)")],
+    );
+    assert_refused(d, &stage, &[], &["/World/Sun", "not finite"]);
+    let volume_ops = "double3 xformOp:translate = (0, 0, 0)";
+    let stage = cloud_stage(
+        d,
+        "volume.usda",
+        &[(volume_ops, "double3 xformOp:translate = (0, 0, -inf)")],
+    );
+    assert_refused(d, &stage, &[], &["/World/Cloud", "not finite"]);
 }

@@ -240,7 +240,7 @@ impl Session {
             ));
         }
         let lights = Lights::from_scene(&scene)?;
-        check_camera(&scene)?;
+        check_camera(&scene).map_err(|e| anyhow!("{}: {e}", stage.display()))?;
         let holdouts = match scene.holdouts.is_empty() {
             true => Holdouts::empty(),
             false => Holdouts::build(&scene.holdouts),
@@ -673,6 +673,16 @@ fn check_camera(scene: &Scene) -> Result<()> {
             c.focal_length,
             c.horizontal_aperture,
             c.vertical_aperture
+        );
+    }
+    // A zero scale anywhere above the camera collapses its ray directions to zero
+    // (NaN once normalised): every ray would miss everything. The stage reader has
+    // already refused a non-finite transform.
+    let det = glam::DMat3::from_mat4(c.camera_to_world).determinant();
+    if !(det != 0.0 && det.is_finite()) {
+        bail!(
+            "camera {}: its transform is singular (a zero scale in its xformOps or an ancestor's), so its rays have no direction",
+            c.prim_path
         );
     }
     if !(c.clipping_range.0.is_finite() && c.clipping_range.1 > c.clipping_range.0) {
