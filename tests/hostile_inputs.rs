@@ -188,3 +188,165 @@ fn a_prim_under_a_non_finite_transform_is_refused_naming_it() {
     );
     assert_refused(d, &stage, &[], &["/World/Cloud", "not finite"]);
 }
+
+/// A resolution too large for memory is refused before allocating, naming the stage and
+/// the RenderSettings prim's attribute (or the flag it came from).
+#[test]
+fn a_huge_resolution_names_the_stage_and_the_render_settings() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let stage = cloud_stage(
+        d,
+        "huge.usda",
+        &[(
+            "uniform int2 resolution = (320, 240)",
+            "uniform int2 resolution = (200000, 200000)",
+        )],
+    );
+    let (o, out) = {
+        let out = d.join("out.exr");
+        let o = nimbus(&[
+            "render",
+            stage.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--spp",
+            "1",
+        ]);
+        (o, out)
+    };
+    for needle in ["huge.usda", "/Render/Settings.resolution", "200000x200000"] {
+        assert_clean_error(&o, needle);
+    }
+    assert!(!out.exists());
+    let o = nimbus(&[
+        "render",
+        stage.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--res",
+        "200000x200000",
+    ]);
+    for needle in ["huge.usda", "--res", "200000x200000"] {
+        assert_clean_error(&o, needle);
+    }
+    assert!(!out.exists());
+}
+
+/// Overwrites the `dataWindow` box of an EXR header with `(x0, y0, x1, y1)`: a file
+/// whose header claims another size than its pixels.
+fn claim_data_window(path: &Path, window: [i32; 4]) {
+    let mut bytes = std::fs::read(path).unwrap();
+    let key = b"dataWindow\0box2i\0";
+    let at = bytes
+        .windows(key.len())
+        .position(|w| w == key)
+        .expect("dataWindow attribute")
+        + key.len()
+        + 4;
+    for (i, v) in window.iter().enumerate() {
+        bytes[at + 4 * i..at + 4 * i + 4].copy_from_slice(&v.to_le_bytes());
+    }
+    std::fs::write(path, bytes).unwrap();
+}
+
+/// `compare` and `info` read EXRs whose header claims 1,000,000 x 1,000,000 pixels, or
+/// one line of 1,000,000,000: refused from the header, naming the file, before
+/// allocating (the claim is checked against the file's size and the memory limit).
+#[test]
+fn exr_headers_claiming_huge_images_are_refused_before_allocating() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let stage = cloud_stage(d, "cloud.usda", &[]);
+    let deep = d.join("deep.exr");
+    let (o, good) = render(d, &stage, &["--deep", deep.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // The flat image is tiled (64 x 64): both claims need more chunks than its bytes
+    // hold. The deep one has a chunk per line: the long line fits in one chunk, and
+    // its pixels exceed the memory limit.
+    for (name, window, needle, deep_needle) in [
+        (
+            "square.exr",
+            [0, 0, 999_999, 999_999],
+            "more than the",
+            "more than the",
+        ),
+        ("line.exr", [0, 0, 999_999_999, 0], "more than the", "GiB"),
+    ] {
+        let bad = d.join(name);
+        std::fs::copy(&good, &bad).unwrap();
+        claim_data_window(&bad, window);
+        let o = nimbus(&["compare", bad.to_str().unwrap(), good.to_str().unwrap()]);
+        assert_clean_error(&o, name);
+        assert_clean_error(&o, needle);
+        let bad_deep = d.join(format!("deep_{name}"));
+        std::fs::copy(&deep, &bad_deep).unwrap();
+        claim_data_window(&bad_deep, window);
+        let o = nimbus(&["info", bad_deep.to_str().unwrap()]);
+        assert_clean_error(&o, &format!("deep_{name}"));
+        assert_clean_error(&o, deep_needle);
+        assert!(
+            o.stdout.is_empty(),
+            "{}",
+            String::from_utf8_lossy(&o.stdout)
+        );
+    }
+}
+
+/// `merge` allocates the frame from tile 0's nimbus:fullResolution and the tile list from
+/// its nimbus:tile count: a header claiming a 200000 x 200000 frame, or 4,000,000,000
+/// tiles, is refused naming the tile file and the attribute, and nothing is written.
+#[test]
+fn merge_refuses_tiles_claiming_a_huge_frame_or_tile_count() {
+    use nimbus::output::exr::{write_channels, ExrMetadata, FarmMetadata};
+    use nimbus::render::film::Region;
+    use nimbus::render::tiles::Tile;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for (name, full, tile, needle) in [
+        (
+            "frame.exr",
+            (200_000, 200_000),
+            (0, 2),
+            "nimbus:fullResolution",
+        ),
+        ("count.exr", (8, 6), (0, 4_000_000_000u32), "nimbus:tile"),
+    ] {
+        let path = d.join(name);
+        let region = Region {
+            x0: 0,
+            y0: 0,
+            x1: 4,
+            y1: 6,
+        };
+        let meta = ExrMetadata {
+            stage: "generated".into(),
+            tracker: "delta".into(),
+            scheme: String::new(),
+            transmittance: String::new(),
+            spp: 1,
+            render_seconds: 0.0,
+            time: f64::NAN,
+            product: None,
+            farm: Some(FarmMetadata {
+                seed: 1,
+                spp_cap: Some(1),
+                settings_hash: 7,
+                tile: Some(Tile {
+                    index: tile.0,
+                    count: tile.1,
+                }),
+            }),
+        };
+        let channels = ["A", "B", "G", "R"]
+            .iter()
+            .map(|n| (n.to_string(), vec![0.5f32; 24]))
+            .collect();
+        write_channels(&path, full, region, channels, &meta).unwrap();
+        let out = d.join("merged.exr");
+        let o = nimbus(&["merge", out.to_str().unwrap(), path.to_str().unwrap()]);
+        assert_clean_error(&o, name);
+        assert_clean_error(&o, needle);
+        assert!(!out.exists());
+    }
+}
