@@ -350,3 +350,59 @@ fn merge_refuses_tiles_claiming_a_huge_frame_or_tile_count() {
         assert!(!out.exists());
     }
 }
+
+/// Light bright enough that pixel means exceed the f32 range (finite in f64) is written
+/// clamped to the largest f32, never as an infinity, with a warning naming the stage;
+/// the EXR writer stores no NaN or infinity whatever it is given.
+#[test]
+fn pixels_beyond_the_f32_range_are_written_finite_with_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let stage = cloud_stage(
+        d,
+        "bright.usda",
+        &[(
+            "float inputs:intensity = 0.35",
+            "float inputs:intensity = 3e38\n        float inputs:exposure = 100",
+        )],
+    );
+    let (o, out) = render(d, &stage, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(
+        e.contains("bright.usda") && e.contains("brighter than a 32-bit float"),
+        "{e}"
+    );
+    let c = channels(&out);
+    for (name, v) in &c {
+        assert!(v.iter().all(|x| x.is_finite()), "{name}: {v:?}");
+    }
+    let r = common::cli::channel(&c, "R");
+    assert!(r.iter().any(|&x| x == f32::MAX), "{r:?}");
+
+    use nimbus::output::exr::{write_channels, ExrMetadata};
+    use nimbus::render::film::Region;
+    let path = d.join("direct.exr");
+    let meta = ExrMetadata {
+        stage: "generated".into(),
+        tracker: String::new(),
+        scheme: String::new(),
+        transmittance: String::new(),
+        spp: 1,
+        render_seconds: 0.0,
+        time: f64::NAN,
+        product: None,
+        farm: None,
+    };
+    let values = vec![f32::INFINITY, f32::NEG_INFINITY, f32::NAN, 1.5];
+    write_channels(
+        &path,
+        (2, 2),
+        Region::full(2, 2),
+        vec![("R".to_string(), values)],
+        &meta,
+    )
+    .unwrap();
+    let r = channels(&path);
+    assert_eq!(r[0].1, vec![f32::MAX, -f32::MAX, 0.0, 1.5]);
+}

@@ -57,7 +57,7 @@ pub fn write_channels(
     let size = (region.width() as usize, region.height() as usize);
     let channels: Vec<AnyChannel<FlatSamples>> = channels
         .into_iter()
-        .map(|(name, v)| AnyChannel::new(name.as_str(), FlatSamples::F32(v)))
+        .map(|(name, v)| AnyChannel::new(name.as_str(), FlatSamples::F32(finite(v))))
         .collect();
     let mut attrs = LayerAttributes::default();
     attrs.layer_position = Vec2(region.x0 as i32, region.y0 as i32);
@@ -125,6 +125,21 @@ pub fn write_channels(
             .to_buffered(std::io::BufWriter::new(file))
             .map_err(|e| format!("EXR encoding failed: {e}"))
     })
+}
+
+/// `values` with nothing non-finite: a mean that is finite in f64 can still exceed the
+/// f32 range (a light 2^1000 bright), and is stored as ±`f32::MAX` (`render` warns,
+/// [`Film::out_of_range`]); NaN, which the film never produces (it drops non-finite
+/// samples), would be stored as 0. No written image holds an infinity or a NaN.
+fn finite(mut values: Vec<f32>) -> Vec<f32> {
+    for v in values.iter_mut().filter(|v| !v.is_finite()) {
+        *v = if v.is_nan() {
+            0.0
+        } else {
+            f32::MAX.copysign(*v)
+        };
+    }
+    values
 }
 
 /// Bytes of pixels in memory the EXR readers accept (`compare`, `merge`, `info` on a
