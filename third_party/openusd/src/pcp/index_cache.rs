@@ -3229,7 +3229,10 @@ impl IndexCache {
         // so every strict ancestor is checked, not just the parent. Defer without
         // caching an under-seeded result; a later query composes it correctly once
         // the ancestor is cached, and the cycle-closing arc finds no cached target.
-        if path.strict_ancestors().any(|a| self.in_progress.contains(&a)) {
+        // Nimbus patch (third_party/openusd/PATCHES.md): nothing mid-build (every
+        // query from outside a build) means no ancestor is; building and hashing
+        // each ancestor path of a prim n deep to find that out costs O(n²).
+        if !self.in_progress.is_empty() && path.strict_ancestors().any(|a| self.in_progress.contains(&a)) {
             return Ok(());
         }
         // A re-entrant call for a path already mid-build is a class-hierarchy
