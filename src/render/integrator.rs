@@ -150,7 +150,7 @@ pub struct Integrator<'a, F: FreePathSampler, E: TransmittanceEstimator> {
     /// `ratio-select`: each path segment through one volume by one ratio-tracking walk
     /// that estimates the transmittance to its end and picks the collision the path
     /// scatters at ([`ratio_select`]); `free_path` runs where several volumes overlap
-    /// along a ray, and for camera rays of deep renders.
+    /// along a ray.
     pub select_segments: SelectSegments,
 }
 
@@ -169,8 +169,9 @@ pub enum SelectSegments {
 pub struct SampleResult {
     pub rgb: [f64; 3],
     pub alpha: f64,
-    /// Camera depth of the first real collision on the camera ray; NaN when there was
-    /// none (deep output bins the sample by it).
+    /// Camera depth of the first real collision on the camera ray (of a ratio-select
+    /// walk: the collision it scatters at, else the one its emission was taken at);
+    /// NaN when there was none (deep output bins the sample by it).
     pub depth: f64,
 }
 
@@ -379,10 +380,9 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         let mut depth = f64::NAN;
         loop {
             let t0 = counters.tracker_start();
-            // Deep output bins a sample by its first real collision on the camera ray,
-            // which only free-path sampling gives.
-            let selecting = self.select_segments != SelectSegments::Off
-                && !(path.depth == 0 && self.extras.depth_bins.is_some());
+            // The outputs asked for (deep bins among them) never change which walk
+            // runs: the samples, and so the beauty, are the same with or without them.
+            let selecting = self.select_segments != SelectSegments::Off;
             let step =
                 self.with_queries(origin, dir, tmin, tmax, path.tracked, |qs, ids| match qs {
                     [] => Step::Tracked(FreePath::Escape, 0),
@@ -417,6 +417,12 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                 Step::Selected(s, id) => {
                     if path.depth == 0 {
                         alpha = 1.0 - crate::track::free_path::avg(s.transmittance) as f64;
+                        // A ratio-tracking walk has no first real collision: deep
+                        // output bins the sample at the collision it scatters at
+                        // (set below), else at the one its emission was taken at.
+                        if let (None, Some((t, _))) = (s.scatter, s.emit) {
+                            depth = (camera_shift + t as f64) * ray.depth_per_t;
+                        }
                     }
                     let ray = (origin, dir, blocked);
                     self.add_walk_light(&s, id, &path, ray, &mut radiance, counters);

@@ -212,7 +212,16 @@ impl Session {
             (Some(_), None) => u32::MAX,
             _ => spp,
         };
-        check_film_memory(width, height)?;
+        // Name where the resolution came from: a refusal read in a farm log must say
+        // which file and prim (or flag) to fix.
+        check_film_memory(width, height).map_err(|e| {
+            let source = match (o.res, &settings.prim_path) {
+                (Some(_), _) => "--res".to_string(),
+                (None, Some(prim)) => format!("{prim}.resolution"),
+                (None, None) => "the default resolution".to_string(),
+            };
+            anyhow!("{}: {source}: {e}", stage.display())
+        })?;
         let prune = o.octree_prune.unwrap_or(DEFAULT_OCTREE_PRUNE);
         if !(prune.is_finite() && prune >= 0.0) {
             bail!("the octree pruning cost must be a non-negative number, got {prune}");
@@ -240,7 +249,7 @@ impl Session {
             ));
         }
         let lights = Lights::from_scene(&scene)?;
-        check_camera(&scene)?;
+        check_camera(&scene).map_err(|e| anyhow!("{}: {e}", stage.display()))?;
         let holdouts = match scene.holdouts.is_empty() {
             true => Holdouts::empty(),
             false => Holdouts::build(&scene.holdouts),
@@ -714,6 +723,16 @@ fn check_camera(scene: &Scene) -> Result<()> {
             c.vertical_aperture
         );
     }
+    // A zero scale anywhere above the camera collapses its ray directions to zero
+    // (NaN once normalised): every ray would miss everything. The stage reader has
+    // already refused a non-finite transform.
+    let det = glam::DMat3::from_mat4(c.camera_to_world).determinant();
+    if !(det != 0.0 && det.is_finite()) {
+        bail!(
+            "camera {}: its transform is singular (a zero scale in its xformOps or an ancestor's), so its rays have no direction",
+            c.prim_path
+        );
+    }
     if !(c.clipping_range.0.is_finite() && c.clipping_range.1 > c.clipping_range.0) {
         bail!(
             "camera {}: clipping range {:?} is empty",
@@ -754,7 +773,7 @@ fn check_film_bytes(width: u32, height: u32, per_pixel: usize) -> Result<()> {
 
 /// Memory the system can give a new allocation without swapping (`MemAvailable` of
 /// /proc/meminfo, Linux); `None` where that is not known.
-fn available_memory_bytes() -> Option<u64> {
+pub fn available_memory_bytes() -> Option<u64> {
     let text = std::fs::read_to_string("/proc/meminfo").ok()?;
     let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
     let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;

@@ -365,7 +365,17 @@ impl Loader<'_> {
             .xforms
             .local_to_world_transform(prim)
             .map_err(|e| prim_error(prim.path(), format!("cannot compute transform: {e}")))?;
-        Ok(to_dmat4(&m))
+        let m = to_dmat4(&m);
+        // Every prim the render uses gets its transform here: a NaN or infinite one
+        // would make the prim vanish (rays miss it) or poison every sample, so it is
+        // refused, naming the prim.
+        if !m.is_finite() {
+            return Err(prim_error(
+                prim.path(),
+                "its world transform is not finite (a NaN or infinite value in its xformOps or an ancestor's)",
+            ));
+        }
+        Ok(m)
     }
 
     // ----- camera -------------------------------------------------------------
