@@ -85,6 +85,9 @@ fn camera(near: f64, far: f64) -> CameraRays {
         horizontal_aperture_offset: 0.0,
         vertical_aperture_offset: 0.0,
         clipping_range: (near, far),
+        projection: Default::default(),
+        f_stop: 0.0,
+        focus_distance: 0.0,
     };
     CameraRays::new(&cam, 9, 9)
 }
