@@ -1,5 +1,5 @@
 //! Against Cycles, through Blender's USD exporter: a smoke volume lit by each Blender
-//! light type (sun, point with a radius, spot with blend, square, disk and ellipse area
+//! light type (sun, point with a radius, spot (a hard cone), square, disk and ellipse area
 //! lights), by a world colour and by an HDRI, built headless in `bpy` 5.0.1, exported
 //! with `bpy.ops.wm.usd_export` and rendered by Cycles
 //! (`tests/fixtures/blender_export_scene.py`). Nimbus renders the exported stage, with
