@@ -1,0 +1,4 @@
+pub mod error;
+pub mod grid;
+pub mod reference;
+pub mod stats;
