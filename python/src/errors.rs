@@ -1,7 +1,4 @@
 //! The exceptions of `nimbus` and how library errors and panics become them.
-//!
-//! Kept apart from the rest: the exceptions' module name is the one thing a pickling
-//! host (Blender's worker processes) needs changed, and it is changed here alone.
 
 use nimbus::output::OutputError as LibOutputError;
 use nimbus::scene::SceneError;

@@ -145,3 +145,27 @@ def Volume "Cloud" (prepend apiSchemas = ["NimbusVolumeAPI"])
     assert any("default camera" in m for m in messages), messages
     assert any("default camera" in w for w in r.warnings)
     assert r.rgba.shape == (12, 16, 4)
+
+
+def test_strict_and_no_default_lights(stage_dir):
+    # `render --strict` and `--no-default-lights` as keywords, on a stage without
+    # lights or camera: strict refuses the default sun and sky, no_default_lights
+    # renders the non-emissive cloud unlit (black, its alpha still there).
+    text = """#usda 1.0
+def Volume "Cloud"
+{
+    rel field:density = </Cloud/density>
+    def OpenVDBAsset "density"
+    {
+        asset filePath = @./cloud.vdb@
+        token fieldName = "density"
+    }
+}
+"""
+    kw = dict(stage_text=text, base_dir=stage_dir, spp=1, res=(16, 12))
+    with pytest.raises(nimbus.SettingsError, match="--strict refuses to add the default sun"):
+        nimbus.render(strict=True, **kw)
+    with pytest.warns(UserWarning, match="default camera"):
+        r = nimbus.render(no_default_lights=True, **kw)
+    assert not any("no lights" in w for w in r.warnings), r.warnings
+    assert r.rgba[..., :3].max() == 0 and r.rgba[..., 3].max() > 0
