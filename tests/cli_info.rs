@@ -183,3 +183,36 @@ fn info_json_describes_a_vdb_file() {
     assert!(lo > 0.0 && hi <= 1.0 && lo < hi, "range {lo} .. {hi}");
     assert_eq!(c["active_voxels"], grids[0]["active_voxels"]);
 }
+
+/// A light's JSON is its prim path, light group, `type` and that type's parameters side
+/// by side; a light whose parameters the description does not list yet is `other`.
+#[test]
+fn a_light_description_is_flat_json_with_its_type() {
+    use nimbus::output::describe::{LightDescription, LightParams};
+    let rect = LightDescription {
+        prim_path: "/Rig/Panel".into(),
+        light_group: Some("key".into()),
+        params: LightParams::Rect {
+            position: [1.0, 2.0, 3.0],
+            width: 2.0,
+            height: 0.5,
+            intensity: 5.0,
+            exposure: 0.0,
+            color: [1.0; 3],
+            normalize: true,
+        },
+    };
+    let j = serde_json::to_value(&rect).unwrap();
+    assert_eq!(j["type"], "rect");
+    assert_eq!(j["light_group"], "key");
+    assert_eq!(j["width"], 2.0);
+    let other = LightDescription {
+        prim_path: "/Rig/New".into(),
+        light_group: None,
+        params: LightParams::Other,
+    };
+    assert_eq!(
+        serde_json::to_value(&other).unwrap(),
+        serde_json::json!({"prim_path": "/Rig/New", "light_group": null, "type": "other"})
+    );
+}
