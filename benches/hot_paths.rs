@@ -161,6 +161,9 @@ fn full_path(c: &mut Criterion) {
         horizontal_aperture_offset: 0.0,
         vertical_aperture_offset: 0.0,
         clipping_range: (0.1, 1e6),
+        projection: Default::default(),
+        f_stop: 0.0,
+        focus_distance: 0.0,
     };
     let camera = CameraRays::new(&cam, 64, 64);
     let lights = Lights {
@@ -168,6 +171,7 @@ fn full_path(c: &mut Criterion) {
             direction: DVec3::new(0.3, 1.0, 0.4).normalize(),
             irradiance: [3.0; 3],
             cos_half_angle: 0.9999,
+            ..Default::default()
         }],
         environment: [0.3, 0.4, 0.6],
         ..Default::default()

@@ -7,14 +7,15 @@
 //! them are hand-written.
 
 use glam::DVec3;
-use nimbus::volume::procedural::{fbm, grid_from_fn};
+use nimbus::volume::procedural::{cumulus, fbm, grid_from_fn};
 use nimbus::volume::vdb::{write_float_grid, write_float_grids};
 use std::path::Path;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
 
-    // The cloud: a cumulus, 128³ voxels over [-1, 1]³ (see `cumulus`).
+    // The cloud: a cumulus, 128³ voxels over [-1, 1]³ (see `cumulus`; `nimbus bench
+    // cumulus` renders the same field at production size).
     let n = 128;
     let voxel = 2.0 / n as f64;
     let origin = DVec3::splat(-1.0 + 0.5 * voxel);
@@ -93,71 +94,4 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         temperature.active_voxel_count()
     );
     Ok(())
-}
-
-/// The billows of the cumulus: (centre, radius) in the grid's [-1, 1]³, x the long
-/// axis. A broad, low base row, a taller central tower and smaller cauliflower heads
-/// on top.
-const BILLOWS: [([f64; 3], f64); 16] = [
-    // Base row, sitting on the flat bottom.
-    ([-0.55, -0.22, 0.05], 0.30),
-    ([-0.25, -0.18, -0.12], 0.36),
-    ([0.10, -0.20, 0.10], 0.38),
-    ([0.45, -0.22, -0.05], 0.32),
-    ([0.00, -0.22, -0.30], 0.30),
-    ([-0.10, -0.24, 0.32], 0.28),
-    // Middle.
-    ([-0.30, 0.08, 0.02], 0.33),
-    ([0.05, 0.12, -0.05], 0.40),
-    ([0.38, 0.05, 0.08], 0.30),
-    ([0.10, 0.10, 0.28], 0.26),
-    // Tower and heads.
-    ([-0.08, 0.42, 0.00], 0.30),
-    ([0.22, 0.38, -0.10], 0.25),
-    ([-0.32, 0.32, -0.08], 0.22),
-    ([0.05, 0.62, 0.05], 0.22),
-    ([0.28, 0.55, 0.10], 0.16),
-    ([-0.18, 0.60, -0.12], 0.16),
-];
-
-/// The cloud base (world y of the flat bottom).
-const BASE: f64 = -0.48;
-
-/// Polynomial smooth minimum (blend width `k`).
-fn smin(a: f64, b: f64, k: f64) -> f64 {
-    let h = (0.5 + 0.5 * (b - a) / k).clamp(0.0, 1.0);
-    b + (a - b) * h - k * h * (1.0 - h)
-}
-
-/// The example cumulus: a smooth union of spherical billows cut flat at the base,
-/// its surface displaced by fBm (rounded cauliflower lumps at two scales), a soft edge
-/// a few voxels wide, and a denser core. Density in [0, 1], exactly 0 outside.
-fn cumulus(p: DVec3) -> f64 {
-    // Signed distance to the billows (negative inside).
-    let dist = |(c, r): ([f64; 3], f64)| (p - DVec3::from(c)).length() - r;
-    let mut d = dist(BILLOWS[0]);
-    for b in &BILLOWS[1..] {
-        d = smin(d, dist(*b), 0.08);
-    }
-    // Flat bottom, slightly rounded where it meets the sides.
-    d = -smin(-d, p.y - BASE, 0.06);
-    // Lumps: large ones mostly on top, small ones everywhere; the base stays flatter.
-    let up = ((p.y - BASE) / 0.4).clamp(0.0, 1.0);
-    let big = fbm(p * 3.2 + DVec3::new(5.2, 1.3, 7.9), 3) - 0.5;
-    let small = fbm(p * 9.0 + DVec3::new(-3.7, 2.9, 0.4), 3) - 0.5;
-    d += (0.04 + 0.2 * up) * big + (0.03 + 0.06 * up) * small;
-    if d >= 0.0 {
-        return 0.0;
-    }
-    // Soft edge over ~0.05, then denser inwards.
-    let edge = (-d / 0.05).min(1.0);
-    let edge = edge * edge * (3.0 - 2.0 * edge);
-    let core = 0.55 + 0.45 * (-d / 0.3).min(1.0);
-    let wisp = 0.8 + 0.4 * fbm(p * 14.0 + DVec3::new(1.1, 8.3, -2.2), 2);
-    let v = (edge * core * wisp).clamp(0.0, 1.0);
-    if v < 1e-3 {
-        0.0
-    } else {
-        v
-    }
 }

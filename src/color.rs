@@ -64,3 +64,13 @@ pub fn usd_blackbody_rgb(kelvin: f64) -> [f64; 3] {
 pub fn luminance(c: [f64; 3]) -> f64 {
     0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
 }
+
+/// The sRGB transfer function inverted (IEC 61966-2-1): an sRGB-encoded value in
+/// [0, 1] (what 8-bit PNG and JPEG files hold) to linear.
+pub fn srgb_to_linear(v: f64) -> f64 {
+    if v <= 0.04045 {
+        v / 12.92
+    } else {
+        ((v + 0.055) / 1.055).powf(2.4)
+    }
+}

@@ -48,6 +48,9 @@ fn camera(away: bool) -> CameraRays {
         horizontal_aperture_offset: 0.0,
         vertical_aperture_offset: 0.0,
         clipping_range: (0.1, 1e6),
+        projection: Default::default(),
+        f_stop: 0.0,
+        focus_distance: 0.0,
     };
     CameraRays::new(&cam, 32, 24)
 }

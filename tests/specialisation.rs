@@ -399,6 +399,9 @@ fn sky_scene(media: Vec<Medium>) -> Scene {
         horizontal_aperture_offset: 0.0,
         vertical_aperture_offset: 0.0,
         clipping_range: (0.1, 1e6),
+        projection: Default::default(),
+        f_stop: 0.0,
+        focus_distance: 0.0,
     };
     Scene {
         media,

@@ -193,3 +193,194 @@ fn default_lights_only_for_a_stage_without_light_prims_or_emission() {
     assert_eq!(rgba(&a), rgba(&b));
     assert!(rgba(&a)[0].iter().sum::<f32>() > 0.0, "the fire emits");
 }
+
+/// The example cloud with `replace` applied (pairs of text to find, exactly once, and
+/// what to put there), its VDB path made absolute.
+fn cloud_with(dir: &Path, name: &str, replace: &[(&str, &str)]) -> PathBuf {
+    let mut text = std::fs::read_to_string(root().join("scenes/cloud/cloud.usda"))
+        .unwrap()
+        .replace(
+            "@./cloud.vdb@",
+            &format!("@{}@", root().join("scenes/cloud/cloud.vdb").display()),
+        );
+    for (from, to) in replace {
+        assert_eq!(text.matches(from).count(), 1, "{from:?} in cloud.usda");
+        text = text.replace(from, to);
+    }
+    let path = dir.join(name);
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// Prims besides lights that the render does not show as authored: gprims Nimbus has no
+/// holdout for (one line per type, none for a prototype or for `nimbus:holdout =
+/// false`), a point instancer, a Field3DAsset field, and render settings and a product
+/// asking for non-square pixels, a crop, another conform policy and their own
+/// resolution. Each names its prim and attribute; `--strict` refuses them.
+#[test]
+fn unread_prims_and_settings_warn_once_per_kind_and_are_errors_under_strict() {
+    let dir = tempfile::tempdir().unwrap();
+    let extra_prims = r#"
+    def Points "Dust" { point3f[] points = [(0, 0, 0), (0.1, 0, 0)] float[] widths = [0.05, 0.05] }
+    def Points "MoreDust" { point3f[] points = [(0, 0.1, 0)] float[] widths = [0.05] }
+    def Points "NotAHoldout" { bool nimbus:holdout = false point3f[] points = [(0, 0, 0)] }
+    def Points "Guide" { uniform token purpose = "guide" point3f[] points = [(0, 0, 0)] }
+    def BasisCurves "Hair" {
+        uniform token type = "linear"
+        int[] curveVertexCounts = [2]
+        point3f[] points = [(0, 0, 0), (0, 1, 0)]
+    }
+    def PointInstancer "Scatter" {
+        rel prototypes = [</World/Scatter/Protos/Pebble>]
+        int[] protoIndices = [0]
+        point3f[] positions = [(5, 5, 5)]
+        def Scope "Protos" {
+            def Points "Pebble" { point3f[] points = [(0, 0, 0)] }
+        }
+    }
+
+    def DistantLight "Sun""#;
+    let stage = cloud_with(
+        dir.path(),
+        "stage.usda",
+        &[
+            ("\n    def DistantLight \"Sun\"", extra_prims),
+            (
+                "rel field:density = </World/Cloud/density>",
+                "rel field:density = </World/Cloud/density>\n        \
+                 rel field:temperature = </World/Cloud/temperature>",
+            ),
+            (
+                "        def OpenVDBAsset \"density\"",
+                "        def Field3DAsset \"temperature\" { asset filePath = @./heat.f3d@ }\n\n        \
+                 def OpenVDBAsset \"density\"",
+            ),
+            (
+                "uniform int2 resolution = (320, 240)",
+                "uniform int2 resolution = (320, 240)\n        float pixelAspectRatio = 2\n        \
+                 float4 dataWindowNDC = (0, 0, 0.5, 1)\n        \
+                 uniform token aspectRatioConformPolicy = \"cropAperture\"",
+            ),
+            (
+                "uniform token productName = \"cloud.exr\"",
+                "uniform token productName = \"cloud.exr\"\n        uniform int2 resolution = (64, 48)",
+            ),
+        ],
+    );
+    let out = dir.path().join("out.exr");
+    let stats = dir.path().join("stats.json");
+    let o = render(&stage, &out, &["--stats", stats.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let lines = warning_lines(&o);
+    let expect = [
+        "/World/Dust: Points prims are not read as holdouts: this one does not occlude the volumes (set nimbus:holdout = false to say so) (the same for /World/MoreDust)",
+        "/World/Hair: BasisCurves prims are not read as holdouts",
+        "/World/Scatter.protoIndices: point instancers are not read",
+        "/World/Cloud.field:temperature: targets /World/Cloud/temperature (Field3DAsset); Nimbus reads OpenVDBAsset fields only",
+        "/Render/Settings.pixelAspectRatio: is 2: Nimbus renders square pixels",
+        "/Render/Settings.dataWindowNDC: is [0.0, 0.0, 0.5, 1.0]: Nimbus renders the whole frame",
+        "/Render/Settings.aspectRatioConformPolicy: is `cropAperture`",
+        "/Render/Product.resolution: a product's own resolution is not read",
+    ];
+    for e in expect {
+        assert_eq!(
+            lines.iter().filter(|l| l.contains(e)).count(),
+            1,
+            "one line with {e:?} in {lines:#?}"
+        );
+    }
+    assert_eq!(lines.len(), expect.len(), "{lines:#?}");
+    let all = stderr(&o);
+    for quiet in ["NotAHoldout", "Guide", "Pebble"] {
+        assert!(!all.contains(quiet), "{quiet} warned: {all}");
+    }
+    let s = stats_json(&stats);
+    let kinds: Vec<&str> = s["stage_warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w["kind"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        kinds,
+        [
+            "Points holdout",
+            "Points holdout",
+            "BasisCurves holdout",
+            "PointInstancer",
+            "pixelAspectRatio",
+            "dataWindowNDC",
+            "aspectRatioConformPolicy",
+            "RenderProduct resolution",
+            "Field3DAsset field",
+        ]
+    );
+
+    let strict_out = dir.path().join("strict.exr");
+    let o = render(&stage, &strict_out, &["--strict"]);
+    assert_clean_error(&o, "strict");
+    for p in [
+        "/World/Dust",
+        "/World/Hair",
+        "/World/Scatter",
+        "/World/Cloud",
+        "/Render/Product",
+    ] {
+        assert!(stderr(&o).contains(p), "{p} not named: {}", stderr(&o));
+    }
+    assert!(!strict_out.exists(), "a refused render wrote its output");
+}
+
+/// A material bound to a volume without NimbusVolumeAPI that has no volume output Nimbus
+/// reads: the volume falls back to its nimbus:* attributes, with a warning naming the
+/// binding; with NimbusVolumeAPI applied the material is not consulted and nothing warns.
+#[test]
+fn a_bound_material_without_a_volume_output_warns() {
+    let dir = tempfile::tempdir().unwrap();
+    let material = r#"
+
+    def Material "Paint" {
+        token outputs:surface.connect = </World/Paint/Surface.outputs:surface>
+        def Shader "Surface" {
+            uniform token info:id = "UsdPreviewSurface"
+            token outputs:surface
+        }
+    }
+
+    def DistantLight "Sun""#;
+    let bind =
+        "rel field:density = </World/Cloud/density>\n        rel material:binding = </World/Paint>";
+    let stage = cloud_with(
+        dir.path(),
+        "bound.usda",
+        &[
+            ("\n    def DistantLight \"Sun\"", material),
+            ("rel field:density = </World/Cloud/density>", bind),
+            ("prepend apiSchemas = [\"NimbusVolumeAPI\"]", ""),
+        ],
+    );
+    let o = render(&stage, &dir.path().join("a.exr"), &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        warning_lines(&o)
+            .iter()
+            .filter(|l| l.contains(
+                "/World/Cloud.material:binding: the bound material /World/Paint has no volume output"
+            ))
+            .count(),
+        1,
+        "{}",
+        stderr(&o)
+    );
+    let with_api = cloud_with(
+        dir.path(),
+        "api.usda",
+        &[
+            ("\n    def DistantLight \"Sun\"", material),
+            ("rel field:density = </World/Cloud/density>", bind),
+        ],
+    );
+    let o = render(&with_api, &dir.path().join("b.exr"), &["--strict"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(warning_lines(&o), Vec::<String>::new());
+}

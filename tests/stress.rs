@@ -61,6 +61,7 @@ fn sun_and_sky() -> Lights {
             direction: DVec3::new(0.3, 0.8, 0.5).normalize(),
             irradiance: [3.0, 2.8, 2.5],
             cos_half_angle: 1.0,
+            ..Default::default()
         }],
         environment: [0.3, 0.4, 0.6],
         ..Lights::default()

@@ -597,6 +597,7 @@ fn fallback_json(value: &openusd::sdf::Value) -> Value {
     match value {
         V::Float(f) => serde_json::json!(f64::from(*f)),
         V::Int(i) => serde_json::json!(i),
+        V::Bool(b) => serde_json::json!(b),
         V::Token(t) => serde_json::json!(t.as_str()),
         V::Vec3f(v) => serde_json::json!([f64::from(v.x), f64::from(v.y), f64::from(v.z)]),
         other => panic!("unexpected fallback type {other:?}"),

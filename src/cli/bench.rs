@@ -36,6 +36,13 @@ pub enum BenchCommand {
     /// time, memory per active voxel and ns per lookup.
     #[command(subcommand)]
     Grid(super::bench_grid::GridCommand),
+    /// Write the production-size cumulus (the example cloud's field at ≥ 200 M active
+    /// voxels) as OUT/cumulus.vdb with a thick and a thin stage, OUT/thick.usda and
+    /// OUT/thin.usda, for `bench tables`.
+    Cumulus(super::bench_tables::CumulusArgs),
+    /// The supplement's Tables 1 and 2: delta and decomposition tracking at several
+    /// octree depths, interleaved rounds, medians; counts, lookup, octree and other time.
+    Tables(super::bench_tables::TablesArgs),
 }
 
 #[derive(Args, Debug)]
@@ -64,6 +71,8 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
         BenchCommand::Error(a) => super::bench_error::run(a),
         BenchCommand::Paths(a) => super::bench_paths::run(a),
         BenchCommand::Grid(c) => super::bench_grid::run(c),
+        BenchCommand::Cumulus(a) => super::bench_tables::cumulus(a),
+        BenchCommand::Tables(a) => super::bench_tables::run(a),
     }
 }
 

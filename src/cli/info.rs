@@ -59,9 +59,18 @@ fn print_stage(d: &StageDescription) {
     );
     println!("vdb reader: {}", d.vdb_reader);
     let c = &d.camera;
+    let lens = match c.f_stop > 0.0 && c.focus_distance > 0.0 {
+        true => format!(" fStop {} focusDistance {}", c.f_stop, c.focus_distance),
+        false => String::new(),
+    };
     println!(
-        "camera: {} focal {} aperture {}x{} clipping {:?}",
-        c.prim_path, c.focal_length, c.horizontal_aperture, c.vertical_aperture, c.clipping_range
+        "camera: {} {} focal {} aperture {}x{} clipping {:?}{lens}",
+        c.prim_path,
+        c.projection,
+        c.focal_length,
+        c.horizontal_aperture,
+        c.vertical_aperture,
+        c.clipping_range
     );
     for l in &d.lights {
         print_light(l);
@@ -246,6 +255,28 @@ fn print_light(l: &LightDescription) {
             normalize,
         } => println!(
             "rect light: {p} position {position:?} size {width}x{height} intensity {intensity} exposure {exposure} color {color:?} normalize {normalize}"
+        ),
+        LightParams::Disk {
+            position,
+            radius,
+            intensity,
+            exposure,
+            color,
+            normalize,
+        } => println!(
+            "disk light: {p} position {position:?} radius {radius} intensity {intensity} exposure {exposure} color {color:?} normalize {normalize}"
+        ),
+        LightParams::Cylinder {
+            position,
+            length,
+            radius,
+            intensity,
+            exposure,
+            color,
+            normalize,
+            treat_as_line,
+        } => println!(
+            "cylinder light: {p} position {position:?} length {length} radius {radius} intensity {intensity} exposure {exposure} color {color:?} normalize {normalize} treatAsLine {treat_as_line}"
         ),
         LightParams::Other => println!("light: {p}"),
     }

@@ -6,6 +6,9 @@ mod bench;
 mod bench_error;
 mod bench_grid;
 mod bench_paths;
+// `bench cumulus` and `bench tables` (the supplement's Tables 1 and 2) apart from
+// bench.rs, to keep merges with parallel branches conflict-free.
+mod bench_tables;
 mod choice;
 mod error_plot;
 mod farm;

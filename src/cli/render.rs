@@ -417,8 +417,18 @@ fn render_frame(
     }
     outputs.write(&session, &film, &facts(), &p)?;
     let (totals, _samples, nonfinite) = film.totals();
-    if nonfinite > 0 {
-        eprintln!("nimbus: warning: {nonfinite} samples were NaN or infinite and were dropped");
+    let (first_dropped, overflowing) = film.out_of_range();
+    if let (true, Some((x, y))) = (nonfinite > 0, first_dropped) {
+        eprintln!(
+            "nimbus: warning: {}: {nonfinite} samples were NaN or infinite and were dropped (the first in pixel {x},{y}); stage warnings above name light or volume values that can cause it",
+            args.stage.display()
+        );
+    }
+    if overflowing > 0 {
+        eprintln!(
+            "nimbus: warning: {}: {overflowing} pixels are brighter than a 32-bit float holds (3.4e38) and were written clamped to it; check the lights' intensity and exposure",
+            args.stage.display()
+        );
     }
     if p.interrupted {
         bail!(

@@ -381,6 +381,15 @@ pub fn read_deep_exr(path: &Path) -> Result<DeepImage, OutputError> {
         path: path.display().to_string(),
         message,
     };
+    // The header's size is checked before OpenEXR allocates a count and six sample
+    // pointers per pixel it claims.
+    super::exr::check_exr_size(path).map_err(|message| OutputError::Read {
+        path: path.display().to_string(),
+        message: message
+            .strip_prefix(&format!("{}: ", path.display()))
+            .unwrap_or(&message)
+            .to_string(),
+    })?;
     let bytes = std::fs::read(path).map_err(|e| err(e.to_string()))?;
     decode(path, &bytes).map_err(err)
 }

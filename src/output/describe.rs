@@ -74,8 +74,8 @@ pub struct StageDescription {
     pub time: Option<f64>,
     pub vdb_reader: &'static str,
     pub camera: CameraDescription,
-    /// Every light, in the renderer's order (distant, dome, sphere, rect, … each in
-    /// stage order).
+    /// Every light, in the renderer's order (distant, dome, sphere, rect, disk,
+    /// cylinder, each in stage order).
     pub lights: Vec<LightDescription>,
     pub render_settings: RenderSettingsDescription,
     /// The depth of the majorant octrees built for the fields and the analysis.
@@ -97,10 +97,15 @@ pub struct StageDescription {
 #[derive(Serialize, Debug, Clone)]
 pub struct CameraDescription {
     pub prim_path: String,
+    /// "Perspective" or "Orthographic".
+    pub projection: String,
     pub focal_length: f64,
     pub horizontal_aperture: f64,
     pub vertical_aperture: f64,
     pub clipping_range: (f64, f64),
+    /// `fStop` and `focusDistance`: depth of field when both are positive.
+    pub f_stop: f64,
+    pub focus_distance: f64,
 }
 
 /// A light as the renderer lists it ([`Scene::lights`], whose index is the light id),
@@ -152,6 +157,24 @@ pub enum LightParams {
         exposure: f64,
         color: [f64; 3],
         normalize: bool,
+    },
+    Disk {
+        position: [f64; 3],
+        radius: f64,
+        intensity: f64,
+        exposure: f64,
+        color: [f64; 3],
+        normalize: bool,
+    },
+    Cylinder {
+        position: [f64; 3],
+        length: f64,
+        radius: f64,
+        intensity: f64,
+        exposure: f64,
+        color: [f64; 3],
+        normalize: bool,
+        treat_as_line: bool,
     },
     /// A light type the renderer lights and this description does not list the
     /// parameters of yet (`type` "other"): it is listed all the same.
@@ -330,10 +353,13 @@ pub fn describe_stage(path: &Path, o: &DescribeOptions) -> Result<StageDescripti
         vdb_reader: vdb::active_reader().name(),
         camera: CameraDescription {
             prim_path: c.prim_path.clone(),
+            projection: format!("{:?}", c.projection),
             focal_length: c.focal_length,
             horizontal_aperture: c.horizontal_aperture,
             vertical_aperture: c.vertical_aperture,
             clipping_range: c.clipping_range,
+            f_stop: c.f_stop,
+            focus_distance: c.focus_distance,
         },
         lights: lights(&scene),
         render_settings: RenderSettingsDescription {
@@ -460,6 +486,32 @@ fn light_params(scene: &Scene, prim_path: &str) -> LightParams {
             exposure: l.exposure,
             color: l.color,
             normalize: l.normalize,
+        };
+    }
+    if let Some(l) = scene.disk_lights.iter().find(|l| l.prim_path == prim_path) {
+        return LightParams::Disk {
+            position: position(&l.light_to_world),
+            radius: l.radius,
+            intensity: l.intensity,
+            exposure: l.exposure,
+            color: l.color,
+            normalize: l.normalize,
+        };
+    }
+    if let Some(l) = scene
+        .cylinder_lights
+        .iter()
+        .find(|l| l.prim_path == prim_path)
+    {
+        return LightParams::Cylinder {
+            position: position(&l.light_to_world),
+            length: l.length,
+            radius: l.radius,
+            intensity: l.intensity,
+            exposure: l.exposure,
+            color: l.color,
+            normalize: l.normalize,
+            treat_as_line: l.treat_as_line,
         };
     }
     LightParams::Other

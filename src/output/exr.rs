@@ -57,7 +57,7 @@ pub fn write_channels(
     let size = (region.width() as usize, region.height() as usize);
     let channels: Vec<AnyChannel<FlatSamples>> = channels
         .into_iter()
-        .map(|(name, v)| AnyChannel::new(name.as_str(), FlatSamples::F32(v)))
+        .map(|(name, v)| AnyChannel::new(name.as_str(), FlatSamples::F32(finite(v))))
         .collect();
     let mut attrs = LayerAttributes::default();
     attrs.layer_position = Vec2(region.x0 as i32, region.y0 as i32);
@@ -127,10 +127,85 @@ pub fn write_channels(
     })
 }
 
+/// `values` with nothing non-finite: a mean that is finite in f64 can still exceed the
+/// f32 range (a light 2^1000 bright), and is stored as ±`f32::MAX` (`render` warns,
+/// [`Film::out_of_range`]); NaN, which the film never produces (it drops non-finite
+/// samples), would be stored as 0. No written image holds an infinity or a NaN.
+fn finite(mut values: Vec<f32>) -> Vec<f32> {
+    for v in values.iter_mut().filter(|v| !v.is_finite()) {
+        *v = if v.is_nan() {
+            0.0
+        } else {
+            f32::MAX.copysign(*v)
+        };
+    }
+    values
+}
+
+/// Bytes of pixels in memory the EXR readers accept (`compare`, `merge`, `info` on a
+/// deep file): a header can claim any size, and the allocation of what it claims
+/// must be refused with a message, not abort the process.
+pub const MAX_READ_BYTES: u64 = 8 << 30;
+
+/// Checks, from its headers alone and before any pixel is allocated, that the EXR at
+/// `path` can be read: every part's chunks (each at least an 8-byte offset-table
+/// entry and an 8-byte chunk header) fit in the file, and its pixels fit
+/// [`MAX_READ_BYTES`] and the memory available. In memory a flat channel sample takes
+/// its own size and its f32 copy; a deep pixel its count and a pointer per channel
+/// (the samples themselves are checked by the deep reader once the counts are read).
+pub fn check_exr_size(path: &Path) -> std::result::Result<(), String> {
+    let err = |m: String| format!("{}: {m}", path.display());
+    let meta = ::exr::meta::MetaData::read_from_file(path, false)
+        .map_err(|e| err(format!("cannot read as EXR: {e}")))?;
+    let file_bytes = std::fs::metadata(path)
+        .map_err(|e| err(e.to_string()))?
+        .len();
+    let mut bytes = 0u64;
+    for h in meta.headers.iter() {
+        let (w, ht) = (h.layer_size.width() as u64, h.layer_size.height() as u64);
+        if (h.chunk_count as u64).saturating_mul(16) > file_bytes {
+            return Err(err(format!(
+                "its header claims {w}x{ht} pixels in {} chunks, more than the {file_bytes}-byte file can hold (truncated or corrupt)",
+                h.chunk_count
+            )));
+        }
+        let per_pixel: u64 = h
+            .channels
+            .list
+            .iter()
+            .map(|c| match h.deep {
+                true => 8,
+                false => c.sample_type.bytes_per_sample() as u64 + 4,
+            })
+            .sum::<u64>()
+            + if h.deep { 8 } else { 0 };
+        bytes = bytes.saturating_add(w.saturating_mul(ht).saturating_mul(per_pixel));
+    }
+    let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
+    if bytes > MAX_READ_BYTES {
+        return Err(err(format!(
+            "its headers claim pixels that need {:.1} GiB to read, more than the {} GiB limit",
+            gib(bytes),
+            MAX_READ_BYTES >> 30
+        )));
+    }
+    if let Some(available) = crate::render::session::available_memory_bytes() {
+        if bytes > available {
+            return Err(err(format!(
+                "its pixels need {:.2} GiB to read, more than the {:.2} GiB this machine has available",
+                gib(bytes),
+                gib(available)
+            )));
+        }
+    }
+    Ok(())
+}
+
 /// Reads the named f32/f16 channels of an EXR's first layer (tests and `compare`).
 pub fn read_channels(
     path: &Path,
 ) -> std::result::Result<(usize, usize, Vec<(String, Vec<f32>)>), String> {
+    check_exr_size(path)?;
     let image = read()
         .no_deep_data()
         .largest_resolution_level()
@@ -156,6 +231,7 @@ pub fn read_channels(
 /// Layers whose size differs from the first layer's are left out (they cannot be
 /// compared pixel by pixel with it).
 pub fn read_all_channels(path: &Path) -> ChannelsResult {
+    check_exr_size(path)?;
     let image = read()
         .no_deep_data()
         .largest_resolution_level()

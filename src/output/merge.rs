@@ -3,7 +3,7 @@
 //! complete (all the samples asked for) and from the same stage and settings (the
 //! settings hash); otherwise the error lists the tile indices to re-run.
 
-use super::exr::{write_channels, ExrMetadata, FarmMetadata};
+use super::exr::{write_channels, ExrMetadata, FarmMetadata, MAX_READ_BYTES};
 use super::products::write_json;
 use crate::render::film::Region;
 use crate::render::tiles::Tile;
@@ -62,6 +62,10 @@ impl Verdict {
     }
 }
 
+/// Most tiles `merge` assembles into a frame (64 × 64-pixel tiles of a 16k × 16k
+/// frame): a tile's header names the count, and the list of tiles is allocated from it.
+const MAX_TILES: u32 = 1 << 16;
+
 /// One tile read back: its header facts and its channels.
 struct TileImage {
     path: PathBuf,
@@ -109,6 +113,26 @@ fn merge_images(out: &Path, inputs: &[PathBuf]) -> Result<Merged> {
     let first = &tiles[0];
     let count = first.tile.count;
     let (w, h) = first.full;
+    // The tile list and the frame are allocated from what tile 0's header claims:
+    // refuse sizes no real tile set has before allocating them.
+    if count > MAX_TILES {
+        bail!(
+            "{}: nimbus:tile says {}/{count}: more tiles than merge assembles (at most {MAX_TILES})",
+            first.path.display(),
+            first.tile.index
+        );
+    }
+    let frame_bytes = w as u64 * h as u64 * first.channels.len().max(1) as u64 * 4;
+    if frame_bytes > MAX_READ_BYTES
+        || crate::render::session::available_memory_bytes().is_some_and(|a| frame_bytes > a)
+    {
+        bail!(
+            "{}: nimbus:fullResolution {w}x{h} with {} channels needs {:.1} GiB for the frame, more than merge may allocate",
+            first.path.display(),
+            first.channels.len(),
+            frame_bytes as f64 / (1u64 << 30) as f64
+        );
+    }
     let mut verdict = Verdict::new(count);
     let mut seen: Vec<Option<&TileImage>> = vec![None; count as usize];
     for t in &tiles {
@@ -218,6 +242,7 @@ fn merge_images(out: &Path, inputs: &[PathBuf]) -> Result<Merged> {
 /// Reads a tile EXR: the channels of its first layer, its data window and its
 /// Nimbus attributes.
 fn read_tile(path: &Path) -> Result<TileImage> {
+    super::exr::check_exr_size(path).map_err(anyhow::Error::msg)?;
     let image = read()
         .no_deep_data()
         .largest_resolution_level()

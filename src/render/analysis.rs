@@ -244,6 +244,17 @@ fn count_lights(l: &Lights) -> (usize, usize) {
         .map(|s| nonzero(s.irradiance))
         .chain(l.spheres.iter().map(|s| nonzero(s.radiance)))
         .chain(l.rects.iter().map(|r| nonzero(r.radiance)))
+        .chain(l.disks.iter().map(|d| nonzero(d.radiance)))
+        .chain(
+            l.cylinders
+                .iter()
+                .map(|c| nonzero(c.radiance) || nonzero(c.line_intensity)),
+        )
+        .chain(
+            l.linked_domes
+                .iter()
+                .map(|d| d.map.is_some() || nonzero(d.constant)),
+        )
         .chain(l.env_maps.iter().map(|_| true))
         .chain([nonzero(l.environment)]);
     emits.fold((0, 0), |(e, n), x| (e + x as usize, n + 1))

@@ -315,6 +315,31 @@ impl Film {
         self.pixels.iter().map(|p| aov.value(p)).collect()
     }
 
+    /// Where the render went out of range, for its warnings: the full-image position
+    /// of the first pixel that dropped a non-finite sample, and the number of pixels
+    /// whose beauty or alpha mean is finite in f64 but beyond the f32 range (the EXR
+    /// writer stores those as ±`f32::MAX`).
+    pub fn out_of_range(&self) -> (Option<(u32, u32)>, usize) {
+        let at = |i: usize| {
+            let w = self.width as usize;
+            (
+                self.region.x0 + (i % w) as u32,
+                self.region.y0 + (i / w) as u32,
+            )
+        };
+        let first_dropped = self.pixels.iter().position(|p| p.nonfinite > 0).map(at);
+        let overflowing = self
+            .pixels
+            .iter()
+            .filter(|p| {
+                [Aov::R, Aov::G, Aov::B, Aov::A]
+                    .iter()
+                    .any(|a| !a.value(p).is_finite())
+            })
+            .count();
+        (first_dropped, overflowing)
+    }
+
     pub fn totals(&self) -> (Counters, u64, u64) {
         let mut c = Counters::default();
         let (mut samples, mut nonfinite) = (0u64, 0u64);

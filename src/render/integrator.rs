@@ -11,8 +11,7 @@ use crate::color::Spectrum;
 use crate::render::camera::CameraRays;
 use crate::render::film::{DepthBins, Film, Pixel};
 use crate::render::holdouts::Holdouts;
-use crate::render::lights::LightSample;
-use crate::render::lights::Lights;
+use crate::render::lights::{HoldoutSet, LightSample, Lights, Link};
 use crate::render::phase::{hg, sample_hg};
 use crate::render::sampler::{pixel_sampler, Sampler};
 use crate::render::splits::{SplitMap, MAX_LAYERS};
@@ -151,7 +150,7 @@ pub struct Integrator<'a, F: FreePathSampler, E: TransmittanceEstimator> {
     /// `ratio-select`: each path segment through one volume by one ratio-tracking walk
     /// that estimates the transmittance to its end and picks the collision the path
     /// scatters at ([`ratio_select`]); `free_path` runs where several volumes overlap
-    /// along a ray, and for camera rays of deep renders.
+    /// along a ray.
     pub select_segments: SelectSegments,
 }
 
@@ -170,8 +169,9 @@ pub enum SelectSegments {
 pub struct SampleResult {
     pub rgb: [f64; 3],
     pub alpha: f64,
-    /// Camera depth of the first real collision on the camera ray; NaN when there was
-    /// none (deep output bins the sample by it).
+    /// Camera depth of the first real collision on the camera ray (of a ratio-select
+    /// walk: the collision it scatters at, else the one its emission was taken at);
+    /// NaN when there was none (deep output bins the sample by it).
     pub depth: f64,
 }
 
@@ -240,8 +240,9 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         // One sample's split layers, added to the pixel's when the sample is finite.
         let mut scratch = [[0f64; 3]; MAX_LAYERS];
         let nl = extra.splits.as_ref().map_or(0, |(m, _)| m.len());
+        let dims = self.sample_dims();
         for _ in 0..n {
-            rng.start_sample(self.qmc_dims);
+            rng.start_sample(dims);
             let fx = x as f64 + rng.gen::<f64>();
             let fy = y as f64 + rng.gen::<f64>();
             let sample_layers = &mut scratch[..nl];
@@ -284,6 +285,19 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         }
     }
 
+    /// Dimensions of each sample drawn from Sobol' points: `qmc_dims`, plus the lens's
+    /// two when the camera has depth of field. The lens point is drawn right after the
+    /// pixel position (dimensions 2 and 3): it decides the camera ray as much as the
+    /// pixel position does, so it gets a stratified pair of its own, and the numbers the
+    /// path draws next keep the `qmc_dims − 2` Sobol' dimensions they had. A camera
+    /// without depth of field draws no lens numbers at all: its renders are unchanged.
+    fn sample_dims(&self) -> u32 {
+        match self.qmc_dims {
+            0 => 0,
+            d => d + self.camera.lens_dims(),
+        }
+    }
+
     /// One path through image position (`fx`, `fy`).
     pub fn sample<C: Tally>(
         &self,
@@ -304,7 +318,10 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         counters: &mut C,
         split: Option<(&SplitMap, &mut [[f64; 3]])>,
     ) -> SampleResult {
-        let ray = self.camera.ray(fx, fy);
+        let ray = match self.camera.lens_dims() {
+            0 => self.camera.ray(fx, fy),
+            _ => self.camera.ray_through_lens(fx, fy, rng.gen(), rng.gen()),
+        };
         let mut origin = ray.origin;
         let mut dir = ray.dir;
         let (mut tmin, mut tmax) = (ray.tmin as f32, ray.tmax as f32);
@@ -363,10 +380,9 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         let mut depth = f64::NAN;
         loop {
             let t0 = counters.tracker_start();
-            // Deep output bins a sample by its first real collision on the camera ray,
-            // which only free-path sampling gives.
-            let selecting = self.select_segments != SelectSegments::Off
-                && !(path.depth == 0 && self.extras.depth_bins.is_some());
+            // The outputs asked for (deep bins among them) never change which walk
+            // runs: the samples, and so the beauty, are the same with or without them.
+            let selecting = self.select_segments != SelectSegments::Off;
             let step =
                 self.with_queries(origin, dir, tmin, tmax, path.tracked, |qs, ids| match qs {
                     [] => Step::Tracked(FreePath::Escape, 0),
@@ -401,6 +417,12 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                 Step::Selected(s, id) => {
                     if path.depth == 0 {
                         alpha = 1.0 - crate::track::free_path::avg(s.transmittance) as f64;
+                        // A ratio-tracking walk has no first real collision: deep
+                        // output bins the sample at the collision it scatters at
+                        // (set below), else at the one its emission was taken at.
+                        if let (None, Some((t, _))) = (s.scatter, s.emit) {
+                            depth = (camera_shift + t as f64) * ray.depth_per_t;
+                        }
                     }
                     let ray = (origin, dir, blocked);
                     self.add_walk_light(&s, id, &path, ray, &mut radiance, counters);
@@ -454,7 +476,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                     }
                     path.g = medium.g as f64;
                     let last = path.depth >= self.max_depth;
-                    self.next_event(p, dir, &path, last, &mut radiance, rng, counters);
+                    self.next_event(p, id, dir, &path, last, &mut radiance, rng, counters);
                     if last {
                         break;
                     }
@@ -525,6 +547,14 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             let w = self.escape_weight(path, dir);
             self.add_environment(radiance, throughput, path.depth, dir, w);
         }
+        // Camera rays see linked domes as they see any dome; scattered rays reach them
+        // by next-event estimation only.
+        if !blocked && path.depth == 0 {
+            for (i, dome) in self.lights.linked_domes.iter().enumerate() {
+                let source = self.lights.sources.linked_dome(i);
+                radiance.add(source, 0, scaled(throughput, dome.radiance(dir), 1.0));
+            }
+        }
     }
 
     /// Adds the emission of medium `id` at `p` with `weight`, the estimate of the
@@ -575,13 +605,16 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         }
     }
 
-    /// Next-event estimation from scattering vertex `p` (arrived along `dir`; the
-    /// path's phase function, tracked channels and throughput); `last`: the path ends
-    /// here (maximum depth), so no phase-sampled ray will reach the environment.
+    /// Next-event estimation from scattering vertex `p` in medium `id` (arrived along
+    /// `dir`; the path's phase function, tracked channels and throughput); `last`: the
+    /// path ends here (maximum depth), so no phase-sampled ray will reach the
+    /// environment. A light whose `collection:lightLink` leaves medium `id` out adds
+    /// nothing here (its [`Link`]).
     #[allow(clippy::too_many_arguments)]
     fn next_event<C: Tally>(
         &self,
         p: DVec3,
+        id: usize,
         dir: DVec3,
         path: &PathState,
         last: bool,
@@ -592,21 +625,65 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         let (g, tracked, throughput) = (path.g, path.tracked, path.throughput);
         let (events, sources) = (path.depth, &self.lights.sources);
         for (i, sun) in self.lights.suns.iter().enumerate() {
+            if !sun.link.lights(id) {
+                continue;
+            }
             let wi = sun.sample_direction(rng.gen(), rng.gen());
-            let tr = self.shadow(p, wi, f32::INFINITY, tracked, rng, counters);
+            let mut irradiance = sun.irradiance;
+            if let Some(shaping) = &sun.shaping {
+                // The light leaves the sun along −wi.
+                let f = shaping.factor(-wi);
+                if f == [0.0; 3] {
+                    continue;
+                }
+                irradiance = std::array::from_fn(|c| irradiance[c] * f[c]);
+            }
+            let tr = self.shadow(p, wi, f32::INFINITY, tracked, &sun.link, rng, counters);
             let f = hg(g, dir.dot(wi));
-            let v = std::array::from_fn(|c| (throughput[c] * tr[c]) as f64 * sun.irradiance[c] * f);
+            let v = std::array::from_fn(|c| (throughput[c] * tr[c]) as f64 * irradiance[c] * f);
             radiance.add(sources.sun(i), events, v);
         }
         for (i, sphere) in self.lights.spheres.iter().enumerate() {
+            if !sphere.link.lights(id) {
+                continue;
+            }
             let s = sphere.sample(p, rng.gen(), rng.gen());
             let source = sources.sphere(i);
-            self.add_light_sample(s, source, p, dir, path, radiance, rng, counters);
+            self.add_light_sample(
+                s,
+                source,
+                &sphere.link,
+                p,
+                dir,
+                path,
+                radiance,
+                rng,
+                counters,
+            );
         }
         for (i, rect) in self.lights.rects.iter().enumerate() {
+            if !rect.link.lights(id) {
+                continue;
+            }
             let s = rect.sample(p, rng.gen(), rng.gen());
             let source = sources.rect(i);
-            self.add_light_sample(s, source, p, dir, path, radiance, rng, counters);
+            self.add_light_sample(s, source, &rect.link, p, dir, path, radiance, rng, counters);
+        }
+        for (i, disk) in self.lights.disks.iter().enumerate() {
+            if !disk.link.lights(id) {
+                continue;
+            }
+            let s = disk.sample(p, rng.gen(), rng.gen());
+            let source = sources.disk(i);
+            self.add_light_sample(s, source, &disk.link, p, dir, path, radiance, rng, counters);
+        }
+        for (i, cylinder) in self.lights.cylinders.iter().enumerate() {
+            if !cylinder.link.lights(id) {
+                continue;
+            }
+            let s = cylinder.sample(p, rng.gen(), rng.gen());
+            let (source, link) = (sources.cylinder(i), &cylinder.link);
+            self.add_light_sample(s, source, link, p, dir, path, radiance, rng, counters);
         }
         // A constant environment is reached by the phase-sampled continuation, whose
         // density is the phase function itself: the ideal strategy for light of the
@@ -622,7 +699,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                 } else {
                     1.0
                 };
-                let tr = self.shadow(p, wi, f32::INFINITY, tracked, rng, counters);
+                let tr = self.shadow(p, wi, f32::INFINITY, tracked, &Link::ALL, rng, counters);
                 let v = |l: [f64; 3]| -> [f64; 3] {
                     std::array::from_fn(|c| (throughput[c] * tr[c]) as f64 * l[c] * f / pdf * w)
                 };
@@ -634,15 +711,31 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                 }
             }
         }
+        // Linked domes are not part of the environment scattered rays find: next-event
+        // estimation alone reaches them, at every vertex (no MIS weight).
+        for (i, dome) in self.lights.linked_domes.iter().enumerate() {
+            if !dome.link.lights(id) {
+                continue;
+            }
+            let (wi, le, pdf) = dome.sample(rng.gen(), rng.gen());
+            if pdf > 0.0 {
+                let f = hg(g, dir.dot(wi));
+                let tr = self.shadow(p, wi, f32::INFINITY, tracked, &dome.link, rng, counters);
+                let v = std::array::from_fn(|c| (throughput[c] * tr[c]) as f64 * le[c] * f / pdf);
+                radiance.add(sources.linked_dome(i), events, v);
+            }
+        }
     }
 
-    /// Adds a sphere or rect light sample (no MIS: scattered rays never hit these
-    /// lights), its shadow ray stopping at the light.
+    /// Adds a sphere, rect, disk or cylinder light sample (no MIS: scattered rays never
+    /// hit these lights), its shadow ray stopping at the light and shadowed as `link`
+    /// says.
     #[allow(clippy::too_many_arguments)]
     fn add_light_sample<C: Tally>(
         &self,
         sample: Option<LightSample>,
         source: usize,
+        link: &Link,
         p: DVec3,
         dir: DVec3,
         path: &PathState,
@@ -655,28 +748,46 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         };
         let (g, throughput) = (path.g, path.throughput);
         let f = hg(g, dir.dot(s.wi));
-        let tr = self.shadow(p, s.wi, s.distance as f32, path.tracked, rng, counters);
+        let tr = self.shadow(
+            p,
+            s.wi,
+            s.distance as f32,
+            path.tracked,
+            link,
+            rng,
+            counters,
+        );
         let v = std::array::from_fn(|c| (throughput[c] * tr[c]) as f64 * s.weight[c] * f);
         radiance.add(source, path.depth, v);
     }
 
+    /// The transmittance estimate along the shadow ray `p + t·wi`, t < `tmax`, through
+    /// the holdouts and media that shadow a light linked by `link` (every one without
+    /// shadow linking).
+    #[allow(clippy::too_many_arguments)]
     fn shadow<C: Tally>(
         &self,
         p: DVec3,
         wi: DVec3,
         tmax: f32,
         tracked: Tracked,
+        link: &Link,
         rng: &mut Sampler,
         counters: &mut C,
     ) -> Spectrum {
         // The set shadows the volume: a blocked shadow ray needs no tracking.
-        if let Some(h) = self.extras.holdouts {
+        let holdouts = match link.holdouts {
+            HoldoutSet::All => self.extras.holdouts,
+            HoldoutSet::None => None,
+            HoldoutSet::Subset(k) => self.lights.holdout_sets.get(k),
+        };
+        if let Some(h) = holdouts {
             if h.occluded(p, wi, 0.0, tmax as f64) {
                 return [0.0; 3];
             }
         }
         let t0 = counters.tracker_start();
-        let tr = self.with_queries(p, wi, 0.0, tmax, tracked, |qs, _| {
+        let tr = self.with_queries_in(p, wi, 0.0, tmax, tracked, link.shadowing, |qs, _| {
             if let [q] = qs {
                 self.transmittance.transmittance(q, rng, counters)
             } else {
@@ -687,11 +798,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         tr
     }
 
-    /// Calls `f` with one tracker query per medium the world-space ray
-    /// `origin + t·dir`, `t` in [`tmin`, `tmax`], may meet (each medium's index-space
-    /// ray and cross-sections: one channel's, for naive delta), and with each query's
-    /// index in `self.media`. Built on the stack; a stage with one volume skips the
-    /// culling, which its majorant walk does anyway.
+    /// [`Self::with_queries_in`] over every medium.
     #[inline(always)]
     fn with_queries<T>(
         &self,
@@ -702,13 +809,35 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         tracked: Tracked,
         f: impl FnOnce(&[Query], &[usize]) -> T,
     ) -> T {
+        self.with_queries_in(origin, dir, tmin, tmax, tracked, u64::MAX, f)
+    }
+
+    /// Calls `f` with one tracker query per medium in `mask` (bit i: medium i; shadow
+    /// linking leaves media out) that the world-space ray `origin + t·dir`, `t` in
+    /// [`tmin`, `tmax`], may meet (each medium's index-space ray and cross-sections:
+    /// one channel's, for naive delta), and with each query's index in `self.media`.
+    /// Built on the stack; a stage with one volume skips the culling, which its
+    /// majorant walk does anyway.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn with_queries_in<T>(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        tmin: f32,
+        tmax: f32,
+        tracked: Tracked,
+        mask: u64,
+        f: impl FnOnce(&[Query], &[usize]) -> T,
+    ) -> T {
         if self.media.len() == 1 {
-            return self.queries::<1, T>(origin, dir, tmin, tmax, tracked, &[0], f);
+            let ids: &[usize] = if mask & 1 == 1 { &[0] } else { &[] };
+            return self.queries::<1, T>(origin, dir, tmin, tmax, tracked, ids, f);
         }
         let mut ids = [0usize; MAX_MEDIA];
         let mut k = 0;
         for (i, m) in self.media.iter().enumerate().take(MAX_MEDIA) {
-            if m.may_meet(origin, dir, tmin as f64, tmax as f64) {
+            if mask >> i & 1 == 1 && m.may_meet(origin, dir, tmin as f64, tmax as f64) {
                 ids[k] = i;
                 k += 1;
             }

@@ -5,7 +5,9 @@
 //! not depend on that size:
 //!
 //! - SphereLight: by its world-space surface area 4πr²; RectLight: by its world-space
-//!   area (the parallelogram its transformed edges span);
+//!   area (the parallelogram its transformed edges span); DiskLight: by its world-space
+//!   area (π |x × y| for its transformed radius vectors x, y: the ellipse a transform
+//!   makes of it); CylinderLight: by its world-space side area (the caps do not emit);
 //! - DistantLight: by UsdLux's `sizeFactor(θmax) = π sin²θmax` (θmax ≤ π/2, else
 //!   `π (2 − sin²θmax)`), θmax = angle/2: the projected solid angle of the sun disk, so
 //!   `intensity` becomes the illuminance on a surface facing the light. A zero angle is a
@@ -15,14 +17,26 @@
 //! With `inputs:enableColorTemperature`, the scale is also multiplied by UsdLux's colour
 //! of `inputs:colorTemperature` ([`usd_blackbody_rgb`]).
 //!
-//! Sphere and rect lights are reached by next-event estimation only: they do not
-//! occlude the medium and camera or scattered rays do not see them.
+//! A light of no area (a zero-radius sphere or cylinder) has no size to normalize by:
+//! it emits what the normalized light of its shape emits, whatever `normalize` says
+//! (UsdLux: lights without a size take sizeFactor = 1), so a point is a sphere of
+//! intensity s/4 and a line a cylinder of intensity s·sin θ/π. `treatAsPoint` and
+//! `treatAsLine` on a light with a size keep its far field: s·πr² (s/4 normalized) for
+//! a point, s·2rℓ·sin θ (s·sin θ/π normalized) for a line. `inputs:diffuse`
+//! multiplies every light but a dome (volume scattering is the medium's diffuse
+//! response). ShapingAPI ([`Shaping`]) multiplies the emission leaving in each
+//! direction; linking ([`Link`]) says which volumes a light lights and which
+//! volumes and holdouts shadow it.
+//!
+//! Sphere, rect, disk and cylinder lights are reached by next-event estimation only:
+//! they do not occlude the medium and camera or scattered rays do not see them.
 
 use crate::color::{emission_scale, luminance, usd_blackbody_rgb};
 pub use crate::render::dome::EnvMap;
+use crate::render::holdouts::Holdouts;
 use crate::render::phase::{azimuth, orthonormal_basis, sample_sphere, INV_4PI};
-use crate::scene::Scene;
-use glam::{DMat3, DVec3};
+use crate::scene::{Collection, LightControls, Scene};
+use glam::{DMat3, DMat4, DVec3};
 use std::f64::consts::PI;
 
 /// A distant light (sun): a disk of directions of half-angle θmax around `direction`.
@@ -33,18 +47,37 @@ pub struct Sun {
     pub irradiance: [f64; 3],
     /// cos θmax (1 = a delta direction).
     pub cos_half_angle: f64,
+    pub shaping: Option<Shaping>,
+    pub link: Link,
+}
+
+impl Default for Sun {
+    /// A delta sun straight up with no light.
+    fn default() -> Self {
+        Sun {
+            direction: DVec3::Y,
+            irradiance: [0.0; 3],
+            cos_half_angle: 1.0,
+            shaping: None,
+            link: Link::default(),
+        }
+    }
 }
 
 /// A spherical emitter (or, with `radius` 0, a point with `intensity` L·πr²).
+#[derive(Default)]
 pub struct SphereEmitter {
     pub center: DVec3,
     /// World-space radius (0 for a point).
     pub radius: f64,
     /// Radiance of the surface; for a point, the radiant intensity (per steradian).
     pub radiance: [f64; 3],
+    pub shaping: Option<Shaping>,
+    pub link: Link,
 }
 
 /// A one-sided rectangular emitter: corner `center − (edge_u + edge_v)/2`.
+#[derive(Default)]
 pub struct RectEmitter {
     pub center: DVec3,
     pub edge_u: DVec3,
@@ -53,6 +86,201 @@ pub struct RectEmitter {
     pub normal: DVec3,
     pub area: f64,
     pub radiance: [f64; 3],
+    pub shaping: Option<Shaping>,
+    pub link: Link,
+}
+
+/// A one-sided disk emitter, or the ellipse a transform makes of it: the points
+/// `center + x·a + y·b` with x² + y² ≤ 1.
+#[derive(Default)]
+pub struct DiskEmitter {
+    pub center: DVec3,
+    /// The transformed radius vectors along the light's local X and Y.
+    pub a: DVec3,
+    pub b: DVec3,
+    /// Unit normal of the emitting side (the light's world −Z).
+    pub normal: DVec3,
+    /// World-space area π |a × b|.
+    pub area: f64,
+    pub radiance: [f64; 3],
+    pub shaping: Option<Shaping>,
+    pub link: Link,
+}
+
+/// The side of a cylinder (or the elliptic cylinder a transform makes of it):
+/// `center + axis·(u − ½) + y·cos φ + z·sin φ`, u ∈ [0, 1], φ ∈ [0, 2π), emitting
+/// outwards. With zero `y` and `z` it is a line: see [`CylinderEmitter::line`].
+#[derive(Default)]
+pub struct CylinderEmitter {
+    pub center: DVec3,
+    /// The whole length, along the light's local X.
+    pub axis: DVec3,
+    /// The transformed radius vectors along the light's local Y and Z.
+    pub y: DVec3,
+    pub z: DVec3,
+    /// World-space side area.
+    pub area: f64,
+    /// Radiance of the side.
+    pub radiance: [f64; 3],
+    /// A line (`treatAsLine` or zero radius): the radiant intensity leaving the whole
+    /// line at angle θ to its axis is `line_intensity · sin θ`, spread evenly along it.
+    pub line: bool,
+    pub line_intensity: [f64; 3],
+    pub shaping: Option<Shaping>,
+    pub link: Link,
+}
+
+/// UsdLuxShapingAPI as a factor on the emission leaving a light in direction e
+/// (the docs of `inputs:shaping:*`, as adopted from the UsdLux clarification):
+///
+/// - focus: focusFactor = |e · axis|^focus, focusColor = lerp(focusFactor, focusTint, 1);
+/// - cone: θ = acos(e · axis), θcutoff = coneAngle, θsmoothStart = lerp(softness,
+///   θcutoff, 0); the emission is multiplied by 1 − smoothstep(θ, θsmoothStart,
+///   θcutoff), which is exactly 0 past the cutoff (and, with softness 0, exactly 1
+///   inside it).
+///
+/// `axis` is the light's world −Z, for every light type, as hdEmbree (OpenUSD's
+/// reference implementation) takes it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Shaping {
+    pub axis: DVec3,
+    /// `focus` (0 = none).
+    pub focus: f64,
+    pub focus_tint: [f64; 3],
+    /// θcutoff and θsmoothStart, radians (cutoff ≥ π: no cone).
+    pub cutoff: f64,
+    pub smooth_start: f64,
+}
+
+impl Shaping {
+    /// The shaping of a light with `light_to_world`; `None` when it changes nothing
+    /// (no focus, a cone of 180° or more).
+    pub fn new(s: &crate::scene::Shaping, light_to_world: &DMat4) -> Option<Shaping> {
+        let axis = light_to_world
+            .transform_vector3(DVec3::NEG_Z)
+            .try_normalize()?;
+        let cutoff = s.cone_angle.to_radians();
+        let softness = s.cone_softness.clamp(0.0, 1.0);
+        let shaping = Shaping {
+            axis,
+            focus: s.focus.max(0.0),
+            focus_tint: s.focus_tint,
+            cutoff,
+            smooth_start: cutoff * (1.0 - softness),
+        };
+        (shaping.focus > 0.0 || shaping.cutoff < PI).then_some(shaping)
+    }
+
+    /// The factor on emission leaving along unit `e` (each channel).
+    #[inline]
+    pub fn factor(&self, e: DVec3) -> [f64; 3] {
+        let cos = e.dot(self.axis).clamp(-1.0, 1.0);
+        let cone = if self.cutoff < PI {
+            1.0 - smoothstep(cos.acos(), self.smooth_start, self.cutoff)
+        } else {
+            1.0
+        };
+        if self.focus > 0.0 {
+            let f = cos.abs().powf(self.focus);
+            self.focus_tint.map(|t| cone * (t + f * (1.0 - t)))
+        } else {
+            [cone; 3]
+        }
+    }
+}
+
+/// Hermite smoothstep of `t` over [lo, hi]; with lo = hi, 0 up to and including lo and
+/// 1 past it (as hdEmbree decides the degenerate case).
+fn smoothstep(t: f64, lo: f64, hi: f64) -> f64 {
+    let len = hi - lo;
+    if len <= 0.0 {
+        return if t <= lo { 0.0 } else { 1.0 };
+    }
+    let x = ((t - lo) / len).clamp(0.0, 1.0);
+    x * x * (3.0 - 2.0 * x)
+}
+
+/// Light and shadow linking of one light, over the render's media (bit i = medium i,
+/// at most 64) and holdouts. The default links everything: a stage without linking
+/// pays one mask test per light sample.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Link {
+    /// Media the light illuminates (`collection:lightLink`).
+    pub lit: u64,
+    /// Media that shadow it (`collection:shadowLink`; none with `shadow:enable` off).
+    pub shadowing: u64,
+    /// Holdouts that shadow it.
+    pub holdouts: HoldoutSet,
+}
+
+/// Which holdouts a shadow ray tests.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum HoldoutSet {
+    /// All of them (the render's holdout BVH).
+    All,
+    None,
+    /// [`Lights::holdout_sets`]`[k]` (a BVH of its own).
+    Subset(usize),
+}
+
+impl Default for Link {
+    fn default() -> Self {
+        Link::ALL
+    }
+}
+
+impl Link {
+    /// No linking: the light lights every medium, and every medium and holdout
+    /// shadows it.
+    pub const ALL: Link = Link {
+        lit: u64::MAX,
+        shadowing: u64::MAX,
+        holdouts: HoldoutSet::All,
+    };
+
+    /// Whether the light illuminates medium `id`.
+    #[inline(always)]
+    pub fn lights(&self, id: usize) -> bool {
+        self.lit >> id & 1 == 1
+    }
+
+    pub fn is_everything(&self) -> bool {
+        *self == Link::default()
+    }
+}
+
+/// A dome light with linking: kept out of the environment that escaping paths see
+/// (the phase-sampled continuation is traced through every occluder, so it cannot
+/// honour a shadow link), and sampled by next-event estimation alone at every
+/// scattering vertex. Camera rays still see it.
+pub struct LinkedDome {
+    /// Radiance of an untextured dome.
+    pub constant: [f64; 3],
+    /// A textured dome.
+    pub map: Option<EnvMap>,
+    pub link: Link,
+}
+
+impl LinkedDome {
+    #[inline]
+    pub fn radiance(&self, w: DVec3) -> [f64; 3] {
+        match &self.map {
+            Some(m) => m.radiance(w),
+            None => self.constant,
+        }
+    }
+
+    /// A direction, its radiance and density: the map's importance sampling, or
+    /// uniform over the sphere.
+    pub fn sample(&self, u1: f64, u2: f64) -> (DVec3, [f64; 3], f64) {
+        match &self.map {
+            Some(m) => {
+                let w = m.sample(u1, u2);
+                (w, m.radiance(w), m.pdf(w))
+            }
+            None => (sample_sphere(u1, u2), self.constant, INV_4PI),
+        }
+    }
 }
 
 /// Everything lighting the medium. The environment is `environment` (the sum of
@@ -64,6 +292,13 @@ pub struct Lights {
     pub env_maps: Vec<EnvMap>,
     pub spheres: Vec<SphereEmitter>,
     pub rects: Vec<RectEmitter>,
+    pub disks: Vec<DiskEmitter>,
+    pub cylinders: Vec<CylinderEmitter>,
+    /// Dome lights with linking (not part of `environment` and `env_maps`).
+    pub linked_domes: Vec<LinkedDome>,
+    /// The holdouts of each distinct shadow-link set that is neither all nor none of
+    /// them, each in a BVH of its own: [`HoldoutSet::Subset`] indexes this.
+    pub holdout_sets: Vec<Holdouts>,
     /// Which scene light each emitter came from, for the light-group AOVs.
     pub sources: LightSources,
 }
@@ -77,6 +312,9 @@ pub struct LightSources {
     pub suns: Vec<usize>,
     pub spheres: Vec<usize>,
     pub rects: Vec<usize>,
+    pub disks: Vec<usize>,
+    pub cylinders: Vec<usize>,
+    pub linked_domes: Vec<usize>,
     pub env_maps: Vec<usize>,
     /// (source, emission scale) of each untextured dome, which `environment` sums.
     pub constant_domes: Vec<(usize, [f64; 3])>,
@@ -96,6 +334,18 @@ impl LightSources {
 
     pub fn rect(&self, i: usize) -> usize {
         self.rects.get(i).copied().unwrap_or(NO_SOURCE)
+    }
+
+    pub fn disk(&self, i: usize) -> usize {
+        self.disks.get(i).copied().unwrap_or(NO_SOURCE)
+    }
+
+    pub fn cylinder(&self, i: usize) -> usize {
+        self.cylinders.get(i).copied().unwrap_or(NO_SOURCE)
+    }
+
+    pub fn linked_dome(&self, i: usize) -> usize {
+        self.linked_domes.get(i).copied().unwrap_or(NO_SOURCE)
     }
 }
 
@@ -140,15 +390,125 @@ fn nonzero(c: &[f64; 3]) -> bool {
     c.iter().any(|&v| v != 0.0)
 }
 
+/// `s` with the light's `inputs:diffuse` multiplier applied.
+fn lit_scale(s: [f64; 3], controls: &LightControls) -> [f64; 3] {
+    s.map(|v| v * controls.diffuse)
+}
+
+fn shaping(controls: &LightControls, light_to_world: &DMat4) -> Option<Shaping> {
+    controls
+        .shaping
+        .as_ref()
+        .and_then(|s| Shaping::new(s, light_to_world))
+}
+
+/// The side area of the cylinder `axis·u + y·cos φ + z·sin φ`: ℓ ∫ |axis × (−y sin φ +
+/// z cos φ)| dφ / ℓ by the trapezoid rule, which converges geometrically for a smooth
+/// periodic integrand (2π|axis||y| exactly for a circular, upright one).
+fn cylinder_area(axis: DVec3, y: DVec3, z: DVec3) -> f64 {
+    const N: usize = 256;
+    let step = 2.0 * PI / N as f64;
+    (0..N)
+        .map(|i| {
+            let (sin, cos) = (i as f64 * step).sin_cos();
+            axis.cross(z * cos - y * sin).length()
+        })
+        .sum::<f64>()
+        * step
+}
+
+/// Evaluates the linking collections of each light against the scene's volumes (in
+/// media order) and holdouts, and collects the distinct holdout subsets.
+struct Linker<'a> {
+    volumes: Vec<&'a str>,
+    holdouts: Vec<&'a str>,
+    sets: Vec<Vec<usize>>,
+}
+
+impl<'a> Linker<'a> {
+    fn new(scene: &'a Scene) -> Linker<'a> {
+        Linker {
+            volumes: scene.volumes.iter().map(|v| v.prim_path.as_str()).collect(),
+            holdouts: scene
+                .holdouts
+                .iter()
+                .map(|h| h.prim_path.as_str())
+                .collect(),
+            sets: Vec::new(),
+        }
+    }
+
+    fn link(&mut self, c: &LightControls) -> Link {
+        let lit = self.mask(&c.light_link);
+        if c.unshadowed {
+            return Link {
+                lit,
+                shadowing: 0,
+                holdouts: HoldoutSet::None,
+            };
+        }
+        Link {
+            lit,
+            shadowing: self.mask(&c.shadow_link),
+            holdouts: self.holdout_set(&c.shadow_link),
+        }
+    }
+
+    /// Bit i: volume i is in the collection; every bit when all are.
+    fn mask(&self, c: &Collection) -> u64 {
+        if c.is_everything() {
+            return u64::MAX;
+        }
+        let mut mask = 0u64;
+        for (i, v) in self.volumes.iter().enumerate().take(64) {
+            if c.contains(v) {
+                mask |= 1 << i;
+            }
+        }
+        match self.volumes.iter().all(|v| c.contains(v)) {
+            true => u64::MAX,
+            false => mask,
+        }
+    }
+
+    fn holdout_set(&mut self, c: &Collection) -> HoldoutSet {
+        if c.is_everything() {
+            return HoldoutSet::All;
+        }
+        let members: Vec<usize> = (0..self.holdouts.len())
+            .filter(|&i| c.contains(self.holdouts[i]))
+            .collect();
+        if members.len() == self.holdouts.len() {
+            return HoldoutSet::All;
+        }
+        if members.is_empty() {
+            return HoldoutSet::None;
+        }
+        let k = match self.sets.iter().position(|s| *s == members) {
+            Some(k) => k,
+            None => {
+                self.sets.push(members);
+                self.sets.len() - 1
+            }
+        };
+        HoldoutSet::Subset(k)
+    }
+}
+
 impl Lights {
     /// The scene's lights; reads dome textures (errors name the light and the file).
     pub fn from_scene(scene: &Scene) -> Result<Lights, LightError> {
         let mut lights = Lights::default();
-        // Scene light indices in `Scene::lights` order: distant, dome, sphere, rect.
+        let mut linker = Linker::new(scene);
+        // Scene light indices in `Scene::lights` order: distant, dome, sphere, rect,
+        // disk, cylinder.
         let mut next = 0..;
         for l in &scene.distant_lights {
             let source = next.next().unwrap_or(NO_SOURCE);
-            let s = light_scale(l.intensity, l.exposure, l.color, l.color_temperature);
+            let s = lit_scale(
+                light_scale(l.intensity, l.exposure, l.color, l.color_temperature),
+                &l.controls,
+            );
             let theta = l.angle_degrees.clamp(0.0, 360.0).to_radians() * 0.5;
             let cos_half_angle = theta.cos();
             let irradiance = if theta <= 0.0 {
@@ -162,29 +522,57 @@ impl Lights {
                 radiance.map(|v| v * solid_angle)
             };
             if nonzero(&irradiance) {
+                // The sun's world −Z is the negated direction towards it.
+                let direction = DVec3::from_array(l.direction).normalize_or(DVec3::Z);
+                let to_world = DMat4::from_cols(
+                    glam::DVec4::X,
+                    glam::DVec4::Y,
+                    direction.extend(0.0),
+                    glam::DVec4::W,
+                );
                 lights.sources.suns.push(source);
                 lights.suns.push(Sun {
-                    direction: DVec3::from_array(l.direction).normalize_or(DVec3::Z),
+                    direction,
                     irradiance,
                     cos_half_angle,
+                    shaping: shaping(&l.controls, &to_world),
+                    link: linker.link(&l.controls),
                 });
             }
         }
         for d in &scene.dome_lights {
             let source = next.next().unwrap_or(NO_SOURCE);
             let s = light_scale(d.intensity, d.exposure, d.color, d.color_temperature);
-            match &d.texture_file {
+            let link = linker.link(&d.controls);
+            let map = match &d.texture_file {
+                None => None,
+                Some(file) => Some(EnvMap::load(d, file, s).map_err(|message| LightError {
+                    prim: d.prim_path.clone(),
+                    message,
+                })?),
+            };
+            // A texture of one colour is the constant dome of that colour, bit for bit.
+            let (s, map) = match map {
+                Some(map) => map.constant().map_or((s, Some(map)), |c| (c, None)),
+                None => (s, None),
+            };
+            if !link.is_everything() {
+                lights.sources.linked_domes.push(source);
+                lights.linked_domes.push(LinkedDome {
+                    constant: s,
+                    map,
+                    link,
+                });
+                continue;
+            }
+            match map {
                 None => {
                     for c in 0..3 {
                         lights.environment[c] += s[c];
                     }
                     lights.sources.constant_domes.push((source, s));
                 }
-                Some(file) => {
-                    let map = EnvMap::load(d, file, s).map_err(|message| LightError {
-                        prim: d.prim_path.clone(),
-                        message,
-                    })?;
+                Some(map) => {
                     if map.power > 0.0 {
                         lights.sources.env_maps.push(source);
                         lights.env_maps.push(map);
@@ -197,21 +585,28 @@ impl Lights {
             let m = l.light_to_world;
             let scale = DMat3::from_mat4(m).determinant().abs().cbrt();
             let r = l.radius * scale;
-            let s = light_scale(l.intensity, l.exposure, l.color, l.color_temperature);
+            let s = lit_scale(
+                light_scale(l.intensity, l.exposure, l.color, l.color_temperature),
+                &l.controls,
+            );
             let point = l.treat_as_point || r == 0.0;
             let radiance = match (point, l.normalize) {
                 // Surface radiance, divided by the area 4πr² when normalized.
                 (false, true) => s.map(|v| v / (4.0 * PI * r * r)),
                 (false, false) => s,
                 // A point keeps the sphere's far field, intensity L·πr²: s/4 when
-                // normalized (whatever r), s·πr² otherwise.
+                // normalized (whatever r), s·πr² otherwise; a zero-radius sphere has
+                // no size to normalize by and emits as the normalized one does.
                 (true, true) => s.map(|v| v / 4.0),
+                (true, false) if r == 0.0 => s.map(|v| v / 4.0),
                 (true, false) => s.map(|v| v * PI * r * r),
             };
             let emitter = SphereEmitter {
                 center: m.transform_point3(DVec3::ZERO),
                 radius: if point { 0.0 } else { r },
                 radiance,
+                shaping: shaping(&l.controls, &m),
+                link: linker.link(&l.controls),
             };
             if nonzero(&emitter.radiance) {
                 lights.sources.spheres.push(source);
@@ -225,7 +620,10 @@ impl Lights {
             let edge_v = m.transform_vector3(DVec3::Y * l.height);
             let cross = edge_u.cross(edge_v);
             let area = cross.length();
-            let s = light_scale(l.intensity, l.exposure, l.color, l.color_temperature);
+            let s = lit_scale(
+                light_scale(l.intensity, l.exposure, l.color, l.color_temperature),
+                &l.controls,
+            );
             let radiance = match l.normalize {
                 true if area > 0.0 => s.map(|v| v / area),
                 _ => s,
@@ -240,10 +638,112 @@ impl Lights {
                     normal: -cross / area,
                     area,
                     radiance,
+                    shaping: shaping(&l.controls, &m),
+                    link: linker.link(&l.controls),
                 });
             }
         }
+        for l in &scene.disk_lights {
+            let source = next.next().unwrap_or(NO_SOURCE);
+            let m = l.light_to_world;
+            let a = m.transform_vector3(DVec3::X * l.radius);
+            let b = m.transform_vector3(DVec3::Y * l.radius);
+            let cross = a.cross(b);
+            let area = PI * cross.length();
+            let s = lit_scale(
+                light_scale(l.intensity, l.exposure, l.color, l.color_temperature),
+                &l.controls,
+            );
+            let radiance = match l.normalize {
+                true if area > 0.0 => s.map(|v| v / area),
+                _ => s,
+            };
+            if area > 0.0 && nonzero(&radiance) {
+                lights.sources.disks.push(source);
+                lights.disks.push(DiskEmitter {
+                    center: m.transform_point3(DVec3::ZERO),
+                    a,
+                    b,
+                    // Emits along its local −Z.
+                    normal: -cross / cross.length(),
+                    area,
+                    radiance,
+                    shaping: shaping(&l.controls, &m),
+                    link: linker.link(&l.controls),
+                });
+            }
+        }
+        for l in &scene.cylinder_lights {
+            let source = next.next().unwrap_or(NO_SOURCE);
+            let m = l.light_to_world;
+            let axis = m.transform_vector3(DVec3::X * l.length);
+            let y = m.transform_vector3(DVec3::Y * l.radius);
+            let z = m.transform_vector3(DVec3::Z * l.radius);
+            let area = cylinder_area(axis, y, z);
+            let s = lit_scale(
+                light_scale(l.intensity, l.exposure, l.color, l.color_temperature),
+                &l.controls,
+            );
+            let line = l.treat_as_line || area == 0.0;
+            let mut e = CylinderEmitter {
+                center: m.transform_point3(DVec3::ZERO),
+                axis,
+                y,
+                z,
+                area,
+                line,
+                shaping: shaping(&l.controls, &m),
+                link: linker.link(&l.controls),
+                ..Default::default()
+            };
+            if line {
+                // Far field of the side: L × its projected area, 2·r·ℓ·sin θ for a
+                // circular cylinder (r: the radius of the circle of the cross-section's
+                // area). Normalized, or of no area: s·2rℓ/A = s/π for a circle.
+                let length = axis.length();
+                let r = y.cross(z).length().sqrt();
+                let projected = 2.0 * r * length;
+                e.line_intensity = match l.normalize || area == 0.0 {
+                    true if area > 0.0 => s.map(|v| v * projected / area),
+                    true => s.map(|v| v / PI),
+                    false => s.map(|v| v * projected),
+                };
+                if length > 0.0 && nonzero(&e.line_intensity) {
+                    lights.sources.cylinders.push(source);
+                    lights.cylinders.push(e);
+                }
+            } else {
+                e.radiance = match l.normalize {
+                    true => s.map(|v| v / area),
+                    false => s,
+                };
+                if nonzero(&e.radiance) {
+                    lights.sources.cylinders.push(source);
+                    lights.cylinders.push(e);
+                }
+            }
+        }
+        lights.holdout_sets = linker
+            .sets
+            .iter()
+            .map(|set| {
+                let meshes: Vec<_> = set.iter().map(|&i| scene.holdouts[i].clone()).collect();
+                Holdouts::build(&meshes)
+            })
+            .collect();
         Ok(lights)
+    }
+
+    /// Whether any light has linking (its media masks or holdout sets differ from
+    /// "everything").
+    pub fn has_linking(&self) -> bool {
+        let linked = |l: &Link| !l.is_everything();
+        self.suns.iter().any(|e| linked(&e.link))
+            || self.spheres.iter().any(|e| linked(&e.link))
+            || self.rects.iter().any(|e| linked(&e.link))
+            || self.disks.iter().any(|e| linked(&e.link))
+            || self.cylinders.iter().any(|e| linked(&e.link))
+            || !self.linked_domes.is_empty()
     }
 
     pub fn has_environment(&self) -> bool {
@@ -381,11 +881,12 @@ impl SphereEmitter {
         }
         let axis = to_c / d;
         if self.radius == 0.0 {
-            return Some(LightSample {
+            let sample = LightSample {
                 wi: axis,
                 distance: d,
                 weight: self.radiance.map(|v| v / d2),
-            });
+            };
+            return shaped(sample, &self.shaping);
         }
         let sin2_max = (self.radius * self.radius / d2).min(1.0);
         let cos_max = (1.0 - sin2_max).sqrt();
@@ -395,12 +896,31 @@ impl SphereEmitter {
         let disc = (self.radius * self.radius - d2 * (1.0 - cos_t * cos_t)).max(0.0);
         let distance = (d * cos_t - disc.sqrt()).max(0.0);
         let solid_angle = 2.0 * PI * (1.0 - cos_max);
-        Some(LightSample {
-            wi,
-            distance,
-            weight: self.radiance.map(|v| v * solid_angle),
-        })
+        shaped(
+            LightSample {
+                wi,
+                distance,
+                weight: self.radiance.map(|v| v * solid_angle),
+            },
+            &self.shaping,
+        )
     }
+}
+
+/// `sample` with its weight multiplied by the shaping of the emission leaving towards
+/// the point (−wi); `None` when that is zero in every channel (no shadow ray).
+#[inline(always)]
+fn shaped(mut sample: LightSample, shaping: &Option<Shaping>) -> Option<LightSample> {
+    if let Some(s) = shaping {
+        let f = s.factor(-sample.wi);
+        if f == [0.0; 3] {
+            return None;
+        }
+        for c in 0..3 {
+            sample.weight[c] *= f[c];
+        }
+    }
+    Some(sample)
 }
 
 impl RectEmitter {
@@ -420,10 +940,102 @@ impl RectEmitter {
             return None;
         }
         let g = cos_l * self.area / d2;
-        Some(LightSample {
+        shaped(
+            LightSample {
+                wi,
+                distance: d,
+                weight: self.radiance.map(|r| r * g),
+            },
+            &self.shaping,
+        )
+    }
+}
+
+/// The sample towards light point `q` (emitting side `normal`) seen from `p`, with area
+/// density 1/`inverse_pdf` converted to solid angle; `None` behind it.
+#[inline(always)]
+fn area_sample(
+    p: DVec3,
+    q: DVec3,
+    normal: DVec3,
+    inverse_pdf: f64,
+    radiance: &[f64; 3],
+    shaping: &Option<Shaping>,
+) -> Option<LightSample> {
+    let v = q - p;
+    let d2 = v.length_squared();
+    if d2 == 0.0 {
+        return None;
+    }
+    let d = d2.sqrt();
+    let wi = v / d;
+    let cos_l = -wi.dot(normal);
+    if cos_l <= 0.0 {
+        return None;
+    }
+    let g = cos_l * inverse_pdf / d2;
+    shaped(
+        LightSample {
             wi,
             distance: d,
-            weight: self.radiance.map(|r| r * g),
-        })
+            weight: radiance.map(|r| r * g),
+        },
+        shaping,
+    )
+}
+
+impl DiskEmitter {
+    /// Samples a point uniformly on the disk (a linear map keeps the density uniform
+    /// on the ellipse); density converted to solid angle.
+    pub fn sample(&self, p: DVec3, u1: f64, u2: f64) -> Option<LightSample> {
+        let r = u1.sqrt();
+        let (cos, sin) = azimuth(u2);
+        let q = self.center + self.a * (r * cos) + self.b * (r * sin);
+        area_sample(p, q, self.normal, self.area, &self.radiance, &self.shaping)
+    }
+}
+
+impl CylinderEmitter {
+    /// Samples the side uniformly in (u, φ) (its area density is 1/(2π J(φ)) with J
+    /// the area element, exact for any linear transform), or a point uniformly along
+    /// the line.
+    pub fn sample(&self, p: DVec3, u1: f64, u2: f64) -> Option<LightSample> {
+        if self.line {
+            return self.sample_line(p, u1);
+        }
+        let (cos, sin) = azimuth(u2);
+        let radial = self.y * cos + self.z * sin;
+        let q = self.center + self.axis * (u1 - 0.5) + radial;
+        let tangent = self.z * cos - self.y * sin;
+        let n = tangent.cross(self.axis);
+        let j = n.length();
+        if j == 0.0 {
+            return None;
+        }
+        // Outwards: away from the axis, whatever the transform's handedness.
+        let normal = if n.dot(radial) >= 0.0 { n / j } else { -n / j };
+        area_sample(p, q, normal, 2.0 * PI * j, &self.radiance, &self.shaping)
+    }
+
+    /// A point uniformly along the line; the intensity leaving it at angle θ to the
+    /// axis is `line_intensity · sin θ / length` per unit length.
+    fn sample_line(&self, p: DVec3, u: f64) -> Option<LightSample> {
+        let q = self.center + self.axis * (u - 0.5);
+        let v = q - p;
+        let d2 = v.length_squared();
+        if d2 == 0.0 {
+            return None;
+        }
+        let d = d2.sqrt();
+        let wi = v / d;
+        let sin = wi.cross(self.axis.normalize()).length();
+        shaped(
+            LightSample {
+                wi,
+                distance: d,
+                weight: self.line_intensity.map(|i| i * sin / d2),
+            },
+            &self.shaping,
+        )
     }
 }

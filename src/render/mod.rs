@@ -15,4 +15,5 @@ pub mod progressive;
 pub mod sampler;
 pub mod session;
 pub mod splits;
+pub mod texture;
 pub mod tiles;

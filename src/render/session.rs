@@ -24,7 +24,7 @@ use crate::scene::{
 use crate::track::scheme::SchemeOptions;
 use crate::track::select::{Choice, SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
 use crate::volume::asset::AssetLocation;
-use crate::volume::majorant::{MajorantSpec, MAX_DEPTH};
+use crate::volume::majorant::{MajorantSpec, MajorantTree, MAX_DEPTH};
 use crate::volume::medium::Medium;
 use crate::volume::vdb;
 use anyhow::{anyhow, bail, Context, Result};
@@ -212,7 +212,16 @@ impl Session {
             (Some(_), None) => u32::MAX,
             _ => spp,
         };
-        check_film_memory(width, height)?;
+        // Name where the resolution came from: a refusal read in a farm log must say
+        // which file and prim (or flag) to fix.
+        check_film_memory(width, height).map_err(|e| {
+            let source = match (o.res, &settings.prim_path) {
+                (Some(_), _) => "--res".to_string(),
+                (None, Some(prim)) => format!("{prim}.resolution"),
+                (None, None) => "the default resolution".to_string(),
+            };
+            anyhow!("{}: {source}: {e}", stage.display())
+        })?;
         let prune = o.octree_prune.unwrap_or(DEFAULT_OCTREE_PRUNE);
         if !(prune.is_finite() && prune >= 0.0) {
             bail!("the octree pruning cost must be a non-negative number, got {prune}");
@@ -240,7 +249,7 @@ impl Session {
             ));
         }
         let lights = Lights::from_scene(&scene)?;
-        check_camera(&scene)?;
+        check_camera(&scene).map_err(|e| anyhow!("{}: {e}", stage.display()))?;
         let holdouts = match scene.holdouts.is_empty() {
             true => Holdouts::empty(),
             false => Holdouts::build(&scene.holdouts),
@@ -327,6 +336,11 @@ impl Session {
         &self.media
     }
 
+    /// The octree pruning cost (`--octree-prune`; 0: not pruned).
+    pub fn octree_prune(&self) -> f32 {
+        self.octree_prune
+    }
+
     /// Switches to other tracker settings (a benchmark's next tracker), with the
     /// majorant structure rebuilt and pruned as a render with those settings prunes it.
     pub fn retrack(&mut self, tracking: TrackerSettings) {
@@ -340,6 +354,40 @@ impl Session {
     pub fn set_majorants(&mut self, spec: MajorantSpec) {
         self.spec = spec;
         self.rebuild_majorants();
+    }
+
+    /// The majorant structures (one per medium) a render with `tracking` uses at the
+    /// session's `spec`, built and pruned as [`retrack`](Self::retrack) would, without
+    /// switching to them: a benchmark that alternates trackers builds each once.
+    pub fn majorants_for(&self, tracking: &TrackerSettings) -> Vec<MajorantTree> {
+        let residual = tracking.pays_residual();
+        self.media
+            .iter()
+            .map(|m| m.build_majorants(self.spec, self.octree_prune, residual))
+            .collect()
+    }
+
+    /// Switches to `tracking` with `trees` from [`majorants_for`](Self::majorants_for)
+    /// (same `spec`, same settings) in place of the media's structures, which are
+    /// handed back: the same render as after [`retrack`](Self::retrack), without the
+    /// rebuild.
+    pub fn switch_tracking(
+        &mut self,
+        tracking: TrackerSettings,
+        trees: Vec<MajorantTree>,
+    ) -> Vec<MajorantTree> {
+        assert_eq!(
+            trees.len(),
+            self.media.len(),
+            "one majorant structure per medium"
+        );
+        self.tracking = tracking;
+        self.auto_reason = None;
+        self.media
+            .iter_mut()
+            .zip(trees)
+            .map(|(m, t)| m.replace_majorants(t))
+            .collect()
     }
 
     fn rebuild_majorants(&mut self) {
@@ -675,6 +723,16 @@ fn check_camera(scene: &Scene) -> Result<()> {
             c.vertical_aperture
         );
     }
+    // A zero scale anywhere above the camera collapses its ray directions to zero
+    // (NaN once normalised): every ray would miss everything. The stage reader has
+    // already refused a non-finite transform.
+    let det = glam::DMat3::from_mat4(c.camera_to_world).determinant();
+    if !(det != 0.0 && det.is_finite()) {
+        bail!(
+            "camera {}: its transform is singular (a zero scale in its xformOps or an ancestor's), so its rays have no direction",
+            c.prim_path
+        );
+    }
     if !(c.clipping_range.0.is_finite() && c.clipping_range.1 > c.clipping_range.0) {
         bail!(
             "camera {}: clipping range {:?} is empty",
@@ -715,7 +773,7 @@ fn check_film_bytes(width: u32, height: u32, per_pixel: usize) -> Result<()> {
 
 /// Memory the system can give a new allocation without swapping (`MemAvailable` of
 /// /proc/meminfo, Linux); `None` where that is not known.
-fn available_memory_bytes() -> Option<u64> {
+pub fn available_memory_bytes() -> Option<u64> {
     let text = std::fs::read_to_string("/proc/meminfo").ok()?;
     let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
     let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
@@ -792,6 +850,8 @@ fn scene_for_vdb(path: &Path, grid: Option<&str>) -> Result<Scene> {
         dome_lights: Vec::new(),
         sphere_lights: Vec::new(),
         rect_lights: Vec::new(),
+        disk_lights: Vec::new(),
+        cylinder_lights: Vec::new(),
         volumes: vec![volume],
         holdouts: Vec::new(),
         settings: RenderSettings::default(),

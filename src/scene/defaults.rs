@@ -24,6 +24,9 @@ pub fn placeholder_camera() -> Camera {
         horizontal_aperture_offset: 0.0,
         vertical_aperture_offset: 0.0,
         clipping_range: (0.1, 1e6),
+        projection: Default::default(),
+        f_stop: 0.0,
+        focus_distance: 0.0,
     }
 }
 
@@ -56,6 +59,8 @@ pub fn wants_default_lights(scene: &Scene) -> bool {
         && scene.dome_lights.is_empty()
         && scene.sphere_lights.is_empty()
         && scene.rect_lights.is_empty()
+        && scene.disk_lights.is_empty()
+        && scene.cylinder_lights.is_empty()
         && !scene.volumes.iter().any(|v| v.emission.is_emissive())
 }
 
@@ -67,6 +72,7 @@ pub fn add_default_lights(scene: &mut Scene) {
     scene.distant_lights.push(DistantLight {
         light_group: None,
         prim_path: "(default sun)".into(),
+        controls: Default::default(),
         direction: towards.to_array(),
         intensity: 3.0,
         exposure: 0.0,
@@ -78,6 +84,7 @@ pub fn add_default_lights(scene: &mut Scene) {
     scene.dome_lights.push(DomeLight {
         light_group: None,
         prim_path: "(default sky)".into(),
+        controls: Default::default(),
         light_to_world: DMat4::IDENTITY,
         intensity: 0.5,
         exposure: 0.0,

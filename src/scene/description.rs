@@ -21,6 +21,8 @@ pub struct Scene {
     pub dome_lights: Vec<DomeLight>,
     pub sphere_lights: Vec<SphereLight>,
     pub rect_lights: Vec<RectLight>,
+    pub disk_lights: Vec<DiskLight>,
+    pub cylinder_lights: Vec<CylinderLight>,
     pub volumes: Vec<Volume>,
     /// The visible UsdGeom gprims rendered as black matte occluders (empty when the
     /// stage has none).
@@ -42,8 +44,8 @@ pub struct Emitter<'a> {
 }
 
 impl Scene {
-    /// The scene's lights in the order distant, dome, sphere, rect (each in stage
-    /// order): a light's index here is its light id in the renderer.
+    /// The scene's lights in the order distant, dome, sphere, rect, disk, cylinder
+    /// (each in stage order): a light's index here is its light id in the renderer.
     pub fn lights(&self) -> Vec<Emitter<'_>> {
         let mut out = Vec::new();
         macro_rules! push {
@@ -60,18 +62,24 @@ impl Scene {
         push!(self.dome_lights);
         push!(self.sphere_lights);
         push!(self.rect_lights);
+        push!(self.disk_lights);
+        push!(self.cylinder_lights);
         out
     }
 }
 
-/// A pinhole camera (UsdGeomCamera). Lengths in the stage's units as USD defines them:
-/// focal length and apertures in tenths of a scene unit ("mm" when the unit is cm);
-/// only their ratios matter to a pinhole camera.
+/// A UsdGeomCamera. Lengths in the stage's units as USD defines them: focal length and
+/// apertures in tenths of a scene unit ("mm" when the unit is cm), the clipping range
+/// and focus distance in scene units. A perspective pinhole depends only on the ratios
+/// of focal length and apertures; an orthographic view is `aperture / 10` units wide,
+/// and a thin lens is `focalLength / 10 / fStop` units across (see `render::camera`).
 #[derive(Clone, Debug)]
 pub struct Camera {
     pub prim_path: String,
     /// Camera → world. The camera looks down its local −Z with +Y up.
     pub camera_to_world: DMat4,
+    /// `projection`: perspective or orthographic.
+    pub projection: Projection,
     pub focal_length: f64,
     pub horizontal_aperture: f64,
     pub vertical_aperture: f64,
@@ -79,6 +87,18 @@ pub struct Camera {
     pub vertical_aperture_offset: f64,
     /// (near, far) clipping range.
     pub clipping_range: (f64, f64),
+    /// `fStop`: 0 is a pinhole (everything in focus).
+    pub f_stop: f64,
+    /// `focusDistance`: depth of the plane in focus (used when `f_stop` > 0).
+    pub focus_distance: f64,
+}
+
+/// UsdGeomCamera's `projection`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Projection {
+    #[default]
+    Perspective,
+    Orthographic,
 }
 
 /// UsdLuxDistantLight. Its emission scale is `intensity · 2^exposure · color`: radiance
@@ -88,6 +108,8 @@ pub struct Camera {
 #[derive(Clone, Debug)]
 pub struct DistantLight {
     pub prim_path: String,
+    /// Shaping, linking and shadow controls.
+    pub controls: LightControls,
     /// `nimbus:lightGroup`: the light group its light-group AOVs gather it under.
     pub light_group: Option<String>,
     /// Unit world-space direction *towards* the light (the light shines along its local −Z,
@@ -108,6 +130,8 @@ pub struct DistantLight {
 #[derive(Clone, Debug)]
 pub struct DomeLight {
     pub prim_path: String,
+    /// Shaping, linking and shadow controls.
+    pub controls: LightControls,
     /// `nimbus:lightGroup`: the light group its light-group AOVs gather it under.
     pub light_group: Option<String>,
     /// Light → world; the texture's +Y pole and +Z (longitude 0) are the light's local
@@ -127,6 +151,8 @@ pub struct DomeLight {
 #[derive(Clone, Debug)]
 pub struct SphereLight {
     pub prim_path: String,
+    /// Shaping, linking and shadow controls.
+    pub controls: LightControls,
     /// `nimbus:lightGroup`: the light group its light-group AOVs gather it under.
     pub light_group: Option<String>,
     pub light_to_world: DMat4,
@@ -146,6 +172,8 @@ pub struct SphereLight {
 #[derive(Clone, Debug)]
 pub struct RectLight {
     pub prim_path: String,
+    /// Shaping, linking and shadow controls.
+    pub controls: LightControls,
     /// `nimbus:lightGroup`: the light group its light-group AOVs gather it under.
     pub light_group: Option<String>,
     pub light_to_world: DMat4,
@@ -157,6 +185,193 @@ pub struct RectLight {
     /// `inputs:width` (local X) and `inputs:height` (local Y).
     pub width: f64,
     pub height: f64,
+}
+
+/// UsdLuxDiskLight: a disk of `radius` in the light's local XY plane, emitting from one
+/// side along its local −Z.
+#[derive(Clone, Debug)]
+pub struct DiskLight {
+    pub prim_path: String,
+    /// Shaping, linking and shadow controls.
+    pub controls: LightControls,
+    /// `nimbus:lightGroup`: the light group its light-group AOVs gather it under.
+    pub light_group: Option<String>,
+    pub light_to_world: DMat4,
+    pub intensity: f64,
+    pub exposure: f64,
+    pub color: [f64; 3],
+    pub normalize: bool,
+    pub color_temperature: Option<f64>,
+    /// `inputs:radius` (local units).
+    pub radius: f64,
+}
+
+/// UsdLuxCylinderLight: a cylinder of `length` along the light's local X axis and
+/// `radius`, centred at its origin, emitting outwards from its side (not its caps).
+#[derive(Clone, Debug)]
+pub struct CylinderLight {
+    pub prim_path: String,
+    /// Shaping, linking and shadow controls.
+    pub controls: LightControls,
+    /// `nimbus:lightGroup`: the light group its light-group AOVs gather it under.
+    pub light_group: Option<String>,
+    pub light_to_world: DMat4,
+    pub intensity: f64,
+    pub exposure: f64,
+    pub color: [f64; 3],
+    pub normalize: bool,
+    pub color_temperature: Option<f64>,
+    /// `inputs:length` (local X) and `inputs:radius` (local units).
+    pub length: f64,
+    pub radius: f64,
+    /// `treatAsLine`.
+    pub treat_as_line: bool,
+}
+
+/// What UsdLux's ShapingAPI, ShadowAPI and linking collections add to a light. The
+/// default changes nothing: no shaping, shadows on, every prim lit and shadowing.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LightControls {
+    /// `inputs:diffuse`: multiplies the light's illumination of the volume (volume
+    /// scattering is the medium's diffuse response).
+    pub diffuse: f64,
+    /// ShapingAPI, when applied or authored.
+    pub shaping: Option<Shaping>,
+    /// `collection:lightLink`: the prims the light illuminates.
+    pub light_link: Collection,
+    /// `collection:shadowLink`: the prims that cast shadows from the light.
+    pub shadow_link: Collection,
+    /// `inputs:shadow:enable` = false (ShadowAPI): nothing shadows the light.
+    pub unshadowed: bool,
+}
+
+impl Default for LightControls {
+    fn default() -> Self {
+        LightControls {
+            diffuse: 1.0,
+            shaping: None,
+            light_link: Collection::default(),
+            shadow_link: Collection::default(),
+            unshadowed: false,
+        }
+    }
+}
+
+/// UsdLuxShapingAPI's inputs, schema fallbacks applied (angles in degrees).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Shaping {
+    /// `inputs:shaping:focus` (values < 0 are ignored, as 0).
+    pub focus: f64,
+    /// `inputs:shaping:focusTint`.
+    pub focus_tint: [f64; 3],
+    /// `inputs:shaping:cone:angle`: the largest angle off the light's −Z axis it emits
+    /// at (fallback 90).
+    pub cone_angle: f64,
+    /// `inputs:shaping:cone:softness`, clamped to [0, 1].
+    pub cone_softness: f64,
+    /// `inputs:shaping:ies:file`, resolved, when authored.
+    pub ies_file: Option<String>,
+    /// `inputs:shaping:ies:angleScale`.
+    pub ies_angle_scale: f64,
+    /// `inputs:shaping:ies:normalize`.
+    pub ies_normalize: bool,
+}
+
+impl Default for Shaping {
+    /// The schema's fallbacks: no focus, a 90° cone without softness, no profile.
+    fn default() -> Self {
+        Shaping {
+            focus: 0.0,
+            focus_tint: [0.0; 3],
+            cone_angle: 90.0,
+            cone_softness: 0.0,
+            ies_file: None,
+            ies_angle_scale: 0.0,
+            ies_normalize: false,
+        }
+    }
+}
+
+/// A UsdCollectionAPI membership rule over prim paths (`collection:NAME:…`). The
+/// default includes every prim: the fallback `includeRoot = true` the LightAPI gives
+/// its `lightLink` and `shadowLink` collections.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Collection {
+    /// `includeRoot`: the root path (and so every prim) is included.
+    pub include_root: bool,
+    /// `includes` and `excludes` targets (prim paths).
+    pub includes: Vec<String>,
+    pub excludes: Vec<String>,
+    /// `expansionRule` = `explicitOnly`: only the targets themselves, not their
+    /// descendants.
+    pub explicit_only: bool,
+}
+
+impl Default for Collection {
+    fn default() -> Self {
+        Collection {
+            include_root: true,
+            includes: Vec::new(),
+            excludes: Vec::new(),
+            explicit_only: false,
+        }
+    }
+}
+
+impl Collection {
+    /// Whether the rule includes every prim (the fallback): no evaluation needed.
+    pub fn is_everything(&self) -> bool {
+        self.include_root && self.excludes.is_empty()
+    }
+
+    /// Whether the prim at `path` is a member, as UsdCollectionAPI's membership query
+    /// decides: the nearest target at or above the prim (only the prim itself with
+    /// `explicitOnly`) decides, an exclude beating an include of the same path; the root
+    /// counts as an include when `includeRoot` is on; nothing matching excludes it.
+    pub fn contains(&self, path: &str) -> bool {
+        let mut best: Option<(usize, bool)> = None;
+        let mut consider = |target: &str, included: bool| {
+            let depth = match self.explicit_only {
+                true if target == path => Some(target.len()),
+                true => None,
+                false => prefix_depth(target, path),
+            };
+            if let Some(d) = depth {
+                // Deeper wins; at equal depth an exclude wins.
+                let better = match best {
+                    None => true,
+                    Some((bd, bi)) => d > bd || (d == bd && bi && !included),
+                };
+                if better {
+                    best = Some((d, included));
+                }
+            }
+        };
+        if self.include_root && !self.explicit_only {
+            consider("/", true);
+        }
+        for t in &self.includes {
+            consider(t, true);
+        }
+        for t in &self.excludes {
+            consider(t, false);
+        }
+        best.is_some_and(|(_, included)| included)
+    }
+}
+
+/// The length of `prefix` when it is `path` or one of its ancestors (the root `/` is
+/// everything's), else `None`.
+fn prefix_depth(prefix: &str, path: &str) -> Option<usize> {
+    let p = prefix.trim_end_matches('/');
+    if p.is_empty() {
+        return Some(0);
+    }
+    (path == p
+        || path
+            .strip_prefix(p)
+            .is_some_and(|rest| rest.starts_with('/')))
+    .then_some(p.len())
 }
 
 /// A UsdVolVolume with Nimbus' volume parameters resolved (schema fallbacks applied).

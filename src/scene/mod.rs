@@ -3,19 +3,22 @@
 //! already resolved.
 //!
 //! Loading lives in [`stage`] (UsdLux lights in `lights`, other tools' volume materials
-//! in [`shading`], holdout gprims in [`geometry`], the attribute readers and errors they
-//! share in `attrs`); Nimbus' codeless schema (see `schemas/`) is registered by
+//! in [`shading`], holdout gprims in [`geometry`], what it does not read besides lights
+//! in `unsupported`, the attribute readers and errors they share in `attrs`); Nimbus' codeless schema (see `schemas/`) is registered by
 //! [`schema`].
 
 mod attrs;
+mod camera;
 pub mod defaults;
 pub mod description;
 pub mod diagnostics;
 pub mod geometry;
 mod lights;
+mod motion;
 pub mod schema;
 pub mod shading;
 pub mod stage;
+mod unsupported;
 
 pub use attrs::SceneError;
 pub use description::*;

@@ -68,6 +68,12 @@ pub fn bound_volume_material(
     Ok(None)
 }
 
+/// The path of the material bound to `volume` (as [`bound_volume_material`] finds it),
+/// whether or not it has a volume output.
+pub fn bound_material_path(stage: &Stage, volume: &Prim) -> Result<Option<String>, SceneError> {
+    Ok(bound_material(stage, volume)?.map(|m| m.path().to_string()))
+}
+
 fn bound_material(stage: &Stage, volume: &Prim) -> Result<Option<Prim>, SceneError> {
     let mut prim = Some(volume.clone());
     while let Some(p) = prim {

@@ -8,13 +8,16 @@
 //! (or the bytes of a .usdz member).
 
 use super::attrs::*;
+use super::camera;
 use super::defaults;
 use super::description::*;
 use super::diagnostics::Diagnostics;
 use super::geometry;
 use super::lights;
+use super::motion;
 use super::schema::{self, tokens};
 use super::shading;
+use super::unsupported;
 use glam::DMat4;
 use openusd::sdf;
 use openusd::usd::{Prim, PrimPredicate, Stage, TimeCode};
@@ -45,6 +48,17 @@ mod types {
     pub const POINT_INSTANCER: &str = "PointInstancer";
 }
 
+/// The camera attributes whose change during the exposure would blur the image.
+const LENS_ATTRIBUTES: [&str; 7] = [
+    "focalLength",
+    "horizontalAperture",
+    "verticalAperture",
+    "horizontalApertureOffset",
+    "verticalApertureOffset",
+    "fStop",
+    "focusDistance",
+];
+
 /// Prefix of a volume's field relationships (`field:density`).
 const FIELD_PREFIX: &str = "field:";
 /// Density field used when `nimbus:densityField` resolves no value at all.
@@ -58,6 +72,7 @@ pub fn load_stage(path: &Path, opts: &LoadOptions) -> Result<Scene, SceneError> 
         time: opts.frame.map(TimeCode::new),
         xforms: geom::XformCache::new(opts.frame.map(TimeCode::new)),
         warnings: RefCell::default(),
+        shutter: None,
     };
     let scene = loader.load(path, opts);
     // Reference and payload diagnostics accrue while prims are composed, so they
@@ -133,6 +148,9 @@ struct Loader<'a> {
     /// What the stage asks for that the render will not show as authored; readers
     /// that only borrow the loader add to it too.
     warnings: RefCell<Diagnostics>,
+    /// The render camera's shutter interval, when it is open (set before any other
+    /// prim's transform is read): what moves within it warns ([`motion`]).
+    shutter: Option<(f64, f64)>,
 }
 
 impl Loader<'_> {
@@ -154,6 +172,7 @@ impl Loader<'_> {
             self.unread_light(prim)?;
         }
         let holdouts = self.holdouts(&inventory)?;
+        self.unsupported(&inventory, settings_prim.as_ref())?;
         let volumes = volumes
             .iter()
             .map(|p| self.volume(p))
@@ -167,6 +186,8 @@ impl Loader<'_> {
             dome_lights: lights.dome,
             sphere_lights: lights.sphere,
             rect_lights: lights.rect,
+            disk_lights: lights.disk,
+            cylinder_lights: lights.cylinder,
             volumes,
             holdouts,
             settings,
@@ -237,6 +258,28 @@ impl Loader<'_> {
         Ok(())
     }
 
+    /// Warnings for what the stage authors besides lights and holdout gprims that the
+    /// render does not show ([`unsupported`]): point instancers, and render settings
+    /// and products asking for what the render does not do.
+    fn unsupported(
+        &self,
+        inventory: &Inventory,
+        settings: Option<&Prim>,
+    ) -> Result<(), SceneError> {
+        let mut warnings = self.warnings.borrow_mut();
+        for prim in self.visible(&inventory.point_instancers)? {
+            unsupported::point_instancer(&prim, &mut warnings);
+        }
+        if let Some(settings) = settings {
+            unsupported::render_settings_base(settings, false, self.time, &mut warnings)?;
+            for target in targets(settings, "products")? {
+                let product = self.target_prim(settings, &target, types::RENDER_PRODUCT)?;
+                unsupported::render_settings_base(&product, true, self.time, &mut warnings)?;
+            }
+        }
+        Ok(())
+    }
+
     /// The visible lights, read by [`lights`] with their world transforms.
     fn lights(&mut self, inventory: &Inventory) -> Result<lights::StageLights, SceneError> {
         let mut prims = Vec::new();
@@ -244,7 +287,7 @@ impl Loader<'_> {
             let to_world = self.world_transform(&prim)?;
             prims.push((prim, to_world));
         }
-        lights::read_lights(&prims, self.time)
+        lights::read_lights(&prims, self.time, &mut self.warnings.borrow_mut())
     }
 
     /// The visible gprims of a type Nimbus reads, with the `default` or `render`
@@ -254,9 +297,6 @@ impl Loader<'_> {
     fn holdouts(&mut self, inventory: &Inventory) -> Result<Vec<HoldoutMesh>, SceneError> {
         let mut holdouts = Vec::new();
         for prim in self.visible(&inventory.gprims)? {
-            let Some(prim_type) = geometry::holdout_type(&prim)? else {
-                continue;
-            };
             let prototype = inventory
                 .point_instancers
                 .iter()
@@ -278,6 +318,10 @@ impl Loader<'_> {
             if read_bool(&prim, tokens::HOLDOUT, self.time)? == Some(false) {
                 continue;
             }
+            let Some(prim_type) = geometry::holdout_type(&prim)? else {
+                unsupported::unread_gprim(&prim, &mut self.warnings.borrow_mut())?;
+                continue;
+            };
             let to_world = self.world_transform(&prim)?;
             holdouts.push(geometry::read_holdout(
                 &prim, prim_type, &to_world, self.time,
@@ -308,13 +352,30 @@ impl Loader<'_> {
         Ok(out)
     }
 
-    /// Local → world of `prim` as a column-vector matrix.
+    /// Local → world of `prim` as a column-vector matrix. Every prim the render uses
+    /// (camera, volumes, lights, holdouts) comes through here, so this is where a
+    /// transform that moves while the shutter is open warns.
     fn world_transform(&mut self, prim: &Prim) -> Result<DMat4, SceneError> {
+        if let Some(shutter) = self.shutter {
+            if let Some((owner, op)) = motion::moving_op(prim, self.time, shutter)? {
+                self.motion_warning(&owner, &op, shutter);
+            }
+        }
         let m = self
             .xforms
             .local_to_world_transform(prim)
             .map_err(|e| prim_error(prim.path(), format!("cannot compute transform: {e}")))?;
-        Ok(to_dmat4(&m))
+        let m = to_dmat4(&m);
+        // Every prim the render uses gets its transform here: a NaN or infinite one
+        // would make the prim vanish (rays miss it) or poison every sample, so it is
+        // refused, naming the prim.
+        if !m.is_finite() {
+            return Err(prim_error(
+                prim.path(),
+                "its world transform is not finite (a NaN or infinite value in its xformOps or an ancestor's)",
+            ));
+        }
+        Ok(m)
     }
 
     // ----- camera -------------------------------------------------------------
@@ -348,21 +409,28 @@ impl Loader<'_> {
         Ok(inventory.cameras.first().cloned())
     }
 
+    /// The render camera (read first: its shutter decides whether moving prims warn).
     fn camera(&mut self, prim: &Prim) -> Result<Camera, SceneError> {
-        let t = self.time;
-        let clip =
-            read_vec2(prim, "clippingRange", t)?.ok_or_else(|| missing(prim, "clippingRange"))?;
-        Ok(Camera {
-            prim_path: prim.path().to_string(),
-            camera_to_world: self.world_transform(prim)?,
-            focal_length: require_f64(prim, "focalLength", t)?,
-            horizontal_aperture: require_f64(prim, "horizontalAperture", t)?,
-            vertical_aperture: require_f64(prim, "verticalAperture", t)?,
-            horizontal_aperture_offset: read_f64(prim, "horizontalApertureOffset", t)?
-                .unwrap_or(0.0),
-            vertical_aperture_offset: read_f64(prim, "verticalApertureOffset", t)?.unwrap_or(0.0),
-            clipping_range: (clip[0], clip[1]),
-        })
+        self.shutter = camera::shutter(prim, self.time)?;
+        if let Some(shutter) = self.shutter {
+            if let Some(name) =
+                motion::moving_attribute(prim, &LENS_ATTRIBUTES, self.time, shutter)?
+            {
+                self.motion_warning(prim, name, shutter);
+            }
+        }
+        let to_world = self.world_transform(prim)?;
+        camera::read_camera(prim, self.time, to_world, &mut self.warnings.borrow_mut())
+    }
+
+    /// One "motion blur" warning: `attribute` of `prim` changes while the shutter is open.
+    fn motion_warning(&self, prim: &Prim, attribute: &str, (open, close): (f64, f64)) {
+        self.warnings.borrow_mut().warn(
+            "motion blur",
+            prim.path().to_string(),
+            Some(attribute),
+            format!("time-sampled, and it changes while the camera's shutter is open ({open} to {close}): Nimbus renders no motion blur, only the scene at the frame's time"),
+        );
     }
 
     // ----- volumes ------------------------------------------------------------
@@ -390,6 +458,11 @@ impl Loader<'_> {
             true => None,
             false => shading::bound_volume_material(self.stage, prim, t)?,
         };
+        if !nimbus_api && material.is_none() {
+            if let Some(bound) = shading::bound_material_path(self.stage, prim)? {
+                unsupported::unread_material(prim, &bound, &mut self.warnings.borrow_mut());
+            }
+        }
         if let Some(m) = material {
             let density = self.density_field(prim, &m.density_field, &fields)?;
             return Ok(Volume {
@@ -556,6 +629,13 @@ impl Loader<'_> {
                 .map_err(|e| prim_error(&target, e))?
             {
                 fields.push((name, self.field(&target_prim)?));
+            } else {
+                unsupported::unread_field(
+                    prim,
+                    rel.name(),
+                    &target_prim,
+                    &mut self.warnings.borrow_mut(),
+                )?;
             }
         }
         fields.sort_by(|a, b| a.0.cmp(&b.0));

@@ -243,6 +243,34 @@ impl Medium {
         self.world_box = world_box(&self.majorants, self.world_to_index);
     }
 
+    /// The majorant structure `spec` over this medium's grid, pruned as
+    /// [`prune_majorants`](Self::prune_majorants) prunes (`crossing_lookups` 0: not
+    /// pruned), without installing it.
+    pub fn build_majorants(
+        &self,
+        spec: MajorantSpec,
+        crossing_lookups: f32,
+        residual: bool,
+    ) -> MajorantTree {
+        let mut tree = MajorantTree::build(&self.density, spec);
+        if matches!(spec, MajorantSpec::Octree { .. }) {
+            tree.prune(PruneCost {
+                optical_per_voxel: self.optical_per_voxel(),
+                crossing_lookups,
+                residual,
+            });
+        }
+        tree
+    }
+
+    /// Installs `tree` (from [`build_majorants`](Self::build_majorants) on this
+    /// medium) and hands back the structure it replaces.
+    pub fn replace_majorants(&mut self, tree: MajorantTree) -> MajorantTree {
+        let old = std::mem::replace(&mut self.majorants, tree);
+        self.world_box = world_box(&self.majorants, self.world_to_index);
+        old
+    }
+
     /// Whether the world-space ray `origin + t·dir`, `t` in [`tmin`, `tmax`], may meet
     /// the medium (conservative: a box around its majorant region). Lets a ray race
     /// only the volumes it crosses.

@@ -82,7 +82,7 @@ fn hash3(i: i64, j: i64, k: i64) -> f64 {
 }
 
 fn value_noise(p: DVec3) -> f64 {
-    let f = p.floor();
+    let f = DVec3::new(floor(p.x), floor(p.y), floor(p.z));
     let t = p - f;
     let s = t * t * (DVec3::splat(3.0) - 2.0 * t); // smoothstep
     let (i, j, k) = (f.x as i64, f.y as i64, f.z as i64);
@@ -95,6 +95,18 @@ fn value_noise(p: DVec3) -> f64 {
         r += w * hash3(i + dx, j + dy, k + dz);
     }
     r
+}
+
+/// `x.floor()` for |x| < 2⁵³ without the libm call (not inlined on baseline x86-64):
+/// the same value (a signed zero aside, which `value_noise` cannot tell apart).
+#[inline(always)]
+fn floor(x: f64) -> f64 {
+    let i = x as i64 as f64;
+    if i > x {
+        i - 1.0
+    } else {
+        i
+    }
 }
 
 /// The example cloud: a cluster of soft spheres eroded by fBm, inside the unit-ish box
@@ -115,4 +127,120 @@ pub fn cloud_density(p: DVec3) -> f64 {
     let v = (shape * 3.0 + (n - 0.5) * 1.6).clamp(0.0, 1.0);
     // Smooth edge ramp.
     v * v * (3.0 - 2.0 * v)
+}
+
+/// The billows of the cumulus: (centre, radius) in the grid's [-1, 1]³, x the long
+/// axis. A broad, low base row, a taller central tower and smaller cauliflower heads
+/// on top.
+const BILLOWS: [([f64; 3], f64); 16] = [
+    // Base row, sitting on the flat bottom.
+    ([-0.55, -0.22, 0.05], 0.30),
+    ([-0.25, -0.18, -0.12], 0.36),
+    ([0.10, -0.20, 0.10], 0.38),
+    ([0.45, -0.22, -0.05], 0.32),
+    ([0.00, -0.22, -0.30], 0.30),
+    ([-0.10, -0.24, 0.32], 0.28),
+    // Middle.
+    ([-0.30, 0.08, 0.02], 0.33),
+    ([0.05, 0.12, -0.05], 0.40),
+    ([0.38, 0.05, 0.08], 0.30),
+    ([0.10, 0.10, 0.28], 0.26),
+    // Tower and heads.
+    ([-0.08, 0.42, 0.00], 0.30),
+    ([0.22, 0.38, -0.10], 0.25),
+    ([-0.32, 0.32, -0.08], 0.22),
+    ([0.05, 0.62, 0.05], 0.22),
+    ([0.28, 0.55, 0.10], 0.16),
+    ([-0.18, 0.60, -0.12], 0.16),
+];
+
+/// The cloud base (world y of the flat bottom).
+const BASE: f64 = -0.48;
+
+/// Polynomial smooth minimum (blend width `k`).
+fn smin(a: f64, b: f64, k: f64) -> f64 {
+    // Far apart, the blend weight clamps to 0 or 1 whatever the division would round
+    // to: skip it (the latency of the billows' chain of blends), same value.
+    let q = b - a;
+    let h = if q >= k * 1.000001 {
+        1.0
+    } else if q <= -k * 1.000001 {
+        0.0
+    } else {
+        (0.5 + 0.5 * q / k).clamp(0.0, 1.0)
+    };
+    b + (a - b) * h - k * h * (1.0 - h)
+}
+
+/// The example cumulus (`scenes/cloud`, and `nimbus bench cumulus` at production
+/// size): a smooth union of spherical billows cut flat at the base, its surface
+/// displaced by fBm (rounded cauliflower lumps at two scales), a soft edge a few voxels
+/// wide, and a denser core. Density in [0, 1], exactly 0 outside. Resolution-free: a
+/// finer grid samples the same smooth field, so its interior stays smooth at voxel scale.
+pub fn cumulus(p: DVec3) -> f64 {
+    let mut d = cumulus_shape(p);
+    // Outside the lumps' reach the density is 0: skips the fBm for most of the box
+    // (the same values, since the lumps could not bring `d` below 0).
+    if d >= CUMULUS_LUMP_REACH {
+        return 0.0;
+    }
+    // Lumps: large ones mostly on top, small ones everywhere; the base stays flatter.
+    let up = ((p.y - BASE) / 0.4).clamp(0.0, 1.0);
+    let big = fbm(p * 3.2 + DVec3::new(5.2, 1.3, 7.9), 3) - 0.5;
+    let small = fbm(p * 9.0 + DVec3::new(-3.7, 2.9, 0.4), 3) - 0.5;
+    d += (0.04 + 0.2 * up) * big + (0.03 + 0.06 * up) * small;
+    if d >= 0.0 {
+        return 0.0;
+    }
+    // Soft edge over ~0.05, then denser inwards.
+    let edge = (-d / 0.05).min(1.0);
+    let edge = edge * edge * (3.0 - 2.0 * edge);
+    let core = 0.55 + 0.45 * (-d / 0.3).min(1.0);
+    let wisp = 0.8 + 0.4 * fbm(p * 14.0 + DVec3::new(1.1, 8.3, -2.2), 2);
+    let v = (edge * core * wisp).clamp(0.0, 1.0);
+    if v < 1e-3 {
+        0.0
+    } else {
+        v
+    }
+}
+
+/// How far the lumps can move the cumulus' surface outwards: fBm of 3 octaves lies in
+/// [0, 0.875), so each lump term is at least −0.5 times its largest amplitude
+/// (0.24 and 0.09), −0.165 in all; 0.17 leaves room for rounding.
+const CUMULUS_LUMP_REACH: f64 = 0.17;
+
+/// The cumulus' billows as a signed distance (negative inside), before the lumps.
+/// 1-Lipschitz: a sphere's distance is, and the polynomial smooth minimum's gradient
+/// is a convex combination of its arguments' (h∇a + (1 − h)∇b).
+fn cumulus_shape(p: DVec3) -> f64 {
+    let dist = |(c, r): ([f64; 3], f64)| (p - DVec3::from(c)).length() - r;
+    let mut d = dist(BILLOWS[0]);
+    for b in &BILLOWS[1..] {
+        d = smin(d, dist(*b), 0.08);
+    }
+    // Flat bottom, slightly rounded where it meets the sides.
+    -smin(-d, p.y - BASE, 0.06)
+}
+
+/// A world-space box (within [-1, 1]³) outside which [`cumulus`] is 0: the cells of a
+/// lattice of spacing 1/64 whose centre lies within the lumps' reach plus the cell's
+/// half-diagonal (exact by the shape's Lipschitz bound).
+pub fn cumulus_bounds() -> (DVec3, DVec3) {
+    const CELLS: i32 = 128;
+    let s = 2.0 / CELLS as f64;
+    let reach = CUMULUS_LUMP_REACH + 0.5 * s * 3f64.sqrt();
+    let (mut lo, mut hi) = (DVec3::splat(1.0), DVec3::splat(-1.0));
+    for k in 0..CELLS {
+        for j in 0..CELLS {
+            for i in 0..CELLS {
+                let c = DVec3::new(i as f64, j as f64, k as f64) * s - DVec3::splat(1.0);
+                if cumulus_shape(c + DVec3::splat(0.5 * s)) < reach {
+                    lo = lo.min(c);
+                    hi = hi.max(c + DVec3::splat(s));
+                }
+            }
+        }
+    }
+    (lo, hi)
 }

@@ -112,6 +112,9 @@ pub fn camera(camera_to_world: DMat4, focal: f64, aperture: f64, w: u32, h: u32)
         horizontal_aperture_offset: 0.0,
         vertical_aperture_offset: 0.0,
         clipping_range: (1e-6, 1e12),
+        projection: Default::default(),
+        f_stop: 0.0,
+        focus_distance: 0.0,
     };
     CameraRays::new(&cam, w, h)
 }
