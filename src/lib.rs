@@ -5,6 +5,7 @@
 //! USD stage → [`scene`] → [`volume`] grids → majorant structure → [`track`]ers →
 //! [`render`] integrator → film/AOVs → [`output`] EXR.
 
+/// Benchmark machinery (measurements and their statistics) behind `nimbus bench`.
 pub mod bench;
 pub mod cli;
 pub mod color;

@@ -99,3 +99,120 @@ fn bad_voxels_are_counted_by_info_and_stats() {
         assert!(values.iter().all(|v| v.is_finite()), "channel {name}");
     }
 }
+
+fn info_json(args: &[&str]) -> serde_json::Value {
+    let mut all = vec!["info", "--json"];
+    all.extend_from_slice(args);
+    let o = nimbus(&all);
+    assert!(o.status.success(), "{}", stderr(&o));
+    serde_json::from_slice(&o.stdout).expect("info --json prints JSON")
+}
+
+/// `nimbus info --json STAGE` is the description the text prints: the same volumes,
+/// fields, loaded grids, octree depth, analysis and `auto` choice (one description
+/// prints both ways), and `--octree-depth` reaches the octrees and the analysis.
+#[test]
+fn info_json_is_the_description_the_text_prints() {
+    let stage = root().join("scenes/cloud/cloud.usda");
+    let stage = stage.to_str().unwrap();
+    let j = info_json(&[stage, "--octree-depth", "5"]);
+    let o = nimbus(&["info", stage, "--octree-depth", "5"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert_eq!(j["kind"], "stage");
+    assert_eq!(j["octree_depth"], 5);
+    assert_eq!(
+        j["render_settings"]["resolution"],
+        serde_json::json!([320, 240])
+    );
+    let v = &j["volumes"][0];
+    assert_eq!(v["prim_path"], "/World/Cloud");
+    let density = &v["fields"]["density"];
+    let loaded = &density["loaded"];
+    assert_eq!(loaded["as"], "float");
+    assert_eq!(loaded["octree"]["depth"], 5);
+    assert!(density["grids"].as_array().is_some_and(|g| !g.is_empty()));
+    let active = loaded["active_voxels"].as_u64().unwrap();
+    assert!(active > 0);
+    let a = &j["analysis"];
+    let auto = &j["auto"];
+    for needle in [
+        format!("loaded 'density': {active} active voxels"),
+        format!(
+            "majorant octree depth 5: {} levels",
+            loaded["octree"]["levels"]
+        ),
+        format!("analysis: volumes {}, grey {}", a["volumes"], a["grey"]),
+        "(depth 5)".to_string(),
+        format!(
+            "tracker auto: {} scheme {} transmittance {}",
+            auto["tracker"].as_str().unwrap(),
+            auto["scheme"].as_str().unwrap(),
+            auto["transmittance"].as_str().unwrap()
+        ),
+        auto["reason"].as_str().unwrap().to_string(),
+    ] {
+        assert!(text.contains(&needle), "text lacks {needle:?}:\n{text}");
+    }
+    let lights: Vec<&str> = j["lights"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|l| l["type"].as_str().unwrap())
+        .collect();
+    assert_eq!(lights, ["distant", "dome"]);
+    assert!(j["warnings"].as_array().is_some());
+}
+
+/// `nimbus info --json FILE.vdb`: the grids with their loaded channels (the example
+/// cloud: one float grid, 0 < density ≤ 1).
+#[test]
+fn info_json_describes_a_vdb_file() {
+    let vdb = root().join("scenes/cloud/cloud.vdb");
+    let j = info_json(&[vdb.to_str().unwrap()]);
+    assert_eq!(j["kind"], "vdb");
+    let grids = j["grids"].as_array().unwrap();
+    assert_eq!(grids.len(), 1);
+    assert_eq!(grids[0]["name"], "density");
+    assert_eq!(grids[0]["type"], "Tree_float_5_4_3");
+    let c = &grids[0]["channels"][0];
+    let (lo, hi) = (
+        c["value_range"][0].as_f64().unwrap(),
+        c["value_range"][1].as_f64().unwrap(),
+    );
+    assert!(lo > 0.0 && hi <= 1.0 && lo < hi, "range {lo} .. {hi}");
+    assert_eq!(c["active_voxels"], grids[0]["active_voxels"]);
+}
+
+/// A light's JSON is its prim path, light group, `type` and that type's parameters side
+/// by side; a light whose parameters the description does not list yet is `other`.
+#[test]
+fn a_light_description_is_flat_json_with_its_type() {
+    use nimbus::output::describe::{LightDescription, LightParams};
+    let rect = LightDescription {
+        prim_path: "/Rig/Panel".into(),
+        light_group: Some("key".into()),
+        params: LightParams::Rect {
+            position: [1.0, 2.0, 3.0],
+            width: 2.0,
+            height: 0.5,
+            intensity: 5.0,
+            exposure: 0.0,
+            color: [1.0; 3],
+            normalize: true,
+        },
+    };
+    let j = serde_json::to_value(&rect).unwrap();
+    assert_eq!(j["type"], "rect");
+    assert_eq!(j["light_group"], "key");
+    assert_eq!(j["width"], 2.0);
+    let other = LightDescription {
+        prim_path: "/Rig/New".into(),
+        light_group: None,
+        params: LightParams::Other,
+    };
+    assert_eq!(
+        serde_json::to_value(&other).unwrap(),
+        serde_json::json!({"prim_path": "/Rig/New", "light_group": null, "type": "other"})
+    );
+}

@@ -295,4 +295,15 @@ fn info_shows_the_sample_counts_of_a_deep_file() {
     ] {
         assert!(s.contains(&needle), "info lacks {needle:?}: {s}");
     }
+    // The same description as JSON.
+    let o = nimbus(&["info", "--json", path.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["kind"], "deep_exr");
+    assert_eq!(j["data_window"], serde_json::json!([1, 6, 1, 4]));
+    assert_eq!(j["display_window"], serde_json::json!([7, 5]));
+    assert_eq!(j["samples"], total);
+    assert_eq!(j["samples_per_pixel_max"], *max);
+    assert_eq!(j["empty_pixels"], empty);
+    assert_eq!(j["channels"][0], serde_json::json!(["A", "F32"]));
 }

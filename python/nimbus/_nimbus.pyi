@@ -84,6 +84,8 @@ def render(
     no_specialise: bool = False,
     aovs: Optional[Sequence[str]] = None,
     time_limit: Optional[float] = None,
+    strict: bool = False,
+    no_default_lights: bool = False,
     grid: Optional[str] = None,
     camera: Optional[str] = None,
     frame: Optional[float] = None,
@@ -117,14 +119,18 @@ def info(
     frame: Optional[float] = None,
     octree_depth: int = 8,
 ) -> dict[str, Any]:
-    """What ``nimbus info`` reports, as a dict: "volumes" (each with its "fields" and
-    their grids), "lights", "camera", "render_settings", "analysis" (the scene
-    analysis), "auto" (what ``tracker="auto"`` picks and why), "vdb_reader",
-    "warnings"."""
+    """What ``nimbus info --json`` prints (the same description, from the same library
+    function), as a dict. For a stage (``"kind": "stage"``): "volumes" (each with its
+    "fields", their grids and the grid as loaded), "lights", "camera",
+    "render_settings", "holdouts", "analysis" (the scene analysis), "auto" (what
+    ``tracker="auto"`` picks and why), "vdb_reader", "warnings". For a .vdb file
+    (``"kind": "vdb"``) its "grids"; for a deep EXR (``"kind": "deep_exr"``) its windows
+    and sample counts. Keys ending in ``_seconds`` are build times."""
 
 def compare(a: Image, b: Image) -> dict[str, Any]:
-    """Per-channel error of ``a`` against reference ``b`` like ``nimbus compare --json``:
-    each an EXR path or an array (H, W, C) with channels R, G, B[, A]. Values are
+    """Per-channel error of ``a`` against reference ``b``, computed by the function
+    ``nimbus compare --json`` prints: each an EXR path or an array (H, W, C) with
+    channels R, G, B[, A]. Values are
     clamped to ±65504; relmse = mean (a-b)^2 / (b^2 + 0.01). Keys "channels" (a list
     of dicts with channel, mse, relmse, rmse, mean_a, mean_b, nonfinite_a,
     nonfinite_b) and "rgb" (their mean over R, G, B)."""

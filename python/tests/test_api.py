@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import nimbus
-from conftest import RES, run_cli
+from conftest import CLOUD_VDB, RES, run_cli
 
 
 def test_schema_constants():
@@ -36,24 +36,52 @@ def test_info(stage):
     assert i["auto"]["tracker"] in nimbus.tracker_names() and i["auto"]["reason"]
 
 
-def test_compare_arrays_and_files_like_the_cli(stage, nimbus_bin, tmp_path):
+def without_timings(v):
+    """`v` without its wall-time keys (`*_seconds`: octree and BVH build times), the
+    only values two descriptions of the same stage may differ in."""
+    if isinstance(v, dict):
+        return {k: without_timings(x) for k, x in v.items() if not k.endswith("_seconds")}
+    if isinstance(v, list):
+        return [without_timings(x) for x in v]
+    return v
+
+
+def test_info_is_what_the_cli_prints_as_json(stage, nimbus_bin):
+    # One description in the library: `nimbus info --json` prints it, nimbus.info
+    # converts the same JSON, so the two are equal value for value.
+    for args, kwargs in [((), {}), (("--octree-depth", "3"), {"octree_depth": 3})]:
+        cli = json.loads(run_cli(nimbus_bin, "info", "--json", stage, *args).stdout)
+        mine = nimbus.info(stage, **kwargs)
+        assert cli["kind"] == "stage" and cli["volumes"][0]["fields"]["density"]["loaded"]
+        assert without_timings(mine) == without_timings(cli)
+    vdb = json.loads(run_cli(nimbus_bin, "info", "--json", CLOUD_VDB).stdout)
+    assert vdb["kind"] == "vdb" and vdb["grids"][0]["channels"]
+    assert nimbus.info(CLOUD_VDB) == vdb
+
+
+def test_compare_is_what_the_cli_prints_as_json(stage, nimbus_bin, tmp_path):
     a, b = tmp_path / "a.exr", tmp_path / "b.exr"
     nimbus.render(stage, spp=1, seed=1).write(a)
     rb = nimbus.render(stage, spp=2, seed=2)
     rb.write(b)
+    # One function in the library computes both: equal to the last bit of every float.
     cli = json.loads(run_cli(nimbus_bin, "compare", a, b, "--json").stdout)
     mine = nimbus.compare(a, b)
-    for c, m in zip(cli["channels"], mine["channels"]):
-        assert c["channel"] == m["channel"]
-        for k in ["mse", "relmse", "mean_a", "mean_b"]:
-            assert m[k] == pytest.approx(c[k], rel=1e-12), (c["channel"], k)
-    assert mine["rgb"]["relmse"] == pytest.approx(cli["rgb"]["relmse"], rel=1e-12)
+    assert [c["channel"] for c in mine["channels"]] == ["R", "G", "B", "A"]
+    assert mine["rgb"]["mse"] > 0
+    assert mine == cli
+    # Arrays go through the same function: the R channel of a as a grey image against
+    # b's RGB gives the files' R error in R.
     arrays = nimbus.compare(nimbus.read_exr(a)["R"][..., None].repeat(3, -1), rb.rgba[..., :3])
-    assert arrays["channels"][0]["mse"] == pytest.approx(mine["channels"][0]["mse"], rel=1e-12)
+    assert arrays["a"] == "<array>" and arrays["channels"][0]["channel"] == "R"
+    for k in ["mse", "relmse", "mean_a", "mean_b"]:
+        assert arrays["channels"][0][k] == pytest.approx(mine["channels"][0][k], rel=1e-12), k
     x = np.full((4, 4, 4), 2.0, np.float32)
     y = np.ones((4, 4, 4), np.float32)
     e = nimbus.compare(x, y)["channels"][0]
     assert e["mse"] == 1.0 and e["relmse"] == pytest.approx(1 / 1.01)
+    with pytest.raises(nimbus.SettingsError, match="differ in size"):
+        nimbus.compare(x, np.ones((4, 5, 3), np.float32))
 
 
 def test_exceptions(stage, tmp_path):
@@ -117,3 +145,27 @@ def Volume "Cloud" (prepend apiSchemas = ["NimbusVolumeAPI"])
     assert any("default camera" in m for m in messages), messages
     assert any("default camera" in w for w in r.warnings)
     assert r.rgba.shape == (12, 16, 4)
+
+
+def test_strict_and_no_default_lights(stage_dir):
+    # `render --strict` and `--no-default-lights` as keywords, on a stage without
+    # lights or camera: strict refuses the default sun and sky, no_default_lights
+    # renders the non-emissive cloud unlit (black, its alpha still there).
+    text = """#usda 1.0
+def Volume "Cloud"
+{
+    rel field:density = </Cloud/density>
+    def OpenVDBAsset "density"
+    {
+        asset filePath = @./cloud.vdb@
+        token fieldName = "density"
+    }
+}
+"""
+    kw = dict(stage_text=text, base_dir=stage_dir, spp=1, res=(16, 12))
+    with pytest.raises(nimbus.SettingsError, match="--strict refuses to add the default sun"):
+        nimbus.render(strict=True, **kw)
+    with pytest.warns(UserWarning, match="default camera"):
+        r = nimbus.render(no_default_lights=True, **kw)
+    assert not any("no lights" in w for w in r.warnings), r.warnings
+    assert r.rgba[..., :3].max() == 0 and r.rgba[..., 3].max() > 0

@@ -1,4 +1,5 @@
-//! `nimbus bench grid`: production-size grids (issue 17 part 3).
+//! `nimbus bench grid`: production-size grids (issue 17 part 3); the measurements are
+//! [`crate::bench::grid`]'s, this parses and prints.
 //!
 //! `make` builds a benchmark grid from a real VDB (upsampled with trilinear
 //! interpolation, procedural detail and a halo that grows the active region; see
@@ -9,9 +10,9 @@
 //! from cache-resident to the whole grid. Render times at several octree depths come
 //! from `nimbus bench octree` on the stage `make` writes.
 
-use super::bench_error::median;
+use crate::bench::grid::{huge_pages_mb, lookup_boxes, measure_load, measure_lookups};
 use crate::volume::asset::AssetLocation;
-use crate::volume::grid::{Grid, BRICK, BRICK_VOXELS};
+use crate::volume::grid::BRICK_VOXELS;
 use crate::volume::upsample::{upsample, UpsampleParams};
 use crate::volume::vdb;
 use anyhow::{bail, Context, Result};
@@ -230,79 +231,6 @@ def Scope "Render"
     )
 }
 
-/// xorshift64*: the lookups' positions.
-#[inline(always)]
-fn next(s: &mut u64) -> u64 {
-    *s ^= *s >> 12;
-    *s ^= *s << 25;
-    *s ^= *s >> 27;
-    s.wrapping_mul(0x2545_F491_4F6C_DD1D)
-}
-
-#[inline(always)]
-fn unit(x: u64) -> f32 {
-    (x >> 40) as f32 * (1.0 / (1u64 << 24) as f32)
-}
-
-#[derive(Clone, Copy, PartialEq)]
-enum Mode {
-    /// The random position generator alone (its cost is in the other modes too).
-    Rng,
-    /// Independent lookups: the CPU overlaps their misses (throughput).
-    Independent,
-    /// Each position depends on the previous lookup's value (latency, as along a
-    /// tracked ray).
-    Dependent,
-}
-
-/// Seconds for `n` lookups at uniform random points of the box `[lo, lo + size)`;
-/// returns the sum of the values too (so nothing is optimised away).
-fn lookup_pass(grid: &Grid, lo: [f32; 3], size: [f32; 3], n: u64, mode: Mode) -> (f64, f64) {
-    let mut s = 0x9E37_79B9_7F4A_7C15u64;
-    let mut sum = 0f64;
-    let start = thread_cpu_seconds();
-    for _ in 0..n {
-        let p = [
-            lo[0] + size[0] * unit(next(&mut s)),
-            lo[1] + size[1] * unit(next(&mut s)),
-            lo[2] + size[2] * unit(next(&mut s)),
-        ];
-        match mode {
-            Mode::Rng => sum += (p[0] + p[1] + p[2]) as f64,
-            Mode::Independent => sum += grid.sample_trilinear(p) as f64,
-            Mode::Dependent => {
-                let v = grid.sample_trilinear(p);
-                s ^= v.to_bits() as u64;
-                sum += v as f64;
-            }
-        }
-    }
-    (thread_cpu_seconds() - start, std::hint::black_box(sum))
-}
-
-/// This thread's CPU time: other programs on a shared machine do not inflate it.
-fn thread_cpu_seconds() -> f64 {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: `ts` is a valid, writable timespec.
-    let r = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-    if r != 0 {
-        return f64::NAN;
-    }
-    ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
-}
-
-/// The process' anonymous memory in transparent huge pages, from
-/// /proc/self/smaps_rollup (Linux), in MB.
-fn huge_pages_mb() -> Option<f64> {
-    let text = std::fs::read_to_string("/proc/self/smaps_rollup").ok()?;
-    let line = text.lines().find(|l| l.starts_with("AnonHugePages:"))?;
-    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb / 1e3)
-}
-
 fn measure(a: MeasureArgs) -> Result<()> {
     if a.rounds == 0 || a.lookups == 0 {
         bail!("--rounds and --lookups must be at least 1");
@@ -325,42 +253,8 @@ fn measure(a: MeasureArgs) -> Result<()> {
         threads
     );
 
-    // Load: validation alone, then the whole read (validation + reader → RawGrid),
-    // then the brick build serial and parallel (alternating which goes first).
-    let (mut val, mut read, mut serial, mut parallel) = (vec![], vec![], vec![], vec![]);
-    let mut grid = None;
-    for r in 0..a.rounds {
-        let t = Instant::now();
-        vdb::list_grids(&loc)?;
-        val.push(t.elapsed().as_secs_f64());
-        let t = Instant::now();
-        let raw = vdb::read_float_grid(&loc, &a.grid, None)?;
-        read.push(t.elapsed().as_secs_f64());
-        grid = None;
-        for first_serial in [r % 2 == 0, r % 2 != 0] {
-            let t = Instant::now();
-            let g = if first_serial {
-                Grid::from_raw_serial(&raw)
-            } else {
-                Grid::from_raw(&raw)
-            }
-            .with_context(|| a.vdb.display().to_string())?;
-            let s = t.elapsed().as_secs_f64();
-            if first_serial {
-                serial.push(s);
-            } else {
-                parallel.push(s);
-            }
-            grid = Some(g);
-        }
-    }
-    let grid = grid.expect("at least one round");
-    let (val, read, serial, parallel) = (
-        median(&mut val),
-        median(&mut read),
-        median(&mut serial),
-        median(&mut parallel),
-    );
+    let (t, grid) = measure_load(&loc, &a.grid, a.rounds)?;
+    let (val, read, serial, parallel) = (t.validate, t.read, t.bricks_serial, t.bricks_parallel);
     let mb = file_bytes as f64 / 1e6;
     println!("load (medians of {} rounds):", a.rounds);
     println!("  validate (Rust header + tree check)   {val:8.3} s");
@@ -409,36 +303,10 @@ fn measure(a: MeasureArgs) -> Result<()> {
     }
 
     // Lookups.
-    let Some((lo, hi)) = grid.index_bounds else {
+    let Some(boxes) = lookup_boxes(&grid, &a.sizes) else {
         bail!("{}: grid '{}' is empty", a.vdb.display(), a.grid);
     };
-    let centre = [0, 1, 2].map(|i| (lo[i] + hi[i]) / 2);
-    let boxes: Vec<([i32; 3], [i32; 3])> = a
-        .sizes
-        .iter()
-        .map(|&e| {
-            if e == 0 {
-                (lo, [0, 1, 2].map(|i| hi[i] - lo[i] + 1))
-            } else {
-                // A cube of edge e around the centre, aligned to bricks.
-                let b = [0, 1, 2].map(|i| (centre[i] - e / 2).div_euclid(BRICK) * BRICK);
-                (b, [e; 3])
-            }
-        })
-        .collect();
-    let modes = [Mode::Rng, Mode::Independent, Mode::Dependent];
-    let mut times = vec![vec![Vec::new(); modes.len()]; boxes.len()];
-    for _ in 0..a.rounds {
-        for (bi, &(blo, size)) in boxes.iter().enumerate() {
-            let lo = blo.map(|c| c as f32);
-            // The upper edge stays inside the box: voxel centres lo ..= lo + size - 1.
-            let sz = size.map(|s| (s - 1).max(0) as f32);
-            for (mi, &m) in modes.iter().enumerate() {
-                let (s, _) = lookup_pass(&grid, lo, sz, a.lookups, m);
-                times[bi][mi].push(s / a.lookups as f64 * 1e9);
-            }
-        }
-    }
+    let ns = measure_lookups(&grid, &boxes, a.rounds, a.lookups);
     println!(
         "lookups: Grid::sample_trilinear at uniform random points of a box, one thread, {} per box, mode and round; thread-CPU ns per lookup, medians (random-number cost included; 'rng' alone)",
         a.lookups
@@ -447,19 +315,9 @@ fn measure(a: MeasureArgs) -> Result<()> {
         "{:>22} {:>9} {:>11} {:>9} {:>8} {:>12} {:>11}",
         "box (voxels)", "bricks", "bricks MB", "stored %", "rng ns", "independent", "dependent"
     );
-    for (bi, &(blo, size)) in boxes.iter().enumerate() {
-        let (mut total, mut stored) = (0u64, 0u64);
-        let bhi = [0, 1, 2].map(|i| (blo[i] + size[i] - 1).div_euclid(BRICK));
-        let blo_b = blo.map(|c| c.div_euclid(BRICK));
-        for z in blo_b[2]..=bhi[2] {
-            for y in blo_b[1]..=bhi[1] {
-                for x in blo_b[0]..=bhi[0] {
-                    total += 1;
-                    stored += grid.has_brick([x, y, z]) as u64;
-                }
-            }
-        }
-        let [rng, ind, dep] = [0, 1, 2].map(|mi| median(&mut times[bi][mi]));
+    for (b, [rng, ind, dep]) in boxes.iter().zip(ns) {
+        let (total, stored) = b.bricks(&grid);
+        let size = b.size;
         println!(
             "{:>22} {:>9} {:>11.2} {:>8.1}% {:>8.1} {:>12.1} {:>11.1}",
             format!("{}x{}x{}", size[0], size[1], size[2]),

@@ -14,7 +14,6 @@ mod error_plot;
 mod farm;
 mod info;
 mod merge;
-mod reference;
 mod render;
 // `compare` is declared apart from the other modules to keep merges with parallel
 // branches conflict-free.
@@ -47,7 +46,8 @@ pub enum Command {
     /// tiles, and the task commands they run.
     #[command(subcommand)]
     Farm(farm::FarmCommand),
-    /// Describe a stage: volumes, fields, grids, camera, lights, render settings.
+    /// Describe a stage (volumes, fields, grids, camera, lights, render settings, the
+    /// scene analysis), a VDB file or a deep EXR; `--json` for the data.
     Info(info::InfoArgs),
     /// Benchmarks (`bench octree`: trackers at several majorant octree depths; `bench
     /// error`: error against time per tracker).

@@ -1,10 +1,14 @@
 //! Writing results: the EXR image with its AOV channels, deep EXR images, and the stats
-//! JSON. All are written to a temporary file beside the target and renamed into place,
-//! so a failed render never leaves a partial file or clobbers an existing one.
+//! JSON; and the reports `nimbus info` (`describe`) and `nimbus compare` (`compare`)
+//! print and the Python module returns. Files are written to a temporary file beside
+//! the target and renamed into place, so a failed render never leaves a partial file
+//! or clobbers an existing one.
 
+pub mod compare;
 pub mod deep;
 #[cfg(nimbus_openexr)]
 mod deep_bridge;
+pub mod describe;
 pub mod exr;
 pub mod merge;
 pub mod preview;

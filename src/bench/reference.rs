@@ -2,8 +2,8 @@
 //! samples by delta tracking and cached under a key that changes whenever anything that
 //! could change the image does.
 
-use super::compare::find;
-use crate::output::exr::{read_all_channels, write_exr, ExrMetadata};
+use crate::output::compare::Image;
+use crate::output::exr::{write_exr, ExrMetadata};
 use crate::render::analysis::CodePaths;
 use crate::render::film::{Aov, Film};
 use crate::render::job::RenderJob;
@@ -34,14 +34,14 @@ impl Rgb {
 
     /// R, G, B of an EXR, found by name like `nimbus compare` finds them.
     pub fn read(path: &Path) -> Result<Rgb> {
-        let (width, height, chans) = read_all_channels(path).map_err(anyhow::Error::msg)?;
+        let image = Image::read(path)?;
         let mut channels: [Vec<f32>; 3] = Default::default();
         for (c, name) in channels.iter_mut().zip(["R", "G", "B"]) {
-            *c = find(path, &chans, name)?.to_vec();
+            *c = image.channel(name)?.to_vec();
         }
         Ok(Rgb {
-            width,
-            height,
+            width: image.width,
+            height: image.height,
             channels,
         })
     }
