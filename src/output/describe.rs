@@ -395,7 +395,8 @@ pub fn describe_stage(path: &Path, o: &DescribeOptions) -> Result<StageDescripti
         octree_depth: Some(depth),
         ..Overrides::default()
     };
-    match Session::open(path, &overrides) {
+    // From the scene read above: one read of the stage (a deep hierarchy's cost).
+    match Session::from_scene(path, scene.clone(), &overrides) {
         Ok(session) => {
             let a = session.analysis;
             // What `render` would do without flags: the stage may name the structure.

@@ -158,7 +158,7 @@ impl Session {
             camera: o.camera.clone(),
         };
         let mut warnings = Vec::new();
-        let mut scene = if is_vdb(stage) {
+        let scene = if is_vdb(stage) {
             warnings.push(format!(
                 "{}: a VDB file, not a stage: rendering its grid as the density of one volume with the schema's fallback coefficients",
                 stage.display()
@@ -172,6 +172,23 @@ impl Session {
             }
             load_stage(stage, &opts)?
         };
+        Session::build(stage, scene, o, start, warnings)
+    }
+
+    /// A session of a scene already read from `stage` (with `overrides`' frame and
+    /// camera): what [`Session::open`] does after reading it. `nimbus info` describes
+    /// the scene and analyses it from one read of the stage.
+    pub fn from_scene(stage: &Path, scene: Scene, overrides: &Overrides) -> Result<Session> {
+        Session::build(stage, scene, overrides, Instant::now(), Vec::new())
+    }
+
+    fn build(
+        stage: &Path,
+        mut scene: Scene,
+        o: &Overrides,
+        start: Instant,
+        mut warnings: Vec<String>,
+    ) -> Result<Session> {
         let strict = o.strict || scene.settings.strict;
         if strict {
             refuse_warnings(stage, &scene)?;

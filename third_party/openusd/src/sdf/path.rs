@@ -45,10 +45,28 @@ pub fn try_into_path(path: impl IntoPath) -> Result<Path, PathParseError> {
 /// Clones share the path's text, as C++ `SdfPath` copies share one pooled
 /// path node, and the empty and absolute root paths share one text each
 /// however they are reached.
-#[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord, Hash)]
+#[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord)]
 pub struct Path {
     path: Arc<String>,
 }
+
+/// Nimbus patch (third_party/openusd/PATCHES.md): a path hashes in constant time, by
+/// its length and its last [`HASHED_TAIL`] bytes, not its whole text. Equal paths
+/// still hash equally (the hash reads only their text), so maps stay correct; paths
+/// that share length and tail collide and are told apart by `Eq`. Deep hierarchies
+/// hash long paths many times (an ancestor walk per prim), and hashing every byte made
+/// loading them quadratic in the depth.
+impl std::hash::Hash for Path {
+    fn hash<H: std::hash::Hasher>(&self, state: &mut H) {
+        let bytes = self.path.as_bytes();
+        state.write_usize(bytes.len());
+        state.write(&bytes[bytes.len().saturating_sub(HASHED_TAIL)..]);
+    }
+}
+
+/// How many trailing bytes of a path its hash reads: the last few components, where
+/// siblings and ancestors of a prim differ.
+const HASHED_TAIL: usize = 64;
 
 /// The text of the empty path, shared by every [`Path::default`].
 static EMPTY: LazyLock<Arc<String>> = LazyLock::new(Arc::default);
