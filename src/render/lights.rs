@@ -115,6 +115,8 @@ pub struct CylinderEmitter {
     pub center: DVec3,
     /// The whole length, along the light's local X.
     pub axis: DVec3,
+    /// `axis` normalized, once, for the line's sin θ per sample.
+    pub axis_unit: DVec3,
     /// The transformed radius vectors along the light's local Y and Z.
     pub y: DVec3,
     pub z: DVec3,
@@ -688,6 +690,7 @@ impl Lights {
             let mut e = CylinderEmitter {
                 center: m.transform_point3(DVec3::ZERO),
                 axis,
+                axis_unit: axis.normalize_or_zero(),
                 y,
                 z,
                 area,
@@ -1028,7 +1031,7 @@ impl CylinderEmitter {
         }
         let d = d2.sqrt();
         let wi = v / d;
-        let sin = wi.cross(self.axis.normalize()).length();
+        let sin = wi.cross(self.axis_unit).length();
         shaped(
             LightSample {
                 wi,
