@@ -14,6 +14,7 @@ never the command line::
 
 from . import schema
 from ._nimbus import (
+    Cancelled,
     Error,
     OutputError,
     RenderResult,
@@ -32,6 +33,7 @@ from ._nimbus import (
 )
 
 __all__ = [
+    "Cancelled",
     "Error",
     "OutputError",
     "RenderResult",

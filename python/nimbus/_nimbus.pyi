@@ -24,13 +24,19 @@ class SettingsError(Error):
 class OutputError(Error):
     """An output file (EXR, stats JSON, preview PNG, temporary stage) could not be written."""
 
+class Cancelled(Exception):
+    """The caller stopped the render: ``cancel()`` returned True or ``on_pass``
+    returned False. Not a ``nimbus.Error``."""
+
 class RenderResult:
     """A finished render. Holds the film, so ``write`` writes what ``nimbus render`` writes."""
 
     rgba: npt.NDArray[np.float32]
     """Beauty and alpha, shape (height, width, 4), row 0 at the top."""
     aovs: dict[str, npt.NDArray[np.float32]]
-    """The AOVs asked for with ``aovs=``, each (height, width)."""
+    """The AOVs asked for with ``aovs=``, each (height, width); split layers
+    (``lightgroup:G``, ``direct``, ...) are (height, width, 3) under their layer name
+    (``lightgroup_G``)."""
     stats: dict[str, Any]
     """What ``nimbus render --stats`` writes (counters, timings, tracker, analysis)."""
     warnings: list[str]
@@ -67,8 +73,10 @@ def render(
     base_dir: Optional[StrPath] = None,
     spp: Optional[int] = None,
     res: Optional[Tuple[int, int]] = None,
+    region: Optional[Tuple[int, int, int, int]] = None,
     seed: Optional[int] = None,
     threads: Optional[int] = None,
+    sampler: Optional[str] = None,
     max_depth: Optional[int] = None,
     majorant_cell: Optional[int] = None,
     octree_depth: Optional[int] = None,
@@ -93,6 +101,10 @@ def render(
     stats: Optional[StrPath] = None,
     preview: Optional[StrPath] = None,
     progress: Optional[Callable[[int, Optional[int]], Any]] = None,
+    on_pass: Optional[
+        Callable[[int, Optional[int], npt.NDArray[np.float32]], Optional[bool]]
+    ] = None,
+    cancel: Optional[Callable[[], bool]] = None,
 ) -> RenderResult:
     """Render a stage (a .usda/.usdc/.usdz path, a .vdb file, or usda text in
     ``stage_text`` whose relative asset paths resolve against ``base_dir``, default the
@@ -104,9 +116,16 @@ def render(
     of ``tracker_names()``. ``output``/``stats``/``preview`` write files as ``-o``,
     ``--stats`` and ``--preview`` do; without them nothing is written.
 
-    The GIL is released while rendering. ``progress(done, total)`` is called on the
-    calling thread as rows finish (``total`` is spp * height, None with a time limit
-    alone). Ctrl-C stops the render and raises KeyboardInterrupt at once.
+    ``region=(x0, y0, x1, y1)`` renders only those pixels (``--region``): the arrays
+    are the region's. ``aovs`` also takes the splits ``direct``, ``indirect``,
+    ``emission``, ``lightgroup:G`` (returned as (H, W, 3) arrays).
+
+    The GIL is released while the stage loads and renders. On the calling thread:
+    ``progress(done, total)`` as rows finish (``total`` is spp * rows, None with a time
+    limit alone); ``on_pass(spp, total_spp, rgba)`` after each pass of the progressive
+    render with a copy of the image so far; ``cancel()`` every 20 ms. ``on_pass``
+    returning False or ``cancel()`` returning True raises Cancelled at once; Ctrl-C
+    raises KeyboardInterrupt at once.
 
     Raises StageError, VdbError, SettingsError or OutputError (all ``nimbus.Error``).
     """

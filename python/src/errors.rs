@@ -1,4 +1,10 @@
 //! The exceptions of `nimbus` and how library errors and panics become them.
+//!
+//! Their module is `nimbus` (where `python/nimbus/__init__.py` re-exports them), not
+//! the extension module `nimbus._nimbus`: pickle finds a class by `__module__` and
+//! name, so `pickle.loads(pickle.dumps(e))` gives the same type and message, and an
+//! error raised in a `multiprocessing` or `ProcessPoolExecutor` worker reaches the
+//! parent as itself (BaseException's own `__reduce__` carries the message in `args`).
 
 use nimbus::output::OutputError as LibOutputError;
 use nimbus::scene::SceneError;
@@ -9,34 +15,42 @@ use pyo3::prelude::*;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
 create_exception!(
-    _nimbus,
+    nimbus,
     Error,
     PyException,
     "Base class of every error Nimbus raises."
 );
 create_exception!(
-    _nimbus,
+    nimbus,
     StageError,
     Error,
     "The stage could not be opened, composed or read (nimbus::scene::SceneError)."
 );
 create_exception!(
-    _nimbus,
+    nimbus,
     VdbError,
     Error,
     "A VDB file could not be read (nimbus::volume::vdb::VdbError)."
 );
 create_exception!(
-    _nimbus,
+    nimbus,
     SettingsError,
     Error,
     "A setting or keyword argument is invalid, or the scene cannot be rendered as asked."
 );
 create_exception!(
-    _nimbus,
+    nimbus,
     OutputError,
     Error,
     "An output file could not be written."
+);
+
+create_exception!(
+    nimbus,
+    Cancelled,
+    PyException,
+    "The render was stopped by its caller: a `cancel()` that returned True, or an\n\
+     `on_pass` callback that returned False. Not a `nimbus.Error`: nothing went wrong."
 );
 
 /// Adds the exception types to the module.
@@ -47,6 +61,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("VdbError", py.get_type::<VdbError>())?;
     m.add("SettingsError", py.get_type::<SettingsError>())?;
     m.add("OutputError", py.get_type::<OutputError>())?;
+    m.add("Cancelled", py.get_type::<Cancelled>())?;
     Ok(())
 }
 
