@@ -254,9 +254,10 @@ type Rendered = (Film, Progress, usize, bool);
 /// "auto" or one of tracker_names(). `aovs` takes aov_names() and the splits
 /// (`direct`, `indirect`, `emission`, `lightgroup:GROUP`), which come back in
 /// `RenderResult.aovs` as (H, W, 3) arrays under their layer names
-/// (`lightgroup_GROUP`). `output`, `stats` and `preview` write files as `-o`,
-/// `--stats` and `--preview` do; without them nothing is written (use
-/// RenderResult.write).
+/// (`lightgroup_GROUP`); `"NAME=EXPR"` names a layer of a light path expression
+/// (a RenderVar's `lpe` sourceName, docs/aovs.md), returned as NAME. `output`,
+/// `stats` and `preview` write files as `-o`, `--stats` and `--preview` do; without
+/// them nothing is written (use RenderResult.write).
 ///
 /// The GIL is released while the stage loads and renders. On the calling thread:
 /// `progress(done, total)` as rows finish (total = spp * height; None with a time
@@ -364,8 +365,26 @@ pub fn render(
         strict,
         no_default_lights,
     };
-    let aov_names = aovs.unwrap_or_default();
-    let (aov_list, requested_layers) = guarded(|| requested_outputs(&aov_names))?;
+    // `NAME=EXPR` is a layer of a light path expression (a RenderVar's `lpe`
+    // sourceName); the rest are `--aovs` names.
+    let (lpe_names, aov_names): (Vec<String>, Vec<String>) = aovs
+        .unwrap_or_default()
+        .into_iter()
+        .partition(|n| n.contains('='));
+    let (aov_list, mut requested_layers) = guarded(|| requested_outputs(&aov_names))?;
+    for n in &lpe_names {
+        let (name, expr) = n.split_once('=').unwrap_or_default();
+        let layer = SplitLayer::parse(name.trim(), expr, "lpe")
+            .map_err(|e| SettingsError::new_err(format!("aovs entry '{n}': {e}")))?;
+        if name.trim().is_empty() {
+            return Err(SettingsError::new_err(format!(
+                "aovs entry '{n}': no layer name before '='"
+            )));
+        }
+        if !requested_layers.contains(&layer) {
+            requested_layers.push(layer);
+        }
+    }
     let (path, tmp) = stage_file(stage, stage_text, base_dir)?;
     let session = Arc::new(open_session(py, &path, &overrides, cancel.as_ref())?);
     drop(tmp);

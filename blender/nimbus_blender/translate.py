@@ -1,0 +1,500 @@
+"""Blender scene → Nimbus stage: Blender's own USD exporter writes the evaluated scene
+into a temporary stage, and a small overlay layer over it authors what the exporter
+leaves out or writes differently from what Cycles renders (docs/blender.md):
+
+- the volume's material (the exporter writes none): Principled Volume, Volume
+  Scatter, Volume Absorption, Emission and Add Shader mapped to NimbusVolumeAPI as
+  Cycles' svm_node_principled_volume and volume closures mean them; any other node
+  is a warning naming the material and the node;
+- lights: `enableColorTemperature = 0` unless Temperature is on (the exporter always
+  writes 1, and pxr's 6500 K is not white), a sun's intensity = its strength (the
+  exporter writes strength / 4) and angle = its full angle, light groups;
+- the HDRI dome's Z-up rotation (the exporter writes none), the world's light group;
+- holdouts: a mesh whose `object.nimbus.holdout` is off gets `nimbus:holdout = 0`.
+
+Nothing here needs pxr (Blender has no Python USD module): the overlay is usda text.
+"""
+
+import math
+import os
+import re
+from dataclasses import dataclass, field
+
+import bpy
+
+ROOT = "/root"
+WORLD_PRIM = f"{ROOT}/env_light"
+
+
+class TranslationError(Exception):
+    """The scene cannot be handed to Nimbus; the message names the object."""
+
+
+@dataclass
+class Translation:
+    """A translated scene: the stage to render and what the engine needs besides."""
+
+    folder: str
+    stage: str
+    camera: str
+    res: tuple
+    # (x0, y0, x1, y1), rows from the top, or None for the whole frame.
+    region: tuple = None
+    warnings: list = field(default_factory=list)
+    # Blender light group name -> Nimbus group token, for groups some source uses.
+    lightgroups: dict = field(default_factory=dict)
+    # The dome's prim when the world is exported (film transparency subtracts it).
+    world_prim: str = None
+    transparent: bool = False
+    # Single-scattering albedo of the (first) volume, for the albedo pass.
+    albedo: tuple = (0.0, 0.0, 0.0)
+
+
+def prim_name(name):
+    """The exporter's prim name for a Blender name (pxr's TfMakeValidIdentifier)."""
+    s = re.sub(r"[^A-Za-z0-9_]", "_", name)
+    if not s or s[0].isdigit():
+        s = "_" + s
+    return s
+
+
+def object_path(obj):
+    """The exported Xform of `obj`: ROOT / parents / object."""
+    names = []
+    o = obj
+    while o is not None:
+        names.append(prim_name(o.name))
+        o = o.parent
+    return ROOT + "/" + "/".join(reversed(names))
+
+
+def data_path(obj):
+    """The exported gprim / light / camera / volume under the object's Xform."""
+    return object_path(obj) + "/" + prim_name(obj.data.name)
+
+
+# ---- materials ---------------------------------------------------------------------
+
+
+def _socket_value(sock):
+    v = sock.default_value
+    try:
+        return tuple(v)[:3]
+    except TypeError:
+        return v
+
+
+def _linked(sock):
+    return sock.links[0].from_node if sock.is_linked and sock.links else None
+
+
+class _Medium:
+    """Coefficients per unit of the density grid, summed over closures."""
+
+    def __init__(self):
+        self.sigma_s = [0.0, 0.0, 0.0]
+        self.sigma_a = [0.0, 0.0, 0.0]
+        self.anisotropy = []  # (weight, g)
+        self.density_attribute = None
+        self.emission = None  # (color, strength)
+        self.blackbody = None  # (intensity, temperature, attribute)
+
+    def add(self, sigma_s, sigma_a, g=0.0):
+        self.sigma_s = [a + b for a, b in zip(self.sigma_s, sigma_s)]
+        self.sigma_a = [a + b for a, b in zip(self.sigma_a, sigma_a)]
+        w = sum(sigma_s)
+        if w > 0:
+            self.anisotropy.append((w, g))
+
+
+def _density(node, sock_name, material, warnings, medium, default_attribute):
+    """A closure's Density input: a number (the grid `default_attribute` times it for
+    Principled Volume; Cycles fills the whole volume for the others), or an Attribute
+    node (optionally times a number by a Math node)."""
+    sock = node.inputs[sock_name]
+    src = _linked(sock)
+    if src is None:
+        return float(sock.default_value), default_attribute
+    scale = 1.0
+    if src.bl_idname == "ShaderNodeMath" and src.operation == "MULTIPLY":
+        a, b = src.inputs[0], src.inputs[1]
+        na, nb = _linked(a), _linked(b)
+        if na is not None and nb is None:
+            src, scale = na, float(b.default_value)
+        elif nb is not None and na is None:
+            src, scale = nb, float(a.default_value)
+    if src.bl_idname == "ShaderNodeAttribute" and src.attribute_name:
+        return scale, src.attribute_name
+    warnings.append(
+        f"material '{material.name}': node '{src.name}' ({src.bl_idname}) drives "
+        f"'{node.name}'.{sock_name}: not translated; Nimbus uses {sock.default_value!r}")
+    return float(sock.default_value), default_attribute
+
+
+def _closure(node, material, medium, warnings, weight=1.0):
+    """Adds the volume closure `node` (Cycles' meaning) to `medium`."""
+    kind = node.bl_idname
+    if kind == "ShaderNodeAddShader":
+        for sock in node.inputs:
+            n = _linked(sock)
+            if n is not None:
+                _closure(n, material, medium, warnings, weight)
+        return
+    if kind == "ShaderNodeVolumePrincipled":
+        # svm_node_principled_volume: sigma_s = C D d(x),
+        # sigma_a = max(1 - C, 0) max(1 - sqrt(A), 0) D d(x).
+        attr = node.inputs["Density Attribute"].default_value or "density"
+        d, attr = _density(node, "Density", material, warnings, medium, attr)
+        c = [max(x, 0.0) for x in _socket_value(node.inputs["Color"])]
+        a = [max(x, 0.0) for x in _socket_value(node.inputs["Absorption Color"])]
+        g = float(node.inputs["Anisotropy"].default_value)
+        s = [weight * d * x for x in c]
+        ab = [weight * d * max(1.0 - x, 0.0) * max(1.0 - math.sqrt(y), 0.0) for x, y in zip(c, a)]
+        medium.add(s, ab, g)
+        medium.density_attribute = medium.density_attribute or attr
+        for linked in ("Color", "Absorption Color", "Anisotropy"):
+            n = _linked(node.inputs[linked])
+            if n is not None:
+                warnings.append(
+                    f"material '{material.name}': node '{n.name}' drives '{node.name}'."
+                    f"{linked}: not translated; Nimbus uses the socket's value")
+        strength = float(node.inputs["Emission Strength"].default_value)
+        if strength > 0:
+            medium.emission = (_socket_value(node.inputs["Emission Color"]), weight * strength)
+        bb = float(node.inputs["Blackbody Intensity"].default_value)
+        if bb > 0:
+            medium.blackbody = (
+                weight * bb,
+                float(node.inputs["Temperature"].default_value),
+                node.inputs["Temperature Attribute"].default_value or "temperature",
+            )
+        return
+    if kind == "ShaderNodeVolumeScatter":
+        phase = getattr(node, "phase", "HENYEY_GREENSTEIN")
+        if phase != "HENYEY_GREENSTEIN":
+            warnings.append(
+                f"material '{material.name}': node '{node.name}' uses the {phase} phase "
+                "function; Nimbus renders Henyey-Greenstein with its Anisotropy")
+        d, attr = _density(node, "Density", material, warnings, medium, None)
+        c = [max(x, 0.0) for x in _socket_value(node.inputs["Color"])]
+        medium.add([weight * d * x for x in c], [0.0, 0.0, 0.0],
+                   float(node.inputs["Anisotropy"].default_value))
+        medium.density_attribute = medium.density_attribute or attr
+        return
+    if kind == "ShaderNodeVolumeAbsorption":
+        d, attr = _density(node, "Density", material, warnings, medium, None)
+        c = [max(x, 0.0) for x in _socket_value(node.inputs["Color"])]
+        medium.add([0.0, 0.0, 0.0], [weight * d * max(1.0 - x, 0.0) for x in c])
+        medium.density_attribute = medium.density_attribute or attr
+        return
+    if kind == "ShaderNodeEmission":
+        medium.emission = (_socket_value(node.inputs["Color"]),
+                           weight * float(node.inputs["Strength"].default_value))
+        return
+    warnings.append(
+        f"material '{material.name}': node '{node.name}' ({kind}) is not a volume shader "
+        "Nimbus translates (Principled Volume, Volume Scatter, Volume Absorption, Emission, "
+        "Add Shader); left out")
+
+
+def volume_medium(obj, warnings):
+    """The NimbusVolumeAPI attributes of a Volume object's material, and its albedo."""
+    material = obj.active_material
+    medium = _Medium()
+    if material is None or not material.node_tree:
+        # Cycles' default volume shader: a Principled Volume with its defaults.
+        medium.add([0.5] * 3, [0.5 * (1.0 - 0.0)] * 3, 0.0)
+        medium.density_attribute = "density"
+    else:
+        out = None
+        for n in material.node_tree.nodes:
+            if n.bl_idname == "ShaderNodeOutputMaterial" and n.target in ("ALL", "CYCLES"):
+                if out is None or n.is_active_output:
+                    out = n
+        src = _linked(out.inputs["Volume"]) if out is not None else None
+        if src is None:
+            raise TranslationError(
+                f"object '{obj.name}': material '{material.name}' has no volume shader "
+                "connected to its Material Output's Volume input")
+        _closure(src, material, medium, warnings)
+    if medium.density_attribute is None:
+        warnings.append(
+            f"object '{obj.name}': the density of material "
+            f"'{material.name if material else ''}' is a constant (Cycles fills the volume's "
+            "active voxels with it); Nimbus uses the grid 'density' times it")
+        medium.density_attribute = "density"
+    # Nimbus' coefficients are per unit of density x densityScale: factor out the
+    # largest so the colours stay in a readable range.
+    scale = max(max(medium.sigma_s), max(medium.sigma_a), 1e-30)
+    g = 0.0
+    if medium.anisotropy:
+        w = sum(x for x, _ in medium.anisotropy)
+        g = sum(x * y for x, y in medium.anisotropy) / w
+    attrs = {
+        "token nimbus:densityField": f'"{medium.density_attribute}"',
+        "float nimbus:densityScale": _f(scale),
+        "color3f nimbus:scattering": _c([x / scale for x in medium.sigma_s]),
+        "color3f nimbus:absorption": _c([x / scale for x in medium.sigma_a]),
+        "float nimbus:anisotropy": _f(g),
+    }
+    mean_a = sum(medium.sigma_a) / 3.0
+    if medium.emission is not None:
+        color, strength = medium.emission
+        if mean_a <= 0:
+            warnings.append(
+                f"object '{obj.name}': emission without absorption: Nimbus emits where the "
+                "medium absorbs (docs/usd.md, Emission), so it is left out")
+        else:
+            # Nimbus' source is mu_a(x) Le(x); Cycles' emission is not weighted by
+            # density: exact where the density grid is 1.
+            warnings.append(
+                f"object '{obj.name}': emission mapped as Nimbus' absorption-weighted emission "
+                "(exact where the density grid is 1)")
+            attrs["token nimbus:emissionField"] = f'"{medium.density_attribute}"'
+            attrs["color3f nimbus:emissionColor"] = _c(color)
+            attrs["float nimbus:emissionScale"] = _f(strength / (scale * mean_a))
+    if medium.blackbody is not None:
+        intensity, temperature, attribute = medium.blackbody
+        if mean_a > 0:
+            warnings.append(
+                f"object '{obj.name}': blackbody mapped as Nimbus' absorption-weighted "
+                "blackbody (exact where the density grid is 1; tint ignored)")
+            # Cycles: sigma_SB 1e-6 / pi T^4; Nimbus: intensity (T / 1000 K)^4.
+            cycles_1000k = 5.670373e-8 * 1e-6 / math.pi * 1e12
+            attrs["token nimbus:temperatureField"] = f'"{attribute}"'
+            attrs["float nimbus:temperatureScale"] = _f(temperature)
+            attrs["float nimbus:blackbodyIntensity"] = _f(
+                intensity * cycles_1000k / (scale * mean_a))
+    st = [a + b for a, b in zip(medium.sigma_s, medium.sigma_a)]
+    albedo = tuple(s / t if t > 0 else 0.0 for s, t in zip(medium.sigma_s, st))
+    return attrs, albedo
+
+
+def _f(x):
+    return repr(float(x))
+
+
+def _c(v):
+    return "({}, {}, {})".format(*(repr(float(x)) for x in list(v)[:3]))
+
+
+# ---- lights and world ----------------------------------------------------------------
+
+
+def _group_token(name):
+    if "'" in name or '"' in name or "\\" in name:
+        raise TranslationError(f"light group '{name}': quotes and backslashes are not allowed")
+    return name
+
+
+def light_lines(obj, warnings):
+    """Attributes restoring a light's Blender values over the export (docs/blender.md)."""
+    light = obj.data
+    lines = []
+    if not light.use_temperature:
+        lines.append("bool inputs:enableColorTemperature = 0")
+    if light.type == "SUN":
+        lines.append(f"float inputs:intensity = {_f(light.energy)}")
+        lines.append(f"float inputs:angle = {_f(math.degrees(light.angle))}")
+    if light.type in ("POINT", "SPOT") and getattr(light, "use_soft_falloff", False):
+        warnings.append(
+            f"light '{obj.name}': Soft Falloff is on; Nimbus renders a true sphere light "
+            "(turn it off to match Cycles)")
+    if light.type == "SPOT" and light.spot_blend > 0:
+        warnings.append(
+            f"light '{obj.name}': spot blend {light.spot_blend:.2f}: UsdLux's cone softness "
+            "fades by a different curve than Cycles' blend (docs/blender.md)")
+    if light.type == "AREA" and light.shape in ("ELLIPSE", "RECTANGLE") and \
+            light.shape == "ELLIPSE" and abs(light.size - light.size_y) > 1e-6:
+        warnings.append(
+            f"light '{obj.name}': an ellipse is exported as a disk of the mean radius")
+    return lines
+
+
+def _world_is_hdri(world):
+    if world is None or not world.node_tree:
+        return False
+    return any(n.bl_idname == "ShaderNodeTexEnvironment" and n.image is not None
+               for n in world.node_tree.nodes)
+
+
+# ---- the overlay -----------------------------------------------------------------------
+
+
+def write_overlay(path, exported, prims):
+    """`prims`: prim path -> (api schemas, attribute lines). An overlay layer that
+    sublayers Blender's export and `over`s those prims."""
+    tree = {}
+    for prim, content in prims.items():
+        node = tree
+        for name in prim.strip("/").split("/"):
+            node = node.setdefault(name, {})
+        node[None] = content
+
+    def emit(node, indent):
+        text = ""
+        for name, child in node.items():
+            if name is None:
+                continue
+            schemas, lines = child.get(None, ([], []))
+            meta = ""
+            if schemas:
+                listed = ", ".join(f'"{s}"' for s in schemas)
+                meta = f" (\n{indent}    prepend apiSchemas = [{listed}]\n{indent})"
+            text += f'{indent}over "{name}"{meta}\n{indent}{{\n'
+            text += "".join(f"{indent}    {line}\n" for line in lines)
+            text += emit(child, indent + "    ")
+            text += f"{indent}}}\n"
+        return text
+
+    with open(path, "w") as f:
+        f.write(f"#usda 1.0\n(\n    subLayers = [@./{exported}@]\n)\n\n" + emit(tree, ""))
+
+
+def render_size(scene):
+    r = scene.render
+    pct = r.resolution_percentage / 100.0
+    return max(1, int(r.resolution_x * pct)), max(1, int(r.resolution_y * pct))
+
+
+def border_region(scene, width, height):
+    """Blender's border (fractions from the bottom left) as Nimbus' region (pixels,
+    rows from the top, x1 and y1 exclusive), or None."""
+    r = scene.render
+    if not r.use_border:
+        return None
+    x0 = int(round(r.border_min_x * width))
+    x1 = int(round(r.border_max_x * width))
+    y0 = height - int(round(r.border_max_y * height))
+    y1 = height - int(round(r.border_min_y * height))
+    if x0 >= x1 or y0 >= y1 or (x0, y0, x1, y1) == (0, 0, width, height):
+        return None
+    return (x0, y0, x1, y1)
+
+
+def check_volumes(depsgraph):
+    """Every volume's grids load (a missing or unreadable VDB is an error naming the
+    object, before anything is exported)."""
+    for inst in depsgraph.object_instances:
+        obj = inst.object
+        if obj.type != "VOLUME":
+            continue
+        grids = obj.data.grids
+        ok = grids.load()
+        if not ok or grids.error_message:
+            path = grids.frame_filepath or obj.data.filepath
+            raise TranslationError(
+                f"volume '{obj.name}': cannot read '{bpy.path.abspath(path)}': "
+                f"{grids.error_message or 'no grids'}")
+        if len(grids) == 0:
+            raise TranslationError(f"volume '{obj.name}': the volume has no grids")
+
+
+def translate(depsgraph, folder):
+    """Exports the evaluated scene of `depsgraph` into `folder` and writes the overlay;
+    returns the Translation. Raises TranslationError naming the object at fault."""
+    scene = depsgraph.scene
+    view_layer = depsgraph.view_layer
+    if scene.camera is None:
+        raise TranslationError(f"scene '{scene.name}': no camera")
+    check_volumes(depsgraph)
+    exported = os.path.join(folder, "scene.usda")
+    world = scene.world
+    kwargs = dict(
+        filepath=exported,
+        selected_objects_only=False,
+        export_animation=False,
+        export_materials=False,
+        export_lights=True,
+        export_cameras=True,
+        export_volumes=True,
+        export_meshes=True,
+        export_curves=False,
+        export_hair=False,
+        export_uvmaps=False,
+        export_normals=False,
+        export_armatures=False,
+        export_shapekeys=False,
+        convert_world_material=world is not None,
+        relative_paths=True,
+        root_prim_path=ROOT,
+        evaluation_mode="RENDER",
+    )
+    try:
+        with bpy.context.temp_override(scene=scene, view_layer=view_layer):
+            result = bpy.ops.wm.usd_export(**kwargs)
+    except RuntimeError as e:
+        raise TranslationError(f"scene '{scene.name}': Blender's USD export failed: {e}") from e
+    if "FINISHED" not in result or not os.path.isfile(exported):
+        raise TranslationError(f"scene '{scene.name}': Blender's USD export wrote nothing")
+    text = open(exported).read()
+
+    warnings = []
+    prims = {}
+    t = Translation(folder=folder, stage=os.path.join(folder, "scene_nimbus.usda"),
+                    camera=data_path(scene.camera), res=render_size(scene), warnings=warnings)
+    t.region = border_region(scene, *t.res)
+    t.transparent = scene.render.film_transparent
+    groups = {lg.name for lg in view_layer.lightgroups}
+    used = set()
+    albedo = None
+
+    def exists(path):
+        return f'"{path.rsplit("/", 1)[1]}"' in text
+
+    seen = set()
+    for inst in depsgraph.object_instances:
+        obj = inst.object
+        if inst.is_instance or obj.name in seen:
+            if inst.is_instance and obj.type in ("VOLUME", "LIGHT"):
+                warnings.append(f"object '{obj.name}': instances are not translated")
+            continue
+        seen.add(obj.name)
+        path = data_path(obj) if obj.data is not None else None
+        if obj.type == "VOLUME":
+            if not exists(path):
+                raise TranslationError(f"volume '{obj.name}': not in Blender's export ({path})")
+            attrs, a = volume_medium(obj, warnings)
+            lines = [f"{k} = {v}" for k, v in attrs.items()]
+            group = getattr(obj, "lightgroup", "")
+            if group and group in groups:
+                lines.append(f'token nimbus:lightGroup = "{_group_token(group)}"')
+                used.add(group)
+            prims[path] = (["NimbusVolumeAPI"], lines)
+            albedo = albedo or a
+        elif obj.type == "LIGHT":
+            if not exists(path):
+                warnings.append(f"light '{obj.name}': not in Blender's export; left out")
+                continue
+            lines = light_lines(obj, warnings)
+            schemas = []
+            group = getattr(obj, "lightgroup", "")
+            if group and group in groups:
+                schemas.append("NimbusLightAPI")
+                lines.append(f'token nimbus:lightGroup = "{_group_token(group)}"')
+                used.add(group)
+            if lines:
+                prims[path] = (schemas, lines)
+        elif obj.type == "MESH":
+            if not obj.nimbus.holdout and exists(path):
+                prims[path] = ([], ["bool nimbus:holdout = 0"])
+        elif obj.type in ("CURVES", "CURVE"):
+            warnings.append(f"object '{obj.name}': curves are not translated (no holdout)")
+    if world is not None and exists(WORLD_PRIM):
+        t.world_prim = WORLD_PRIM
+        lines, schemas = [], []
+        if _world_is_hdri(world):
+            lines.append("float3 xformOp:rotateXYZ = (90, 0, 90)")
+        group = getattr(world, "lightgroup", "")
+        if group and group in groups:
+            schemas.append("NimbusLightAPI")
+            lines.append(f'token nimbus:lightGroup = "{_group_token(group)}"')
+            used.add(group)
+        if lines:
+            prims[WORLD_PRIM] = (schemas, lines)
+    if not exists(t.camera):
+        raise TranslationError(f"camera '{scene.camera.name}': not in Blender's export")
+    t.lightgroups = {g: g for g in sorted(used)}
+    t.albedo = albedo or (0.0, 0.0, 0.0)
+    write_overlay(t.stage, os.path.basename(exported), prims)
+    return t

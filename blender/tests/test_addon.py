@@ -1,0 +1,156 @@
+"""The Nimbus render engine in headless Blender (bpy 5.0.1): the image equals
+`nimbus render` of the stage it hands over, the image agrees with Cycles on the same
+scene within the noise, passes, cancelling, errors."""
+
+import subprocess
+import threading
+import time
+
+import bpy
+import numpy as np
+import pytest
+
+import nimbus
+from conftest import render, smoke_scene
+
+
+def same_bits(a, b):
+    a, b = np.ascontiguousarray(a, np.float32), np.ascontiguousarray(b, np.float32)
+    return a.shape == b.shape and np.array_equal(a.view(np.uint32), b.view(np.uint32))
+
+
+def test_registered_with_the_schema_defaults(addon):
+    scene = bpy.context.scene
+    assert addon.NimbusRenderEngine.bl_idname == "NIMBUS"
+    assert addon.NimbusRenderEngine.bl_label == "Nimbus"
+    s = scene.nimbus
+    # nimbus:samples 16, maxDepth 64, seed 0, tracker auto, scheme hist-avg,
+    # transmittance ratio, control 0.05, octreeDepth 0 (schemas/generatedSchema.usda).
+    assert (s.samples, s.max_depth, s.seed, s.tracker) == (16, 64, 0, "auto")
+    assert (s.scheme, s.transmittance, s.octree_depth) == ("hist-avg", "ratio", 0)
+    assert s.control == pytest.approx(0.05) and s.time_limit == 0.0
+    # The menus list what the module accepts.
+    items = {i.identifier for i in s.bl_rna.properties["tracker"].enum_items}
+    assert items == {"auto", *nimbus.tracker_names()}
+    items = {i.identifier for i in s.bl_rna.properties["scheme"].enum_items}
+    assert items == set(nimbus.scheme_names())
+    items = {i.identifier for i in s.bl_rna.properties["transmittance"].enum_items}
+    assert items == set(nimbus.transmittance_names())
+
+
+def test_the_image_is_nimbus_render_of_the_stage_bit_for_bit(addon, smoke_vdb, nimbus_bin,
+                                                             tmp_path):
+    """The add-on's Combined pass against the CLI rendering the stage the add-on
+    translated, with the same flags: bit for bit (transparent film, no world, so the
+    add-on changes no pixel)."""
+    scene, _, _ = smoke_scene(smoke_vdb, res=48, world=None, lights=("sun", "spot"))
+    scene.nimbus.samples = 4
+    scene.nimbus.seed = 7
+    scene.nimbus.keep_files = True
+    passes = render(scene, tmp_path / "addon.exr")
+    used = addon.last_render
+    k = used["kwargs"]
+    exr = tmp_path / "cli.exr"
+    subprocess.run(
+        [str(nimbus_bin), "render", used["stage"], "-o", str(exr), "--camera", k["camera"],
+         "--res", f"{k['res'][0]}x{k['res'][1]}", "--spp", str(k["spp"]), "--seed",
+         str(k["seed"]), "--max-depth", str(k["max_depth"]), "--tracker", k["tracker"],
+         "--threads", "1"],
+        check=True, capture_output=True)
+    cli = nimbus.read_exr(str(exr))
+    combined = passes["Combined"]
+    assert combined.shape == (48, 48, 4)
+    assert combined[..., 3].max() > 0.1, "the smoke is not in the image"
+    for i, c in enumerate("RGBA"):
+        assert same_bits(combined[..., i], cli[c]), f"channel {c} differs from nimbus render's"
+
+
+def test_passes_are_present_and_light_groups_sum_to_combined(addon, smoke_vdb, tmp_path):
+    scene, smoke, lights = smoke_scene(smoke_vdb, res=32)
+    vl = scene.view_layers[0]
+    for name in ("key", "fill", "sky", "empty"):
+        vl.lightgroups.add().name = name
+    lights["sun"].lightgroup = "key"
+    lights["spot"].lightgroup = "fill"
+    lights["disk"].lightgroup = "fill"
+    scene.world.lightgroup = "sky"
+    for p in ("use_pass_lookups", "use_pass_collisions", "use_pass_max_throughput",
+              "use_pass_variance", "use_pass_albedo"):
+        setattr(vl.nimbus, p, True)
+    scene.nimbus.samples = 4
+    passes = render(scene, tmp_path / "passes.exr")
+    assert set(passes) == {
+        "Combined", "Combined_key", "Combined_fill", "Combined_sky", "Combined_empty",
+        "Nimbus Lookups", "Nimbus Real Collisions", "Nimbus Null Collisions",
+        "Nimbus Max Throughput", "Nimbus Variance", "Denoising Albedo"}
+    c = passes["Combined"].astype(np.float64)
+    parts = [passes[f"Combined_{g}"].astype(np.float64) for g in ("key", "fill", "sky", "empty")]
+    assert all(p.max() > 0 for p in parts[:3]) and parts[3].max() == 0
+    assert passes["Nimbus Lookups"].max() > 0 and passes["Denoising Albedo"].max() > 0
+    # Each layer is an f64 mean rounded to f32 once (docs/aovs.md), and with the film
+    # transparent the add-on subtracts the dome seen directly, W, from Combined and the
+    # sky group in f32. The raw beauty is Combined + W and the raw sky layer sky + W,
+    # with W at most the world's radiance: five roundings of at most 2^-24 of
+    # |Combined| + sum |part| + 2 W each bound the error.
+    world = np.array([0.3, 0.4, 0.6])
+    total = sum(parts)
+    bound = 5 * 2.0**-24 * (np.abs(c[..., :3]) + sum(np.abs(p) for p in parts) + 2 * world)
+    err = np.abs(total - c[..., :3])
+    worst = np.unravel_index(np.argmax(err - bound), err.shape)
+    assert np.all(err <= bound), (
+        f"light groups miss Combined by {err[worst]} at {worst} (bound {bound[worst]})")
+
+
+def test_escape_stops_the_render_within_a_second(addon, smoke_vdb):
+    scene, _, _ = smoke_scene(smoke_vdb, res=64)
+    scene.nimbus.samples = 1_000_000
+    pressed = {}
+
+    def key():
+        # Esc 0.3 s after the first call (the render is under way).
+        now = time.monotonic()
+        pressed.setdefault("first", now)
+        if now - pressed["first"] >= 0.3:
+            pressed.setdefault("at", now)
+            return True
+        return False
+
+    addon.break_hook = key
+    start = time.monotonic()
+    bpy.ops.render.render()
+    end = time.monotonic()
+    assert "at" in pressed, "the render ended before Esc"
+    assert end - pressed["at"] < 1.0, f"stopped {end - pressed['at']:.2f} s after Esc"
+    assert end - start < 60
+
+
+def test_a_missing_vdb_is_a_reported_error_naming_the_object(addon, smoke_vdb, tmp_path):
+    scene, smoke, _ = smoke_scene(smoke_vdb, res=16)
+    smoke.data.filepath = str(tmp_path / "gone" / "smoke.vdb")
+    with pytest.raises(RuntimeError, match="volume 'smoke'.*gone/smoke.vdb"):
+        bpy.ops.render.render()
+    # Blender keeps running: the same scene renders once the file is back.
+    smoke.data.filepath = str(smoke_vdb)
+    scene.nimbus.samples = 1
+    passes = render(scene, tmp_path / "after.exr")
+    assert passes["Combined"][..., 3].max() > 0
+
+
+def test_border_renders_the_region_of_the_frame(addon, smoke_vdb, tmp_path):
+    scene, _, _ = smoke_scene(smoke_vdb, res=40, world=None)
+    scene.nimbus.samples = 2
+    full = render(scene, tmp_path / "full.exr")["Combined"]
+    r = scene.render
+    r.use_border = True
+    r.use_crop_to_border = True
+    r.border_min_x, r.border_max_x, r.border_min_y, r.border_max_y = 0.25, 0.75, 0.5, 1.0
+    part = render(scene, tmp_path / "part.exr")["Combined"]
+    # Rows from the top: the upper half, columns 10..30.
+    assert same_bits(part, full[0:20, 10:30])
+
+
+def test_resolution_percentage(addon, smoke_vdb, tmp_path):
+    scene, _, _ = smoke_scene(smoke_vdb, res=40, world=None)
+    scene.nimbus.samples = 1
+    scene.render.resolution_percentage = 50
+    assert render(scene, tmp_path / "half.exr")["Combined"].shape == (20, 20, 4)
