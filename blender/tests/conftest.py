@@ -7,7 +7,6 @@ $BPY_PYTHON a CPython 3.11 with bpy==5.0.1, numpy, pytest and the nimbus wheel (
 blender-addon stage). A missing input fails (no skips: NIMBUS_REQUIRE_DATA semantics).
 """
 
-import math
 import os
 import sys
 from pathlib import Path
@@ -19,7 +18,6 @@ sys.path.insert(0, str(REPO / "blender"))
 sys.path.insert(0, str(REPO / "tests" / "fixtures"))
 
 import bpy  # noqa: E402  (a missing bpy fails the run)
-import mathutils  # noqa: E402
 
 import nimbus  # noqa: E402,F401  (a missing wheel fails the run)
 import nimbus_blender  # noqa: E402
@@ -56,13 +54,6 @@ def addon():
     engine.break_hook = None
 
 
-def look_at(obj, at, target):
-    obj.location = at
-    d = mathutils.Vector(target) - mathutils.Vector(at)
-    # Blender cameras and lights look down their local -Z with +Y up.
-    obj.rotation_euler = d.to_track_quat("-Z", "Y").to_euler()
-
-
 # The chromatic medium of the Cycles comparison (Principled Volume inputs).
 DENSITY = 4.0
 COLOR = (0.9, 0.6, 0.3)
@@ -70,83 +61,33 @@ ABSORPTION_COLOR = (0.2, 0.4, 0.8)
 ANISOTROPY = 0.4
 
 
-def smoke_scene(vdb, res=64, lights=("sun", "spot", "disk"), world=(0.3, 0.4, 0.6),
-                transparent=True, max_depth=8):
-    """The smoke VDB with a chromatic Principled Volume (Color and Absorption Color
-    coloured, Anisotropy 0.4), a camera, the named lights (hard-coned spot, lights with
-    Soft Falloff off: the settings docs/blender.md shows to have exact UsdLux
-    equivalents) and a world colour; Nimbus' maxDepth and Cycles' bounces agree."""
-    scene = bpy.context.scene
-    volume = bpy.data.volumes.new("smoke")
-    volume.filepath = str(vdb)
-    volume.render.precision = "FULL"
-    volume.render.clipping = 0.0
-    obj = bpy.data.objects.new("smoke", volume)
-    scene.collection.objects.link(obj)
-    material = bpy.data.materials.new("smoke_material")
-    tree = material.node_tree
-    if tree is None:
-        material.use_nodes = True
-        tree = material.node_tree
-    for node in list(tree.nodes):
-        tree.nodes.remove(node)
-    out = tree.nodes.new("ShaderNodeOutputMaterial")
-    pv = tree.nodes.new("ShaderNodeVolumePrincipled")
-    pv.inputs["Density"].default_value = DENSITY
-    pv.inputs["Color"].default_value = (*COLOR, 1.0)
-    pv.inputs["Absorption Color"].default_value = (*ABSORPTION_COLOR, 1.0)
-    pv.inputs["Anisotropy"].default_value = ANISOTROPY
-    pv.inputs["Emission Strength"].default_value = 0.0
-    pv.inputs["Blackbody Intensity"].default_value = 0.0
-    tree.links.new(pv.outputs["Volume"], out.inputs["Volume"])
-    volume.materials.append(material)
+def smoke_scene(vdb, res=64, lights=("sun", "spot", "disk"), world=True, transparent=True,
+                max_depth=8):
+    """The scene of tests/fixtures/blender_export_scene.py (its builders, so Nimbus and
+    Cycles see what tests/blender_export.rs checks light by light): the smoke VDB with
+    a chromatic Principled Volume (Color and Absorption Color coloured, Anisotropy
+    0.4), its camera, the named lights (a hard-coned spot; Soft Falloff off: the
+    settings docs/blender.md shows to have exact UsdLux equivalents) and its world
+    colour (0.4, 0.5, 0.7) x 1.5, or a black world. Rendered by Nimbus; maxDepth as
+    given (Cycles' bounces are set from it by set_cycles)."""
+    import blender_export_scene as bex
 
+    bex.DENSITY, bex.COLOR, bex.ABSORPTION_COLOR, bex.ANISOTROPY = (
+        DENSITY, COLOR, ABSORPTION_COLOR, ANISOTROPY)
+    scene = bpy.context.scene
+    obj = bex.add_volume(str(vdb))
     cam_data = bpy.data.cameras.new("camera")
-    cam_data.lens = 50.0
+    cam_data.lens = bex.FOCAL_MM
     cam_data.sensor_fit = "HORIZONTAL"
-    cam_data.sensor_width = 36.0
+    cam_data.sensor_width = bex.SENSOR_MM
+    cam_data.clip_start = 0.1
+    cam_data.clip_end = 1000.0
     camera = bpy.data.objects.new("camera", cam_data)
     scene.collection.objects.link(camera)
-    look_at(camera, (0.0, -24.0, 4.0), (0.0, 0.0, 4.0))
+    bex.look_at(camera, bex.CAMERA_AT, bex.CAMERA_TARGET)
     scene.camera = camera
-
-    target = (0.0, 0.0, 4.0)
-    made = {}
-    for kind in lights:
-        if kind == "sun":
-            light = bpy.data.lights.new("sun", "SUN")
-            light.energy = 3.0
-            light.angle = 0.0
-            at = (-10.0, -6.0, 14.0)
-        elif kind == "spot":
-            light = bpy.data.lights.new("spot", "SPOT")
-            light.energy = 3000.0
-            light.shadow_soft_size = 0.5
-            light.spot_size = math.radians(40.0)
-            light.spot_blend = 0.0
-            light.use_soft_falloff = False
-            at = (7.0, -6.0, 8.0)
-        elif kind == "disk":
-            light = bpy.data.lights.new("disk", "AREA")
-            light.energy = 3000.0
-            light.shape = "DISK"
-            light.size = 3.0
-            at = (0.0, -8.0, -4.0)
-        else:
-            raise ValueError(kind)
-        o = bpy.data.objects.new(kind, light)
-        scene.collection.objects.link(o)
-        look_at(o, at, target)
-        made[kind] = o
-
-    w = bpy.data.worlds.new("world")
-    scene.world = w
-    if w.node_tree is None:
-        w.use_nodes = True
-    bg = w.node_tree.nodes.get("Background") or w.node_tree.nodes.new("ShaderNodeBackground")
-    bg.inputs["Color"].default_value = (*(world or (0.0, 0.0, 0.0)), 1.0)
-    bg.inputs["Strength"].default_value = 1.0 if world else 0.0
-
+    made = {kind: bex.add_light(kind) for kind in lights}
+    bex.set_world("world" if world else "sun", None)
     r = scene.render
     r.engine = "NIMBUS"
     r.resolution_x = r.resolution_y = res
@@ -163,14 +104,21 @@ def smoke_scene(vdb, res=64, lights=("sun", "spot", "disk"), world=(0.3, 0.4, 0.
     return scene, obj, made
 
 
+# The world colour of set_world("world") times its strength.
+WORLD_RADIANCE = (0.4 * 1.5, 0.5 * 1.5, 0.7 * 1.5)
+
+
 def render(scene, path):
-    """F12, then the render result as Blender writes it (a multilayer EXR, 32-bit
+    """F12 and the render result as Blender writes it (a multilayer EXR, 32-bit
     float): {pass name: (H, W, C) array, channels in the pass' order}, row 0 at the
     top, read back with nimbus.read_exr."""
     import numpy as np
 
-    bpy.ops.render.render()
-    bpy.data.images["Render Result"].save_render(str(path))
+    # write_still, not Image.save_render: after a Cycles render, save_render of the
+    # Render Result wrote the same pixels for every seed (bpy 5.0.1; seen while writing
+    # the Cycles test).
+    scene.render.filepath = str(path)
+    bpy.ops.render.render(write_still=True)
     channels = nimbus.read_exr(str(path))
     passes = {}
     for name, arr in channels.items():
