@@ -147,3 +147,16 @@ def test_light_group_layers_come_back_and_sum_to_the_beauty(stage):
     plain = nimbus.render(stage, spp=SPP)
     assert same_bits(plain.rgba, r.rgba)
     assert r.aovs["lookups"].shape == (RES[1], RES[0])
+
+
+def test_a_light_path_expression_layer(stage):
+    """`NAME=EXPR` in aovs: a layer of a RenderVar's lpe sourceName. Light reaching the
+    camera unscattered from the sky is all of the `emission` split here (the sun is a
+    distant light, never hit, and nothing else emits): the same sums, the same bits."""
+    r = nimbus.render(stage, spp=2, aovs=["emission", "seen=C<L.'/World/Sky'>"])
+    assert r.aovs["seen"].shape == (RES[1], RES[0], 3) and r.aovs["seen"].max() > 0
+    assert same_bits(r.aovs["seen"], r.aovs["emission"])
+    with pytest.raises(nimbus.SettingsError, match="light path expression"):
+        nimbus.render(stage, spp=1, aovs=["bad=C<RD>L"])
+    with pytest.raises(nimbus.SettingsError, match="no layer name"):
+        nimbus.render(stage, spp=1, aovs=["=C.*"])
