@@ -380,6 +380,10 @@ def check_volumes(depsgraph):
         if obj.type != "VOLUME":
             continue
         grids = obj.data.grids
+        if obj.data.is_sequence and grids.frame_filepath == "":
+            # A sequence with no file at this frame (its mode leaves it out here):
+            # Blender renders nothing of it, and neither does the export.
+            continue
         ok = grids.load()
         if not ok or grids.error_message:
             path = grids.frame_filepath or obj.data.filepath

@@ -8,6 +8,7 @@ blender-addon stage). A missing input fails (no skips: NIMBUS_REQUIRE_DATA seman
 """
 
 import os
+import shutil
 import sys
 from pathlib import Path
 
@@ -50,8 +51,13 @@ def addon():
     from nimbus_blender import engine
 
     engine.break_hook = None
+    engine.last_render.clear()
     yield engine
     engine.break_hook = None
+    # A stage kept for the test (scene.nimbus.keep_files) goes with it.
+    stage = engine.last_render.get("stage")
+    if stage and Path(stage).parent.name.startswith("nimbus-blender-"):
+        shutil.rmtree(Path(stage).parent, ignore_errors=True)
 
 
 # The chromatic medium of the Cycles comparison (Principled Volume inputs).

@@ -65,6 +65,27 @@ def test_the_image_is_nimbus_render_of_the_stage_bit_for_bit(addon, smoke_vdb, n
         assert same_bits(combined[..., i], cli[c]), f"channel {c} differs from nimbus render's"
 
 
+def test_an_opaque_film_is_nimbus_render_with_alpha_one(addon, smoke_vdb, nimbus_bin, tmp_path):
+    """Film not transparent, a world colour: R, G, B are `nimbus render`'s bit for bit
+    (the dome seen behind the volume, as Cycles shows the world), alpha is 1."""
+    scene, _, _ = smoke_scene(smoke_vdb, res=32, world=True, transparent=False,
+                              lights=("disk",))
+    scene.nimbus.samples = 2
+    scene.nimbus.keep_files = True
+    combined = render(scene, tmp_path / "addon.exr")["Combined"]
+    k = addon.last_render["kwargs"]
+    exr = tmp_path / "cli.exr"
+    subprocess.run(
+        [str(nimbus_bin), "render", addon.last_render["stage"], "-o", str(exr), "--camera",
+         k["camera"], "--res", "32x32", "--spp", "2", "--seed", str(k["seed"]),
+         "--max-depth", str(k["max_depth"])], check=True, capture_output=True)
+    cli = nimbus.read_exr(str(exr))
+    for i, c in enumerate("RGB"):
+        assert same_bits(combined[..., i], cli[c]), f"channel {c} differs from nimbus render's"
+    assert np.all(combined[..., 3] == 1.0)
+    assert cli["A"].min() < 0.5, "the volume should not cover the whole frame"
+
+
 def test_passes_are_present_and_light_groups_sum_to_combined(addon, smoke_vdb, tmp_path):
     scene, smoke, lights = smoke_scene(smoke_vdb, res=32)
     vl = scene.view_layers[0]
@@ -147,6 +168,49 @@ def test_border_renders_the_region_of_the_frame(addon, smoke_vdb, tmp_path):
     part = render(scene, tmp_path / "part.exr")["Combined"]
     # Rows from the top: the upper half, columns 10..30.
     assert same_bits(part, full[0:20, 10:30])
+
+
+def test_an_animation_renders_each_frame_of_a_vdb_sequence(addon, smoke_vdb, tmp_path):
+    """smoke_000002.vdb, smoke_000003.vdb as a sequence on frames 1 and 2; Ctrl-F12
+    (render.render(animation=True)) writes a frame each; frame 2 is, bit for bit, the
+    render of a volume reading smoke_000003.vdb (the same seed: not animated)."""
+    scene, smoke, _ = smoke_scene(smoke_vdb, res=24, lights=("sun",), world=False)
+    scene.nimbus.samples = 2
+    v = smoke.data
+    v.is_sequence = True
+    v.frame_start, v.frame_duration, v.frame_offset = 1, 2, 1
+    scene.frame_start, scene.frame_end = 1, 2
+    scene.render.filepath = str(tmp_path / "anim_####")
+    bpy.ops.render.render(animation=True)
+    frames = []
+    for f in (1, 2):
+        (path,) = tmp_path.glob(f"anim_{f:04d}*")
+        ch = nimbus.read_exr(str(path))
+        frames.append(np.stack([ch[k] for k in sorted(ch) if k.split(".")[-1] in "RGBA"
+                                and "Combined." in k], -1))
+    assert not same_bits(frames[0], frames[1]), "the two frames are the same image"
+    v.is_sequence = False
+    v.filepath = str(smoke_vdb.parent / "smoke_000003.vdb")
+    scene.frame_set(2)
+    static = render(scene, tmp_path / "static.exr")["Combined"]
+    # sorted(ch) orders A, B, G, R: compare channel sets in that order.
+    assert same_bits(frames[1], static[..., [3, 2, 1, 0]])
+
+
+def test_an_unknown_volume_node_is_a_warning_naming_material_and_node(addon, smoke_vdb):
+    scene, smoke, _ = smoke_scene(smoke_vdb, res=16, lights=("sun",), world=False)
+    scene.nimbus.samples = 1
+    tree = smoke.active_material.node_tree
+    out = tree.nodes["Material Output"]
+    other = tree.nodes.new("ShaderNodeBsdfDiffuse")
+    other.name = "Odd Node"
+    add = tree.nodes.new("ShaderNodeAddShader")
+    tree.links.new(tree.nodes["Principled Volume"].outputs["Volume"], add.inputs[0])
+    tree.links.new(other.outputs["BSDF"], add.inputs[1])
+    tree.links.new(add.outputs["Shader"], out.inputs["Volume"])
+    bpy.ops.render.render()
+    warnings = addon.last_render["warnings"]
+    assert any("'smoke_material'" in w and "'Odd Node'" in w for w in warnings), warnings
 
 
 def test_resolution_percentage(addon, smoke_vdb, tmp_path):
