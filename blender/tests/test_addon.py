@@ -325,3 +325,47 @@ def test_the_zip_installs_as_an_extension_and_renders(smoke_vdb, tmp_path):
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     site = tmp_path / "home" / ".config" / "blender" / "5.0" / "extensions" / ".local"
     assert list(site.rglob("nimbus/_nimbus*.so")), "the bundled wheel was not installed"
+
+
+def test_scatter_plus_absorption_with_a_density_attribute_maps_as_cycles_means_it(addon,
+                                                                                 smoke_vdb):
+    """Volume Scatter (Color Cs, Density from Attribute 'density' times 4 by a Math
+    node, Anisotropy 0.2) + Volume Absorption (Color Ca, same density): Cycles'
+    closures give sigma_s = Cs 4 d(x), sigma_a = (1 - Ca) 4 d(x)."""
+    from nimbus_blender import translate
+
+    scene, smoke, _ = smoke_scene(smoke_vdb, res=16, lights=("sun",), world=False)
+    tree = smoke.active_material.node_tree
+    for n in list(tree.nodes):
+        tree.nodes.remove(n)
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    attr = tree.nodes.new("ShaderNodeAttribute")
+    attr.attribute_name = "density"
+    mul = tree.nodes.new("ShaderNodeMath")
+    mul.operation = "MULTIPLY"
+    mul.inputs[1].default_value = 4.0
+    tree.links.new(attr.outputs["Fac"], mul.inputs[0])
+    sc = tree.nodes.new("ShaderNodeVolumeScatter")
+    sc.inputs["Color"].default_value = (0.9, 0.6, 0.3, 1)
+    sc.inputs["Anisotropy"].default_value = 0.2
+    ab = tree.nodes.new("ShaderNodeVolumeAbsorption")
+    ab.inputs["Color"].default_value = (0.5, 0.75, 1.0, 1)
+    tree.links.new(mul.outputs["Value"], sc.inputs["Density"])
+    tree.links.new(mul.outputs["Value"], ab.inputs["Density"])
+    add = tree.nodes.new("ShaderNodeAddShader")
+    tree.links.new(sc.outputs["Volume"], add.inputs[0])
+    tree.links.new(ab.outputs["Volume"], add.inputs[1])
+    tree.links.new(add.outputs["Shader"], out.inputs["Volume"])
+    warnings = []
+    attrs, albedo = translate.volume_medium(smoke, warnings)
+    assert warnings == []
+    f = attrs
+    scale = float(f["float nimbus:densityScale"])
+    assert f["token nimbus:densityField"] == '"density"'
+    assert scale == pytest.approx(3.6, rel=1e-6)  # the largest coefficient, 0.9 x 4
+    sig_s = np.array(eval(f["color3f nimbus:scattering"])) * scale
+    sig_a = np.array(eval(f["color3f nimbus:absorption"])) * scale
+    np.testing.assert_allclose(sig_s, [3.6, 2.4, 1.2], rtol=1e-6)
+    np.testing.assert_allclose(sig_a, [2.0, 1.0, 0.0], rtol=1e-6, atol=1e-7)
+    assert float(f["float nimbus:anisotropy"]) == pytest.approx(0.2, rel=1e-6)
+    np.testing.assert_allclose(albedo, sig_s / (sig_s + sig_a), rtol=1e-6)
