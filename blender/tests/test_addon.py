@@ -157,6 +157,19 @@ def test_a_missing_vdb_is_a_reported_error_naming_the_object(addon, smoke_vdb, t
     assert passes["Combined"][..., 3].max() > 0
 
 
+def test_a_missing_grid_is_a_reported_error_naming_the_object(addon, smoke_vdb, tmp_path):
+    """Density Attribute naming a grid the VDB lacks: Nimbus' error (naming the prim)
+    is reported with the Blender object's name; Blender keeps running."""
+    scene, smoke, _ = smoke_scene(smoke_vdb, res=16, lights=("sun",), world=False)
+    pv = smoke.active_material.node_tree.nodes["Principled Volume"]
+    pv.inputs["Density Attribute"].default_value = "nosuchgrid"
+    with pytest.raises(RuntimeError, match="object 'smoke'.*nosuchgrid"):
+        bpy.ops.render.render()
+    pv.inputs["Density Attribute"].default_value = "density"
+    scene.nimbus.samples = 1
+    assert render(scene, tmp_path / "after.exr")["Combined"][..., 3].max() > 0
+
+
 def test_border_renders_the_region_of_the_frame(addon, smoke_vdb, tmp_path):
     scene, _, _ = smoke_scene(smoke_vdb, res=40, world=False)
     scene.nimbus.samples = 2
