@@ -152,6 +152,11 @@ def _closure(node, material, medium, warnings, weight=1.0):
         ab = [weight * d * max(1.0 - x, 0.0) * max(1.0 - math.sqrt(y), 0.0) for x, y in zip(c, a)]
         medium.add(s, ab, g)
         medium.density_attribute = medium.density_attribute or attr
+        if node.inputs["Color Attribute"].default_value:
+            warnings.append(
+                f"material '{material.name}': '{node.name}'.Color Attribute "
+                f"'{node.inputs['Color Attribute'].default_value}' is not translated; "
+                "Nimbus uses Color")
         for linked in ("Color", "Absorption Color", "Anisotropy"):
             n = _linked(node.inputs[linked])
             if n is not None:
