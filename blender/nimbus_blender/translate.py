@@ -24,6 +24,11 @@ import bpy
 
 ROOT = "/root"
 WORLD_PRIM = f"{ROOT}/env_light"
+# Volumes the exporter leaves out (instances: Geometry Nodes on a mesh, collection
+# instances) are defined under this prim by the overlay.
+INSTANCES = f"{ROOT}/nimbus_volumes"
+# Grids made in memory are written here, in the translation's folder.
+GENERATED_VDBS = "volumes_nimbus"
 
 
 class TranslationError(Exception):
@@ -205,6 +210,10 @@ def _closure(node, material, medium, warnings, weight=1.0):
 def volume_medium(obj, warnings):
     """The NimbusVolumeAPI attributes of a Volume object's material, and its albedo."""
     material = obj.active_material
+    if material is None:
+        # An evaluated instance (Geometry Nodes' Set Material) has no active material
+        # but its slots: Cycles shades a volume with its first.
+        material = next((s.material for s in obj.material_slots if s.material), None)
     medium = _Medium()
     if material is None or not material.node_tree:
         # Cycles' default volume shader: a Principled Volume with its defaults.
@@ -327,8 +336,10 @@ def _world_is_hdri(world):
 
 
 def write_overlay(path, exported, prims):
-    """`prims`: prim path -> (api schemas, attribute lines). An overlay layer that
-    sublayers Blender's export and `over`s those prims."""
+    """`prims`: prim path -> (api schemas, attribute lines[, specifier]). An overlay
+    layer that sublayers Blender's export and `over`s those prims, or defines them
+    with the specifier given (e.g. "def Volume"); a defined prim's parents must be
+    defined too (an `over` alone is not rendered)."""
     tree = {}
     for prim, content in prims.items():
         node = tree
@@ -341,12 +352,13 @@ def write_overlay(path, exported, prims):
         for name, child in node.items():
             if name is None:
                 continue
-            schemas, lines = child.get(None, ([], []))
+            schemas, lines, *spec = child.get(None, ([], []))
+            spec = spec[0] if spec else "over"
             meta = ""
             if schemas:
                 listed = ", ".join(f'"{s}"' for s in schemas)
                 meta = f" (\n{indent}    prepend apiSchemas = [{listed}]\n{indent})"
-            text += f'{indent}over "{name}"{meta}\n{indent}{{\n'
+            text += f'{indent}{spec} "{name}"{meta}\n{indent}{{\n'
             text += "".join(f"{indent}    {line}\n" for line in lines)
             text += emit(child, indent + "    ")
             text += f"{indent}}}\n"
@@ -397,6 +409,35 @@ def check_volumes(depsgraph):
                 f"{grids.error_message or 'no grids'}")
         if len(grids) == 0:
             raise TranslationError(f"volume '{obj.name}': the volume has no grids")
+
+
+def is_generated(obj):
+    """The evaluated volume `obj`'s grids were made in memory (Geometry Nodes, a volume
+    modifier) rather than read unchanged from a file."""
+    if not obj.data.grids.frame_filepath:
+        return True
+    return any(m.show_render for m in obj.original.modifiers)
+
+
+def volume_file(obj, folder, name):
+    """A VDB holding the evaluated grids of `obj`: its own file when unchanged, else
+    the grids written by Blender (VolumeGrids.save) into `folder`."""
+    grids = obj.data.grids
+    if not is_generated(obj):
+        return bpy.path.abspath(grids.frame_filepath)
+    os.makedirs(os.path.join(folder, GENERATED_VDBS), exist_ok=True)
+    path = os.path.join(folder, GENERATED_VDBS, name + ".vdb")
+    grids.load()
+    if not grids.save(path) or not os.path.isfile(path):
+        raise TranslationError(f"volume '{obj.name}': cannot write its grids to '{path}'")
+    return path
+
+
+def _matrix(m):
+    """Blender's matrix_world (column vectors) as USD's matrix4d (row vectors)."""
+    rows = ", ".join("(" + ", ".join(repr(float(m[r][c])) for r in range(4)) + ")"
+                     for c in range(4))
+    return f"matrix4d xformOp:transform = ({rows})"
 
 
 def translate(depsgraph, folder):
@@ -454,8 +495,29 @@ def translate(depsgraph, folder):
     seen = set()
     for inst in depsgraph.object_instances:
         obj = inst.object
+        if inst.is_instance and obj.type == "VOLUME":
+            # The exporter writes no volume of an instance (a Geometry Nodes volume on
+            # a mesh, a collection instance): the overlay defines it, with its grids.
+            k = len([p for p in prims if p.startswith(INSTANCES + "/")])
+            xf = f"{INSTANCES}/{prim_name(obj.name)}_{k}"
+            vdb = volume_file(obj, folder, f"{prim_name(obj.name)}_{k}")
+            attrs, a = volume_medium(obj, warnings)
+            vol = xf + "/volume"
+            lines = [f"{key} = {v}" for key, v in attrs.items()]
+            prims[INSTANCES] = ([], [], "def Xform")
+            prims[xf] = ([], [_matrix(inst.matrix_world),
+                              'uniform token[] xformOpOrder = ["xformOp:transform"]'],
+                         "def Xform")
+            for g in obj.data.grids:
+                field = f"{vol}/{prim_name(g.name)}"
+                lines.append(f"rel field:{prim_name(g.name)} = <{field}>")
+                prims[field] = ([], [f'token fieldName = "{g.name}"',
+                                     f"asset filePath = @{vdb}@"], "def OpenVDBAsset")
+            prims[vol] = (["NimbusVolumeAPI"], lines, "def Volume")
+            albedo = albedo or a
+            continue
         if inst.is_instance or obj.name in seen:
-            if inst.is_instance and obj.type in ("VOLUME", "LIGHT"):
+            if inst.is_instance and obj.type == "LIGHT":
                 warnings.append(f"object '{obj.name}': instances are not translated")
             continue
         seen.add(obj.name)
@@ -463,6 +525,12 @@ def translate(depsgraph, folder):
         if obj.type == "VOLUME":
             if not exists(path):
                 raise TranslationError(f"volume '{obj.name}': not in Blender's export ({path})")
+            if is_generated(obj):
+                # The exporter writes such grids to volumes/<data name>.vdb, one file
+                # for all volumes of that (evaluated) name: each gets its own here.
+                vdb = volume_file(obj, folder, prim_name(obj.name))
+                for g in obj.data.grids:
+                    prims[f"{path}/{prim_name(g.name)}"] = ([], [f"asset filePath = @{vdb}@"])
             attrs, a = volume_medium(obj, warnings)
             lines = [f"{k} = {v}" for k, v in attrs.items()]
             group = getattr(obj, "lightgroup", "")
@@ -485,7 +553,14 @@ def translate(depsgraph, folder):
             if lines:
                 prims[path] = (schemas, lines)
         elif obj.type == "MESH":
-            if not obj.nimbus.holdout and exists(path):
+            if any(m.type == "FLUID" and m.fluid_type == "DOMAIN" for m in obj.modifiers):
+                # Cycles renders a domain's cache as a volume and never its mesh.
+                warnings.append(
+                    f"object '{obj.name}': a fluid domain is not translated (bake its cache "
+                    "as OpenVDB and load a frame as a Volume object); its mesh is left out")
+                if exists(path):
+                    prims[path] = ([], ["bool nimbus:holdout = 0"])
+            elif not obj.nimbus.holdout and exists(path):
                 prims[path] = ([], ["bool nimbus:holdout = 0"])
         elif obj.type in ("CURVES", "CURVE"):
             warnings.append(f"object '{obj.name}': curves are not translated (no holdout)")

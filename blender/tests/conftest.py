@@ -7,6 +7,7 @@ $BPY_PYTHON a CPython 3.11 with bpy==5.0.1, numpy, pytest and the nimbus wheel (
 blender-addon stage). A missing input fails (no skips: NIMBUS_REQUIRE_DATA semantics).
 """
 
+import math
 import os
 import shutil
 import sys
@@ -137,3 +138,78 @@ def render(scene, path):
         p: np.stack([c[k] for k in sorted(c, key=lambda k: order.get(k, 9))], axis=-1)
         for p, c in passes.items()
     }
+
+
+def volume_cube_tree(material, size=1.0, resolution=64):
+    """A Geometry Nodes tree: a Volume Cube node (density 1 in [-size, size]^3, the
+    given voxel resolution) with `material` set on it."""
+    ng = bpy.data.node_groups.new("volume_cube", "GeometryNodeTree")
+    ng.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    out = ng.nodes.new("NodeGroupOutput")
+    cube = ng.nodes.new("GeometryNodeVolumeCube")
+    cube.inputs["Min"].default_value = (-size, -size, -size)
+    cube.inputs["Max"].default_value = (size, size, size)
+    for k in "XYZ":
+        cube.inputs[f"Resolution {k}"].default_value = resolution
+    mat = ng.nodes.new("GeometryNodeSetMaterial")
+    mat.inputs["Material"].default_value = material
+    ng.links.new(cube.outputs[0], mat.inputs["Geometry"])
+    ng.links.new(mat.outputs[0], out.inputs[0])
+    return ng
+
+
+def principled_volume(name, density, color=(0.8, 0.8, 0.8)):
+    m = bpy.data.materials.new(name)
+    m.use_nodes = True
+    nt = m.node_tree
+    nt.nodes.clear()
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    pv = nt.nodes.new("ShaderNodeVolumePrincipled")
+    pv.inputs["Density"].default_value = density
+    pv.inputs["Color"].default_value = (*color, 1.0)
+    nt.links.new(pv.outputs["Volume"], out.inputs["Volume"])
+    return m
+
+
+# The volume cube scene: a cube [-1, 1]^3 at the origin seen along +Y from CUBE_DISTANCE.
+CUBE_DISTANCE = 10.0
+
+
+def cube_scene(res=(64, 64), density=20.0, on="mesh", lens=50.0, sensor=36.0):
+    """A Geometry Nodes Volume Cube (on a mesh object, an instance the exporter leaves
+    out, or on a Volume object, which the exporter writes to volumes/Volume.vdb) with a
+    Principled Volume of `density`, a sun, a camera at (0, -CUBE_DISTANCE, 0) looking
+    along +Y (image x = world X, image up = world Z), film transparent, no world."""
+    scene = bpy.context.scene
+    material = principled_volume("cube_material", density)
+    data = bpy.data.meshes.new("cube_mesh") if on == "mesh" else bpy.data.volumes.new("cube_vol")
+    obj = bpy.data.objects.new("cube", data)
+    scene.collection.objects.link(obj)
+    obj.modifiers.new("volume", "NODES").node_group = volume_cube_tree(material)
+    cam_data = bpy.data.cameras.new("camera")
+    cam_data.lens = lens
+    cam_data.sensor_width = sensor
+    cam_data.sensor_fit = "AUTO"
+    camera = bpy.data.objects.new("camera", cam_data)
+    scene.collection.objects.link(camera)
+    camera.location = (0.0, -CUBE_DISTANCE, 0.0)
+    camera.rotation_euler = (math.pi / 2, 0.0, 0.0)
+    scene.camera = camera
+    sun = bpy.data.lights.new("sun", "SUN")
+    sun.energy = 2.0
+    sun_obj = bpy.data.objects.new("sun", sun)
+    scene.collection.objects.link(sun_obj)
+    sun_obj.rotation_euler = (0.5, 0.3, 0.0)
+    r = scene.render
+    r.engine = "NIMBUS"
+    r.resolution_x, r.resolution_y = res
+    r.resolution_percentage = 100
+    r.film_transparent = True
+    scene.view_settings.view_transform = "Standard"
+    scene.view_settings.look = "None"
+    s = r.image_settings
+    s.media_type = "MULTI_LAYER_IMAGE"
+    s.color_depth = "32"
+    scene.nimbus.samples = 2
+    scene.nimbus.max_depth = 4
+    return scene, obj, camera
