@@ -440,6 +440,25 @@ def _matrix(m):
     return f"matrix4d xformOp:transform = ({rows})"
 
 
+def ortho_camera_lines(cam, width, height):
+    """An orthographic Blender camera as a UsdGeomCamera: Blender's view plane
+    (BKE_camera_params_compute_viewplane: the fitted dimension spans ortho_scale, the
+    shift is in units of it) as apertures and offsets in tenths of a unit."""
+    fit = cam.sensor_fit
+    if fit == "AUTO":
+        fit = "HORIZONTAL" if width >= height else "VERTICAL"
+    viewfac = width if fit == "HORIZONTAL" else height
+    pixel = cam.ortho_scale / viewfac
+    return [
+        'token projection = "orthographic"',
+        f"float horizontalAperture = {_f(10 * pixel * width)}",
+        f"float verticalAperture = {_f(10 * pixel * height)}",
+        f"float horizontalApertureOffset = {_f(10 * cam.shift_x * cam.ortho_scale)}",
+        f"float verticalApertureOffset = {_f(10 * cam.shift_y * cam.ortho_scale)}",
+        f"float2 clippingRange = ({_f(cam.clip_start)}, {_f(cam.clip_end)})",
+    ]
+
+
 def translate(depsgraph, folder):
     """Exports the evaluated scene of `depsgraph` into `folder` and writes the overlay;
     returns the Translation. Raises TranslationError naming the object at fault."""
@@ -576,8 +595,15 @@ def translate(depsgraph, folder):
             used.add(group)
         if lines:
             prims[WORLD_PRIM] = (schemas, lines)
-    if not exists(t.camera):
-        raise TranslationError(f"camera '{scene.camera.name}': not in Blender's export")
+    cam = scene.camera.data
+    if cam.type == "ORTHO":
+        # Blender 5.0.1's exporter writes only perspective cameras (an orthographic one
+        # leaves its Xform empty): the overlay defines the Camera.
+        prims[t.camera] = ([], ortho_camera_lines(cam, *t.res), "def Camera")
+    elif not exists(t.camera):
+        raise TranslationError(
+            f"camera '{scene.camera.name}': not in Blender's export ({cam.type} cameras "
+            "are not exported; Nimbus renders perspective and orthographic ones)")
     t.lightgroups = {g: g for g in sorted(used)}
     t.albedo = albedo or (0.0, 0.0, 0.0)
     write_overlay(t.stage, os.path.basename(exported), prims)
