@@ -325,6 +325,42 @@ def light_lines(obj, warnings):
     return lines
 
 
+def _world_background(world):
+    """The Background node feeding the active World Output's Surface, or None."""
+    out = None
+    for n in world.node_tree.nodes:
+        if n.bl_idname == "ShaderNodeOutputWorld" and n.target in ("ALL", "CYCLES"):
+            if out is None or n.is_active_output:
+                out = n
+    src = _linked(out.inputs["Surface"]) if out is not None else None
+    return src if src is not None and src.bl_idname == "ShaderNodeBackground" else None
+
+
+def hdri_lines(world, warnings):
+    """The dome of an Environment Texture world: the exporter writes its image but not
+    the Background's Strength (the dome rendered at intensity 1)."""
+    lines = ["float3 xformOp:rotateXYZ = (90, 0, 90)"]
+    bg = _world_background(world)
+    if bg is None:
+        warnings.append(f"world '{world.name}': no Background node at the World Output; "
+                        "the dome's intensity is 1")
+        return lines
+    strength = bg.inputs["Strength"]
+    if strength.is_linked:
+        warnings.append(f"world '{world.name}': Background Strength is driven by a node; "
+                        f"Nimbus uses {strength.default_value!r}")
+    lines.append(f"float inputs:intensity = {_f(strength.default_value)}")
+    env = _linked(bg.inputs["Color"])
+    if env is not None and env.bl_idname == "ShaderNodeTexEnvironment":
+        if env.inputs["Vector"].is_linked:
+            warnings.append(f"world '{world.name}': the Environment Texture's Vector input "
+                            "(a mapping) is not translated")
+    elif env is not None:
+        warnings.append(f"world '{world.name}': node '{env.name}' between the Environment "
+                        "Texture and the Background is not translated")
+    return lines
+
+
 def _world_is_hdri(world):
     if world is None or not world.node_tree:
         return False
@@ -587,7 +623,7 @@ def translate(depsgraph, folder):
         t.world_prim = WORLD_PRIM
         lines, schemas = [], []
         if _world_is_hdri(world):
-            lines.append("float3 xformOp:rotateXYZ = (90, 0, 90)")
+            lines += hdri_lines(world, warnings)
         group = getattr(world, "lightgroup", "")
         if group and group in groups:
             schemas.append("NimbusLightAPI")
@@ -596,6 +632,10 @@ def translate(depsgraph, folder):
         if lines:
             prims[WORLD_PRIM] = (schemas, lines)
     cam = scene.camera.data
+    if cam.type == "PANO":
+        raise TranslationError(
+            f"camera '{scene.camera.name}': panoramic cameras are not supported (Nimbus "
+            "renders perspective and orthographic ones)")
     if cam.type == "ORTHO":
         # Blender 5.0.1's exporter writes only perspective cameras (an orthographic one
         # leaves its Xform empty): the overlay defines the Camera.
