@@ -27,6 +27,9 @@ WORLD_PRIM = f"{ROOT}/env_light"
 # Volumes the exporter leaves out (instances: Geometry Nodes on a mesh, collection
 # instances) are defined under this prim by the overlay.
 INSTANCES = f"{ROOT}/nimbus_volumes"
+# Curves, texts and surfaces as holdout meshes (the exporter writes them as curves
+# or not at all) are defined under this prim.
+HOLDOUTS = f"{ROOT}/nimbus_holdouts"
 # Grids made in memory are written here, in the translation's folder.
 GENERATED_VDBS = "volumes_nimbus"
 
@@ -495,6 +498,77 @@ def ortho_camera_lines(cam, width, height):
     ]
 
 
+def _curves_tubes(curves, sides=6):
+    """Hair curves (a Curves object) as the tubes Cycles renders: `sides`-gon prisms of
+    each point's radius along each segment. Returns (points, counts, indices)."""
+    import numpy as np
+
+    n = len(curves.points)
+    pos = np.empty(n * 3, np.float32)
+    curves.points.foreach_get("position", pos)
+    pos = pos.reshape(n, 3).astype(np.float64)
+    rad = np.empty(n, np.float32)
+    curves.points.foreach_get("radius", rad)
+    offsets = np.empty(len(curves.curves) + 1, np.int32)
+    curves.curve_offset_data.foreach_get("value", offsets)
+    angles = np.linspace(0.0, 2 * math.pi, sides, endpoint=False)
+    points, counts, indices = [], [], []
+    for c in range(len(curves.curves)):
+        p = pos[offsets[c]:offsets[c + 1]]
+        r = rad[offsets[c]:offsets[c + 1]]
+        if len(p) < 2:
+            continue
+        # Per point: the ring around the tangent (central differences).
+        t = np.gradient(p, axis=0)
+        t /= np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-12)
+        base = len(points)
+        for i in range(len(p)):
+            a = np.array([1.0, 0.0, 0.0]) if abs(t[i][0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+            u = np.cross(t[i], a)
+            u /= np.linalg.norm(u)
+            v = np.cross(t[i], u)
+            for ang in angles:
+                points.append(p[i] + r[i] * (math.cos(ang) * u + math.sin(ang) * v))
+        for i in range(len(p) - 1):
+            for k in range(sides):
+                k1 = (k + 1) % sides
+                a0, a1 = base + i * sides + k, base + i * sides + k1
+                b0, b1 = a0 + sides, a1 + sides
+                counts.append(4)
+                indices += [a0, a1, b1, b0]
+    return points, counts, indices
+
+
+def holdout_mesh(obj, matrix, prims, warnings):
+    """Defines the evaluated curve, text or surface `obj` as a holdout mesh (the
+    exporter's meshes leave them out): Object.to_mesh's polygons (a curve's bevel or
+    extrusion), or a hair Curves object's tubes; nothing when it has no surface."""
+    if obj.type == "CURVES":
+        points, counts, indices = _curves_tubes(obj.data)
+    else:
+        mesh = obj.to_mesh()
+        try:
+            points = [v.co[:] for v in mesh.vertices]
+            counts = [len(p.vertices) for p in mesh.polygons]
+            indices = [i for p in mesh.polygons for i in p.vertices]
+        finally:
+            obj.to_mesh_clear()
+    if not counts:
+        warnings.append(f"object '{obj.name}': a curve without a surface (no bevel, "
+                        "extrusion or radius) holds nothing out")
+        return
+    xf = f"{HOLDOUTS}/{prim_name(obj.name)}"
+    prims[HOLDOUTS] = ([], [], "def Xform")
+    prims[xf] = ([], [_matrix(matrix), 'uniform token[] xformOpOrder = ["xformOp:transform"]'],
+                 "def Xform")
+    pts = ", ".join("({}, {}, {})".format(*(repr(float(x)) for x in p)) for p in points)
+    prims[xf + "/mesh"] = ([], [
+        f"int[] faceVertexCounts = [{', '.join(map(str, counts))}]",
+        f"int[] faceVertexIndices = [{', '.join(map(str, indices))}]",
+        f"point3f[] points = [{pts}]",
+    ], "def Mesh")
+
+
 def translate(depsgraph, folder):
     """Exports the evaluated scene of `depsgraph` into `folder` and writes the overlay;
     returns the Translation. Raises TranslationError naming the object at fault."""
@@ -617,8 +691,9 @@ def translate(depsgraph, folder):
                     prims[path] = ([], ["bool nimbus:holdout = 0"])
             elif not obj.nimbus.holdout and exists(path):
                 prims[path] = ([], ["bool nimbus:holdout = 0"])
-        elif obj.type in ("CURVES", "CURVE"):
-            warnings.append(f"object '{obj.name}': curves are not translated (no holdout)")
+        elif obj.type in ("CURVE", "FONT", "SURFACE", "CURVES"):
+            if obj.nimbus.holdout:
+                holdout_mesh(obj, inst.matrix_world, prims, warnings)
     if world is not None and exists(WORLD_PRIM):
         t.world_prim = WORLD_PRIM
         lines, schemas = [], []
