@@ -257,19 +257,26 @@ def volume_medium(obj, warnings):
     mean_a = sum(medium.sigma_a) / 3.0
     if medium.emission is not None:
         color, strength = medium.emission
-        if mean_a <= 0:
+        # Cycles (svm_node_principled_volume, the Emission closure): the emission
+        # coefficient is Strength x Color wherever the shader runs, whatever the
+        # density. Nimbus' source is mu_a(x) Le(x) (docs/usd.md, Emission) with
+        # mu_a(x) = sigma_a d(x): Le = Strength x Color / sigma_a per channel, times the
+        # emission field d(x), equals Cycles' where the density grid d is 1.
+        radiance = [strength * c / a if a > 0 else 0.0 for c, a in zip(color, medium.sigma_a)]
+        if any(c > 0 and a <= 0 for c, a in zip(color, medium.sigma_a)):
             warnings.append(
-                f"object '{obj.name}': emission without absorption: Nimbus emits where the "
-                "medium absorbs (docs/usd.md, Emission), so it is left out")
-        else:
-            # Nimbus' source is mu_a(x) Le(x); Cycles' emission is not weighted by
-            # density: exact where the density grid is 1.
+                f"object '{obj.name}': emission in a channel without absorption: Nimbus "
+                "emits where the medium absorbs (docs/usd.md, Emission), so that channel "
+                "emits nothing")
+        if max(radiance) > 0:
             warnings.append(
-                f"object '{obj.name}': emission mapped as Nimbus' absorption-weighted emission "
-                "(exact where the density grid is 1)")
+                f"object '{obj.name}': emission mapped onto Nimbus' absorption-weighted "
+                "emission: Cycles' emission does not depend on the density; equal where the "
+                "density grid is 1, d(x)^2 times Cycles' elsewhere (docs/blender.md)")
+            k = max(radiance)
             attrs["token nimbus:emissionField"] = f'"{medium.density_attribute}"'
-            attrs["color3f nimbus:emissionColor"] = _c(color)
-            attrs["float nimbus:emissionScale"] = _f(strength / (scale * mean_a))
+            attrs["color3f nimbus:emissionColor"] = _c([r / k for r in radiance])
+            attrs["float nimbus:emissionScale"] = _f(k)
     if medium.blackbody is not None:
         intensity, temperature, attribute = medium.blackbody
         if mean_a > 0:
@@ -281,7 +288,7 @@ def volume_medium(obj, warnings):
             attrs["token nimbus:temperatureField"] = f'"{attribute}"'
             attrs["float nimbus:temperatureScale"] = _f(temperature)
             attrs["float nimbus:blackbodyIntensity"] = _f(
-                intensity * cycles_1000k / (scale * mean_a))
+                intensity * cycles_1000k / mean_a)
     st = [a + b for a, b in zip(medium.sigma_s, medium.sigma_a)]
     albedo = tuple(s / t if t > 0 else 0.0 for s, t in zip(medium.sigma_s, st))
     return attrs, albedo

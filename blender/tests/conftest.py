@@ -216,14 +216,16 @@ def cube_scene(res=(64, 64), density=20.0, on="mesh", lens=50.0, sensor=36.0):
 
 
 def against_cycles(scene, tmp_path, seeds=(0, 1, 2, 3), spp=32, max_depth=8, z=5.0,
-                   bias=0.005):
+                   bias=0.005, erode=0):
     """test_addon.py's comparison with Cycles as a function: `scene` (set up for
     Nimbus) rendered through the add-on and by Cycles (blender_export_scene.set_cycles:
     the peer harness' settings), len(seeds) x spp each. Over the pixels where either's
     mean alpha > 0.01, the mean of alpha and of R, G, B per renderer, its standard error
     from the per-pixel variance over the seeds (se^2 = sum_p s_p^2 / (K n^2)); returns
     (ok, report lines, pixel count): ok when every |N - C| <= z sqrt(se_N^2 + se_C^2)
-    + bias |C| (bias: Cycles' null-scattering volumes measured 0.2-0.5 % bright)."""
+    + bias |C| (bias: Cycles' null-scattering volumes measured 0.2-0.5 % bright).
+    erode > 0 keeps only pixels whose (2 erode + 1)^2 neighbourhood is all in the mask
+    (the volume's inside, away from its silhouette)."""
     import numpy as np
     from blender_export_scene import set_cycles
 
@@ -246,6 +248,14 @@ def against_cycles(scene, tmp_path, seeds=(0, 1, 2, 3), spp=32, max_depth=8, z=5
     scene.render.engine = "NIMBUS"
     stacks = {k: np.stack(v).astype(np.float64) for k, v in images.items()}
     mask = (stacks["nimbus"][..., 3].mean(0) > 0.01) | (stacks["cycles"][..., 3].mean(0) > 0.01)
+    for _ in range(erode):
+        m = mask.copy()
+        m[1:] &= mask[:-1]
+        m[:-1] &= mask[1:]
+        m[:, 1:] &= mask[:, :-1]
+        m[:, :-1] &= mask[:, 1:]
+        m[0], m[-1], m[:, 0], m[:, -1] = False, False, False, False
+        mask = m
     n = int(mask.sum())
     k = len(seeds)
     report, ok = [], n > 0
