@@ -212,8 +212,13 @@ class NimbusRenderEngine(bpy.types.RenderEngine):
 
 
 def _name_object(message, scene):
-    """A Nimbus error names prims (/root/OBJECT/DATA): add the Blender object's name."""
+    """A Nimbus error names prims (/root/OBJECT/DATA, or the overlay's
+    /root/nimbus_volumes/OBJECT_K for a volume instance): add the Blender object's
+    name."""
     for obj in scene.objects:
         if obj.data is not None and translate.data_path(obj) in message:
+            return f"object '{obj.name}': {message}"
+        instance = f"{translate.INSTANCES}/{translate.prim_name(obj.name)}_"
+        if instance in message:
             return f"object '{obj.name}': {message}"
     return message

@@ -150,6 +150,19 @@ def test_a_geometry_nodes_volume_renders(addon, nimbus_bin, tmp_path, on):
         assert same_bits(combined[..., i], cli[c]), f"channel {c} differs from nimbus render's"
 
 
+def test_a_missing_grid_of_a_geometry_nodes_volume_names_the_object(addon, tmp_path):
+    """Density Attribute naming a grid the Volume Cube lacks, on a mesh's Geometry Nodes
+    volume (defined by the overlay under /root/nimbus_volumes): Nimbus' error is
+    reported with the object's name; Blender keeps running."""
+    scene, obj, cam = cube_scene(on="mesh")
+    pv = bpy.data.materials["cube_material"].node_tree.nodes["Principled Volume"]
+    pv.inputs["Density Attribute"].default_value = "nosuchgrid"
+    with pytest.raises(RuntimeError, match="object 'cube'.*nosuchgrid"):
+        bpy.ops.render.render()
+    pv.inputs["Density Attribute"].default_value = "density"
+    assert render(scene, tmp_path / "after.exr")["Combined"][..., 3].max() > 0
+
+
 def test_two_geometry_nodes_volumes_keep_their_own_grids(addon, tmp_path):
     """Blender's exporter writes every Geometry Nodes volume whose evaluated data is
     named 'Volume' to the same volumes/Volume.vdb (the last one wins: two cubes of
