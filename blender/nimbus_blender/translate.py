@@ -381,6 +381,23 @@ def _world_is_hdri(world):
 # ---- the overlay -----------------------------------------------------------------------
 
 
+# In place of a prim's api schemas in write_overlay: deactivate the prim.
+INACTIVE = ["<inactive>"]
+
+
+def exported_prims(text, type_name):
+    """Paths of the prims of `type_name` defined in the exporter's usda `text` (its
+    layout: one `def Type "name"` a line, nested by four spaces a level)."""
+    stack, found = [], []
+    for m in re.finditer(r'^( *)def (\w+) "([^"]+)"', text, re.M):
+        depth = len(m.group(1)) // 4
+        del stack[depth:]
+        stack.append(m.group(3))
+        if m.group(2) == type_name:
+            found.append("/" + "/".join(stack))
+    return found
+
+
 def write_overlay(path, exported, prims):
     """`prims`: prim path -> (api schemas, attribute lines[, specifier]). An overlay
     layer that sublayers Blender's export and `over`s those prims, or defines them
@@ -401,7 +418,9 @@ def write_overlay(path, exported, prims):
             schemas, lines, *spec = child.get(None, ([], []))
             spec = spec[0] if spec else "over"
             meta = ""
-            if schemas:
+            if schemas == INACTIVE:
+                meta = " (\n{0}    active = false\n{0})".format(indent)
+            elif schemas:
                 listed = ", ".join(f'"{s}"' for s in schemas)
                 meta = f" (\n{indent}    prepend apiSchemas = [{listed}]\n{indent})"
             text += f'{indent}{spec} "{name}"{meta}\n{indent}{{\n'
@@ -629,6 +648,7 @@ def translate(depsgraph, folder):
         return f'"{path.rsplit("/", 1)[1]}"' in text
 
     seen = set()
+    volume_paths = set()
     for inst in depsgraph.object_instances:
         obj = inst.object
         if inst.is_instance and obj.type == "VOLUME":
@@ -661,6 +681,7 @@ def translate(depsgraph, folder):
         if obj.type == "VOLUME":
             if not exists(path):
                 raise TranslationError(f"volume '{obj.name}': not in Blender's export ({path})")
+            volume_paths.add(path)
             if is_generated(obj):
                 # The exporter writes such grids to volumes/<data name>.vdb, one file
                 # for all volumes of that (evaluated) name: each gets its own here.
@@ -713,6 +734,13 @@ def translate(depsgraph, folder):
             used.add(group)
         if lines:
             prims[WORLD_PRIM] = (schemas, lines)
+    # The exporter writes some volume instances itself (a collection instance: under
+    # the instancer, without material); the overlay defines every instance, so the
+    # exporter's copies are deactivated.
+    if any(p.startswith(INSTANCES + "/") for p in prims):
+        for vol in exported_prims(text, "Volume"):
+            if vol not in volume_paths:
+                prims[vol] = (INACTIVE, [])
     cam = scene.camera.data
     if cam.type == "PANO":
         raise TranslationError(
