@@ -9,8 +9,12 @@ leaves out or writes differently from what Cycles renders (docs/blender.md):
 - lights: `enableColorTemperature = 0` unless Temperature is on (the exporter always
   writes 1, and pxr's 6500 K is not white), a sun's intensity = its strength (the
   exporter writes strength / 4) and angle = its full angle, light groups;
-- the HDRI dome's Z-up rotation (the exporter writes none), the world's light group;
-- holdouts: a mesh whose `object.nimbus.holdout` is off gets `nimbus:holdout = 0`.
+- the HDRI dome's Z-up rotation and Background strength (the exporter writes neither),
+  the world's light group;
+- holdouts: a mesh whose `object.nimbus.holdout` is off gets `nimbus:holdout = 0`;
+  curves, texts and surfaces become holdout meshes;
+- volumes made by Geometry Nodes and volume instances: their own VDBs and prims;
+- an orthographic camera (the exporter writes perspective ones only).
 
 Nothing here needs pxr (Blender has no Python USD module): the overlay is usda text.
 """
@@ -24,8 +28,9 @@ import bpy
 
 ROOT = "/root"
 WORLD_PRIM = f"{ROOT}/env_light"
-# Volumes the exporter leaves out (instances: Geometry Nodes on a mesh, collection
-# instances) are defined under this prim by the overlay.
+# Volume instances (Geometry Nodes on a mesh, which the exporter leaves out;
+# collection instances, which it writes without material) are defined under this
+# prim by the overlay.
 INSTANCES = f"{ROOT}/nimbus_volumes"
 # Curves, texts and surfaces as holdout meshes (the exporter writes them as curves
 # or not at all) are defined under this prim.
@@ -649,14 +654,17 @@ def translate(depsgraph, folder):
 
     seen = set()
     volume_paths = set()
+    instances = 0
     for inst in depsgraph.object_instances:
         obj = inst.object
         if inst.is_instance and obj.type == "VOLUME":
-            # The exporter writes no volume of an instance (a Geometry Nodes volume on
-            # a mesh, a collection instance): the overlay defines it, with its grids.
-            k = len([p for p in prims if p.startswith(INSTANCES + "/")])
+            # The exporter writes no volume for a Geometry Nodes volume on a mesh, and
+            # one without material for a collection instance (deactivated below): the
+            # overlay defines every instance, with its grids and material.
+            k = instances
+            instances += 1
             xf = f"{INSTANCES}/{prim_name(obj.name)}_{k}"
-            vdb = volume_file(obj, folder, f"{prim_name(obj.name)}_{k}")
+            vdb = volume_file(obj, folder, f"instance_{prim_name(obj.name)}_{k}")
             attrs, a = volume_medium(obj, warnings)
             vol = xf + "/volume"
             lines = [f"{key} = {v}" for key, v in attrs.items()]
