@@ -1,0 +1,226 @@
+//! Build script of hdNimbus: compiles the C++ half of the Hydra render delegate
+//! (`cpp/hydra/*.cc`) against a host's USD and lays out the plug-in folder.
+//!
+//! `NIMBUS_HYDRA` selects the behaviour, as `NIMBUS_OPENVDB` does for the OpenVDB bridge:
+//! - `auto` (default): build the delegate when `NIMBUS_USD_INCLUDE` (a folder holding
+//!   `pxr/pxr.h` and `pxr/imaging/hd/renderDelegate.h`), `NIMBUS_USD_LIB` (a folder
+//!   holding `libusd_ms.so`, a monolithic USD as Blender's, or the split `libusd_hd.so`,
+//!   `libusd_sdf.so`, … of a USD install) and `NIMBUS_TBB_INCLUDE` (a folder holding
+//!   `tbb/tbb.h`, the TBB the host's USD was built with) are all found; else build only
+//!   the Rust half (its unit tests run, no plug-in) with a warning;
+//! - `require`: fail the build with a clear message when one is missing (CI);
+//! - `off`: only the Rust half.
+//!
+//! When the delegate is built, the cfg `nimbus_hydra` is set, and
+//! `target/<profile>/hydra/hdNimbus/` receives `plugInfo.json` and a symbolic link
+//! `hdNimbus.so` to the library cargo links next (`target/<profile>/libhd_nimbus.so`):
+//! `PXR_PLUGINPATH_NAME=target/release/hydra/hdNimbus` makes a host find it.
+//! `NIMBUS_USD_CXXFLAGS` adds compiler flags (e.g. `-D_GLIBCXX_USE_CXX11_ABI=0` for a
+//! host built with the old ABI).
+
+use std::env;
+use std::path::{Path, PathBuf};
+
+const SOURCES: [&str; 6] = [
+    "rendererPlugin.cc",
+    "renderDelegate.cc",
+    "renderPass.cc",
+    "renderBuffer.cc",
+    "prims.cc",
+    "convert.cc",
+];
+const HEADERS: [&str; 6] = [
+    "rendererPlugin.h",
+    "renderDelegate.h",
+    "renderPass.h",
+    "renderBuffer.h",
+    "prims.h",
+    "convert.h",
+];
+
+fn main() {
+    println!("cargo::rustc-check-cfg=cfg(nimbus_hydra)");
+    for var in [
+        "NIMBUS_HYDRA",
+        "NIMBUS_USD_INCLUDE",
+        "NIMBUS_USD_LIB",
+        "NIMBUS_TBB_INCLUDE",
+        "NIMBUS_USD_CXXFLAGS",
+    ] {
+        println!("cargo:rerun-if-env-changed={var}");
+    }
+    println!("cargo:rerun-if-changed=build.rs");
+    println!("cargo:rerun-if-changed=plugInfo.json");
+
+    let mode = env::var("NIMBUS_HYDRA").unwrap_or_else(|_| "auto".to_string());
+    let required = match mode.trim().to_ascii_lowercase().as_str() {
+        "off" | "0" | "no" | "false" => {
+            println!("cargo:warning=NIMBUS_HYDRA=off: building only the Rust half of hdNimbus (no plug-in)");
+            return;
+        }
+        "auto" | "" => false,
+        "require" | "on" | "1" | "yes" | "true" => true,
+        other => panic!("NIMBUS_HYDRA must be auto, require or off (got {other:?})"),
+    };
+    match find_usd() {
+        Ok(usd) => build_delegate(&usd),
+        Err(why) if required => panic!(
+            "NIMBUS_HYDRA=require but the USD SDK was not found: {why}.\n\
+             Name the host's USD headers, its libraries and TBB's headers with \
+             NIMBUS_USD_INCLUDE, NIMBUS_USD_LIB and NIMBUS_TBB_INCLUDE (docs/hydra.md), \
+             or build with NIMBUS_HYDRA=auto|off."
+        ),
+        Err(why) => println!(
+            "cargo:warning=USD SDK not found ({why}); building only the Rust half of hdNimbus (no plug-in)"
+        ),
+    }
+}
+
+struct Usd {
+    include: PathBuf,
+    lib_dir: PathBuf,
+    /// Link names: `usd_ms` (monolithic) or the split libraries.
+    libs: Vec<String>,
+    tbb_include: PathBuf,
+}
+
+fn var_dir(var: &str, must_hold: &[&str]) -> Result<PathBuf, String> {
+    let dir = env::var_os(var)
+        .map(PathBuf::from)
+        .ok_or_else(|| format!("{var} is not set"))?;
+    for f in must_hold {
+        if !dir.join(f).exists() {
+            return Err(format!("{var}={} holds no {f}", dir.display()));
+        }
+    }
+    Ok(dir)
+}
+
+fn find_usd() -> Result<Usd, String> {
+    let include = var_dir(
+        "NIMBUS_USD_INCLUDE",
+        &["pxr/pxr.h", "pxr/imaging/hd/renderDelegate.h"],
+    )?;
+    let tbb_include = var_dir("NIMBUS_TBB_INCLUDE", &["tbb/tbb.h"])?;
+    let lib_dir = var_dir("NIMBUS_USD_LIB", &[])?;
+    let has = |name: &str| lib_dir.join(format!("lib{name}.so")).exists();
+    let libs = if has("usd_ms") {
+        vec!["usd_ms".to_string()]
+    } else {
+        // A split install: what the delegate calls into, with or without the `usd_`
+        // prefix (PXR_LIB_PREFIX).
+        let names = [
+            "hd",
+            "hf",
+            "hio",
+            "cameraUtil",
+            "usdVol",
+            "sdf",
+            "vt",
+            "gf",
+            "tf",
+            "plug",
+            "trace",
+            "work",
+            "arch",
+        ];
+        let prefix = if has("usd_hd") { "usd_" } else { "" };
+        if !has(&format!("{prefix}hd")) {
+            return Err(format!(
+                "NIMBUS_USD_LIB={} holds neither libusd_ms.so nor libusd_hd.so / libhd.so",
+                lib_dir.display()
+            ));
+        }
+        names
+            .iter()
+            .map(|n| format!("{prefix}{n}"))
+            .filter(|n| has(n))
+            .collect()
+    };
+    Ok(Usd {
+        include,
+        lib_dir,
+        libs,
+        tbb_include,
+    })
+}
+
+fn build_delegate(usd: &Usd) {
+    let mut build = cxx_build::bridge("src/ffi.rs");
+    build
+        .files(SOURCES)
+        .std("c++17")
+        // The SDK's headers as system headers: their warnings are not ours.
+        .flag("-isystem")
+        .flag(
+            usd.include
+                .to_str()
+                .expect("NIMBUS_USD_INCLUDE is not UTF-8"),
+        )
+        .flag("-isystem")
+        .flag(
+            usd.tbb_include
+                .to_str()
+                .expect("NIMBUS_TBB_INCLUDE is not UTF-8"),
+        )
+        .include(".")
+        .define("MFB_PACKAGE_NAME", "hdNimbus")
+        .define("MFB_ALT_PACKAGE_NAME", "hdNimbus")
+        .define("MFB_PACKAGE_MODULE", "hdNimbus")
+        .define("TBB_SUPPRESS_DEPRECATED_MESSAGES", "1")
+        .define("_GLIBCXX_USE_CXX11_ABI", "1")
+        .flag("-fPIC")
+        .flag_if_supported("-Wno-deprecated")
+        .flag_if_supported("-Wno-deprecated-declarations")
+        .flag_if_supported("-Wno-unused-parameter");
+    if let Ok(extra) = env::var("NIMBUS_USD_CXXFLAGS") {
+        for f in extra.split_whitespace() {
+            build.flag(f);
+        }
+    }
+    // Linked whole: nothing in the Rust half calls the delegate, whose classes
+    // register themselves with USD from static initialisers the linker would drop.
+    build.cargo_metadata(false).compile("hdnimbus_cpp");
+    let out = env::var("OUT_DIR").expect("OUT_DIR");
+    println!("cargo:rustc-link-search=native={out}");
+    println!("cargo:rustc-link-lib=static:+whole-archive=hdnimbus_cpp");
+    println!("cargo:rustc-link-lib=stdc++");
+    for f in SOURCES.iter().chain(HEADERS.iter()) {
+        println!("cargo:rerun-if-changed={f}");
+    }
+    println!("cargo:rerun-if-changed=src/ffi.rs");
+
+    let lib = usd.lib_dir.display();
+    println!("cargo:rustc-link-search=native={lib}");
+    for l in &usd.libs {
+        // `-l:libNAME.so` would also do; a dylib link keeps the host's copy the only one.
+        println!("cargo:rustc-cdylib-link-arg=-l{l}");
+    }
+    println!("cargo:rustc-cdylib-link-arg=-Wl,-rpath,{lib}");
+    println!("cargo:rustc-cdylib-link-arg=-Wl,--no-undefined");
+    println!("cargo:rustc-cfg=nimbus_hydra");
+    lay_out_plugin();
+}
+
+/// `target/<profile>/hydra/hdNimbus/{plugInfo.json, hdNimbus.so -> ../../libhd_nimbus.so}`.
+fn lay_out_plugin() {
+    // OUT_DIR is target/<profile>/build/nimbus-hydra-HASH/out.
+    let out = PathBuf::from(env::var("OUT_DIR").expect("OUT_DIR"));
+    let Some(profile_dir) = out.ancestors().nth(3) else {
+        return;
+    };
+    let dir = profile_dir.join("hydra").join("hdNimbus");
+    std::fs::create_dir_all(&dir).expect("create the hydra/hdNimbus folder");
+    std::fs::copy("plugInfo.json", dir.join("plugInfo.json")).expect("copy plugInfo.json");
+    let link = dir.join("hdNimbus.so");
+    let _ = std::fs::remove_file(&link);
+    symlink(Path::new("../../libhd_nimbus.so"), &link);
+}
+
+#[cfg(unix)]
+fn symlink(target: &Path, link: &Path) {
+    std::os::unix::fs::symlink(target, link).expect("link hdNimbus.so");
+}
+
+#[cfg(not(unix))]
+fn symlink(_target: &Path, _link: &Path) {}
