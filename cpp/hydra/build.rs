@@ -178,24 +178,28 @@ fn build_delegate(usd: &Usd) {
             build.flag(f);
         }
     }
-    // Linked whole: nothing in the Rust half calls the delegate, whose classes
+    // Linked whole, and only into the plug-in (the cdylib; the Rust half's unit tests
+    // need no USD): nothing in the Rust half calls the delegate, whose classes
     // register themselves with USD from static initialisers the linker would drop.
     build.cargo_metadata(false).compile("hdnimbus_cpp");
-    let out = env::var("OUT_DIR").expect("OUT_DIR");
-    println!("cargo:rustc-link-search=native={out}");
-    println!("cargo:rustc-link-lib=static:+whole-archive=hdnimbus_cpp");
-    println!("cargo:rustc-link-lib=stdc++");
+    let out = PathBuf::from(env::var("OUT_DIR").expect("OUT_DIR"));
+    println!("cargo:rustc-cdylib-link-arg=-Wl,--whole-archive");
+    println!(
+        "cargo:rustc-cdylib-link-arg={}",
+        out.join("libhdnimbus_cpp.a").display()
+    );
+    println!("cargo:rustc-cdylib-link-arg=-Wl,--no-whole-archive");
     for f in SOURCES.iter().chain(HEADERS.iter()) {
         println!("cargo:rerun-if-changed={f}");
     }
     println!("cargo:rerun-if-changed=src/ffi.rs");
 
     let lib = usd.lib_dir.display();
-    println!("cargo:rustc-link-search=native={lib}");
+    println!("cargo:rustc-cdylib-link-arg=-L{lib}");
     for l in &usd.libs {
-        // `-l:libNAME.so` would also do; a dylib link keeps the host's copy the only one.
         println!("cargo:rustc-cdylib-link-arg=-l{l}");
     }
+    println!("cargo:rustc-cdylib-link-arg=-lstdc++");
     println!("cargo:rustc-cdylib-link-arg=-Wl,-rpath,{lib}");
     println!("cargo:rustc-cdylib-link-arg=-Wl,--no-undefined");
     println!("cargo:rustc-cfg=nimbus_hydra");

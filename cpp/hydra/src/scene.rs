@@ -552,3 +552,277 @@ fn shown(s: &SettingDesc) -> String {
         false => format!("{}", s.number),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn identity() -> [f64; 16] {
+        DMat4::IDENTITY.to_cols_array()
+    }
+
+    fn smoke_volume() -> VolumeDesc {
+        VolumeDesc {
+            path: "/smoke".into(),
+            xform: identity(),
+            fields: vec![FieldDesc {
+                name: "density".into(),
+                path: "/smoke/density".into(),
+                prim_type: "openvdbAsset".into(),
+                file: "/data/smoke.vdb".into(),
+                grid: "density".into(),
+                index: -1,
+            }],
+            ..VolumeDesc::default()
+        }
+    }
+
+    fn light(kind: &str) -> LightDesc {
+        LightDesc {
+            kind: kind.into(),
+            path: format!("/{kind}"),
+            xform: identity(),
+            intensity: 2.0,
+            color: [1.0; 3],
+            diffuse: 1.0,
+            shadow_enable: true,
+            ..LightDesc::default()
+        }
+    }
+
+    /// A light type the core lacks is a warning naming it, and is left out; the types
+    /// it has each land in their list.
+    #[test]
+    fn lights_by_type_and_an_unknown_one_warned() {
+        let desc = SceneDesc {
+            lights: [
+                "distantLight",
+                "sphereLight",
+                "rectLight",
+                "diskLight",
+                "cylinderLight",
+                "domeLight",
+                "meshLight",
+            ]
+            .map(light)
+            .to_vec(),
+            unsupported_lights: vec!["/portal (portalLight)".into()],
+            volumes: vec![smoke_volume()],
+            width: 8,
+            height: 8,
+            ..SceneDesc::default()
+        };
+        let (scene, warnings) = scene_of(&desc).unwrap();
+        assert_eq!(
+            [
+                scene.distant_lights.len(),
+                scene.sphere_lights.len(),
+                scene.rect_lights.len(),
+                scene.disk_lights.len(),
+                scene.cylinder_lights.len(),
+                scene.dome_lights.len()
+            ],
+            [1; 6]
+        );
+        assert!(
+            warnings
+                .iter()
+                .any(|w| w.contains("/meshLight") && w.contains("meshLight")),
+            "{warnings:?}"
+        );
+        assert!(
+            warnings.iter().any(|w| w.contains("/portal (portalLight)")),
+            "{warnings:?}"
+        );
+        assert_eq!(scene.light_prims, 8);
+        // A distant light shines along its local -Z: the direction towards it is +Z.
+        assert_eq!(scene.distant_lights[0].direction, [0.0, 0.0, 1.0]);
+    }
+
+    /// A field of another type than openvdbAsset, or one never synced (no file), is an
+    /// error naming the volume and the field.
+    #[test]
+    fn unsupported_or_unsynced_fields_are_errors() {
+        let mut v = smoke_volume();
+        v.fields[0].prim_type = "field3dAsset".into();
+        let desc = SceneDesc {
+            volumes: vec![v],
+            ..SceneDesc::default()
+        };
+        let e = scene_of(&desc).unwrap_err().to_string();
+        assert!(e.contains("/smoke") && e.contains("field3dAsset"), "{e}");
+        let mut v = smoke_volume();
+        v.fields[0].file = String::new();
+        let desc = SceneDesc {
+            volumes: vec![v],
+            ..SceneDesc::default()
+        };
+        let e = scene_of(&desc).unwrap_err().to_string();
+        assert!(
+            e.contains("/smoke/density") && e.contains("filePath"),
+            "{e}"
+        );
+    }
+
+    /// Without nimbus:* primvars or a material, NimbusVolumeAPI's fallbacks (as the USD
+    /// reader gives a volume with neither); nimbus:* primvars override them; a
+    /// PxrVolume material maps as the USD reader maps it.
+    #[test]
+    fn volume_coefficients_from_fallbacks_primvars_and_pxr_volume() {
+        let desc = |v: VolumeDesc| SceneDesc {
+            volumes: vec![v],
+            ..SceneDesc::default()
+        };
+        let (s, _) = scene_of(&desc(smoke_volume())).unwrap();
+        let v = &s.volumes[0];
+        assert_eq!(
+            (v.density_scale, v.absorption, v.scattering),
+            (1.0, [0.1; 3], [0.9; 3])
+        );
+
+        let mut pv = smoke_volume();
+        pv.primvars = vec![
+            ParamDesc {
+                name: "primvars:nimbus:densityScale".into(),
+                numbers: vec![4.0],
+                text: String::new(),
+            },
+            ParamDesc {
+                name: "nimbus:scattering".into(),
+                numbers: vec![0.5, 0.6, 0.7],
+                text: String::new(),
+            },
+        ];
+        let (s, _) = scene_of(&desc(pv)).unwrap();
+        assert_eq!(s.volumes[0].density_scale, 4.0);
+        assert_eq!(s.volumes[0].scattering, [0.5, 0.6, 0.7]);
+
+        let mut m = smoke_volume();
+        m.material_path = "/mat".into();
+        m.shader_path = "/mat/vol".into();
+        m.shader_id = "PxrVolume".into();
+        m.shader_params = vec![
+            ParamDesc {
+                name: "densityFloat".into(),
+                numbers: vec![3.0],
+                text: String::new(),
+            },
+            ParamDesc {
+                name: "diffuseColor".into(),
+                numbers: vec![0.8, 0.8, 0.8],
+                text: String::new(),
+            },
+        ];
+        let (s, _) = scene_of(&desc(m)).unwrap();
+        let v = &s.volumes[0];
+        assert_eq!(v.density_scale, 3.0);
+        assert_eq!(v.scattering, [0.8; 3]);
+        assert!((v.absorption[0] - 0.2).abs() < 1e-12);
+
+        let mut other = smoke_volume();
+        other.material_path = "/principled".into();
+        other.shader_id = "UsdPreviewSurface".into();
+        let (_, w) = scene_of(&desc(other)).unwrap();
+        assert!(
+            w.iter()
+                .any(|w| w.contains("/principled") && w.contains("fallback")),
+            "{w:?}"
+        );
+    }
+
+    /// Hydra's camera lengths are scene units; UsdGeomCamera's (the Scene's) tenths.
+    #[test]
+    fn camera_lengths_in_tenths() {
+        let desc = SceneDesc {
+            has_camera: true,
+            camera: CameraDesc {
+                path: "/cam".into(),
+                xform: identity(),
+                focal_length: 5.0,
+                horizontal_aperture: 3.6,
+                vertical_aperture: 2.4,
+                near: 0.1,
+                far: 100.0,
+                ..CameraDesc::default()
+            },
+            ..SceneDesc::default()
+        };
+        let (s, _) = scene_of(&desc).unwrap();
+        assert_eq!(s.camera.focal_length, 50.0);
+        assert_eq!(s.camera.horizontal_aperture, 36.0);
+        assert_eq!(s.camera.vertical_aperture, 24.0);
+        assert_eq!(s.camera.clipping_range, (0.1, 100.0));
+    }
+
+    /// A quad and a pentagon fan into 1 + 3 triangles in world space; a hole and a
+    /// bad index.
+    #[test]
+    fn meshes_fan_triangulated_holes_skipped_bad_indices_refused() {
+        let mut xform = identity();
+        xform[14] = 2.0; // translate z by 2
+        let mesh = MeshDesc {
+            path: "/m".into(),
+            xform,
+            points: vec![
+                0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0, 0.0, 0.5, 1.5, 0.0,
+            ],
+            face_counts: vec![4, 5, 3],
+            face_indices: vec![0, 1, 2, 3, 0, 1, 2, 4, 3, 0, 1, 2],
+            hole_indices: vec![2],
+            double_sided: false,
+        };
+        let desc = SceneDesc {
+            meshes: vec![mesh.clone()],
+            ..SceneDesc::default()
+        };
+        let (s, _) = scene_of(&desc).unwrap();
+        let h = &s.holdouts[0];
+        assert_eq!((h.faces, h.triangles.len()), (2, 5));
+        assert_eq!(h.points[0], [0.0, 0.0, 2.0]);
+        let mut bad = mesh;
+        bad.face_indices[0] = 9;
+        let desc = SceneDesc {
+            meshes: vec![bad],
+            ..SceneDesc::default()
+        };
+        let e = scene_of(&desc).unwrap_err().to_string();
+        assert!(e.contains("/m") && e.contains("9"), "{e}");
+    }
+
+    /// Settings by the schema's names; a wrong kind of value names the setting.
+    #[test]
+    fn settings_by_schema_name() {
+        let set = |key: &str, number: f64| SettingDesc {
+            key: key.into(),
+            is_text: false,
+            number,
+            text: String::new(),
+        };
+        let tok = |key: &str, text: &str| SettingDesc {
+            key: key.into(),
+            is_text: true,
+            number: 0.0,
+            text: text.into(),
+        };
+        let s = settings(
+            &[
+                set("nimbus:samples", 64.0),
+                set("nimbus:seed", 7.0),
+                tok("nimbus:tracker", "delta"),
+                set("aovToken:Combined", 1.0),
+            ],
+            (32, 16),
+        )
+        .unwrap();
+        assert_eq!((s.samples, s.seed, s.resolution), (64, 7, (32, 16)));
+        assert_eq!(s.tracker.as_deref(), Some("delta"));
+        let e = settings(&[set("nimbus:samples", 0.5)], (1, 1))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("nimbus:samples"), "{e}");
+        let e = settings(&[set("nimbus:tracker", 1.0)], (1, 1))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("nimbus:tracker"), "{e}");
+    }
+}
