@@ -44,9 +44,9 @@ const SEEDS: [u64; 4] = [0, 1, 2, 3];
 const MAX_DEPTH: u32 = 8;
 const BLOCK: usize = 8;
 const Z: f64 = 5.0;
-/// Cubes beside the smoke: with the plane, the volume, the sun and the camera, 30
+/// Cubes beside the smoke: with the plane, the volume, the sun and the camera, 52
 /// prims for Hydra to sync.
-const CUBES: usize = 24;
+const CUBES: usize = 48;
 
 /// The Python that imports bpy 4.3.0, or `None` (skip; fails under
 /// `NIMBUS_REQUIRE_DATA=1`).
@@ -304,6 +304,7 @@ mod hydra_blender {
             nimbus_images.push(read_rgba(&exr));
         }
         let nimbus_seconds = nimbus_start.elapsed().as_secs_f64();
+        let mut sync_threads = Vec::new();
 
         for method in ["HYDRA", "USD"] {
             let mut images = Vec::new();
@@ -334,13 +335,9 @@ mod hydra_blender {
                     "{method} seed {seed}: {lookups} lookups/sample, nimbus render {}",
                     nimbus_lookups[k]
                 );
-                // Prims synced on several of Blender's threads (it has one per core).
-                let threads = number_before(&e, "hdNimbus:", "threads").unwrap_or(0.0);
-                let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-                assert!(
-                    threads >= 2.0 || cores < 2,
-                    "{method}: prims synced on {threads} thread(s) with {cores} cores:\n{e}"
-                );
+                let threads = number_before(&e, "hdNimbus:", "threads")
+                    .unwrap_or_else(|| panic!("{method}: no sync thread count:\n{e}"));
+                sync_threads.push(threads as usize);
                 images.push(read_rgba(
                     &dir.join(format!("hydra_{}.exr", method.to_lowercase())),
                 ));
@@ -353,9 +350,18 @@ mod hydra_blender {
             compare(method, &images, &nimbus_images);
         }
         eprintln!(
-            "hydra_blender: nimbus render {} seeds in {nimbus_seconds:.1} s; whole test {:.1} s",
+            "hydra_blender: nimbus render {} seeds in {nimbus_seconds:.1} s; whole test {:.1} s; prims synced on {sync_threads:?} threads",
             SEEDS.len(),
             start.elapsed().as_secs_f64()
+        );
+        // Prims synced on several of Blender's threads at once (its TBB has one per
+        // core) in at least one of the 8 renders: the store's locking was exercised.
+        // Measured: 2 threads in 21 of 22 single renders of this scene on 2 cores, so
+        // all 8 on one thread is about a 1e-10 event.
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        assert!(
+            sync_threads.iter().any(|&t| t >= 2) || cores < 2,
+            "prims synced on {sync_threads:?} threads with {cores} cores"
         );
     }
 

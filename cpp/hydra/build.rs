@@ -5,7 +5,8 @@
 //! - `auto` (default): build the delegate when `NIMBUS_USD_INCLUDE` (a folder holding
 //!   `pxr/pxr.h` and `pxr/imaging/hd/renderDelegate.h`), `NIMBUS_USD_LIB` (a folder
 //!   holding `libusd_ms.so`, a monolithic USD as Blender's, or the split `libusd_hd.so`,
-//!   `libusd_sdf.so`, … of a USD install) and `NIMBUS_TBB_INCLUDE` (a folder holding
+//!   `libusd_sdf.so`, … of a USD install, also without the `usd_` prefix or with
+//!   Houdini's `pxr_`) and `NIMBUS_TBB_INCLUDE` (a folder holding
 //!   `tbb/tbb.h`, the TBB the host's USD was built with) are all found; else build only
 //!   the Rust half (its unit tests run, no plug-in) with a warning;
 //! - `require`: fail the build with a clear message when one is missing (CI);
@@ -104,11 +105,23 @@ fn find_usd() -> Result<Usd, String> {
     let tbb_include = var_dir("NIMBUS_TBB_INCLUDE", &["tbb/tbb.h"])?;
     let lib_dir = var_dir("NIMBUS_USD_LIB", &[])?;
     let has = |name: &str| lib_dir.join(format!("lib{name}.so")).exists();
+    // USD's libraries carry a prefix (PXR_LIB_PREFIX): `usd_` by default, none in some
+    // builds, `pxr_` in Houdini's.
+    let prefix = ["usd_", "pxr_", ""]
+        .into_iter()
+        .find(|p| has(&format!("{p}hd")) || has(&format!("{p}usd_ms")) || has(&format!("{p}ms")));
     let libs = if has("usd_ms") {
         vec!["usd_ms".to_string()]
+    } else if has("pxr_usd_ms") {
+        vec!["pxr_usd_ms".to_string()]
     } else {
-        // A split install: what the delegate calls into, with or without the `usd_`
-        // prefix (PXR_LIB_PREFIX).
+        let Some(prefix) = prefix.filter(|p| has(&format!("{p}hd"))) else {
+            return Err(format!(
+                "NIMBUS_USD_LIB={} holds neither libusd_ms.so nor libusd_hd.so / libhd.so / libpxr_hd.so",
+                lib_dir.display()
+            ));
+        };
+        // A split install: what the delegate calls into.
         let names = [
             "hd",
             "hf",
@@ -123,14 +136,8 @@ fn find_usd() -> Result<Usd, String> {
             "trace",
             "work",
             "arch",
+            "ar",
         ];
-        let prefix = if has("usd_hd") { "usd_" } else { "" };
-        if !has(&format!("{prefix}hd")) {
-            return Err(format!(
-                "NIMBUS_USD_LIB={} holds neither libusd_ms.so nor libusd_hd.so / libhd.so",
-                lib_dir.display()
-            ));
-        }
         names
             .iter()
             .map(|n| format!("{prefix}{n}"))
