@@ -182,7 +182,21 @@ HdBprim *HdNimbusRenderDelegate::CreateFallbackBprim(TfToken const &typeId) {
     return CreateBprim(typeId, SdfPath::EmptyPath());
 }
 
+void HdNimbusRenderDelegate::AddRenderPass(HdNimbusRenderPass *pass) {
+    std::lock_guard<std::mutex> lock(_passesMutex);
+    _passes.insert(pass);
+}
+
+void HdNimbusRenderDelegate::RemoveRenderPass(HdNimbusRenderPass *pass) {
+    std::lock_guard<std::mutex> lock(_passesMutex);
+    _passes.erase(pass);
+}
+
 void HdNimbusRenderDelegate::DestroyBprim(HdBprim *bprim) {
+    if (auto *rb = dynamic_cast<HdNimbusRenderBuffer *>(bprim)) {
+        std::lock_guard<std::mutex> lock(_passesMutex);
+        for (HdNimbusRenderPass *pass : _passes) pass->Release(rb);
+    }
     if (bprim) Store().Remove(bprim->GetId());
     delete bprim;
 }

@@ -10,6 +10,7 @@
 #include "convert.h"
 
 #include <mutex>
+#include <set>
 
 PXR_NAMESPACE_OPEN_SCOPE
 
@@ -46,6 +47,10 @@ public:
     // The render settings as plain data.
     rust::Vec<nimbus_hydra::SettingDesc> SettingsForRust() const;
     void SetProgress(nimbus_hydra::PassInfo const &info);
+    // The render passes alive, so a render buffer about to be destroyed is first let
+    // go by any render thread writing it.
+    void AddRenderPass(class HdNimbusRenderPass *pass);
+    void RemoveRenderPass(class HdNimbusRenderPass *pass);
 
 private:
     void _Init();
@@ -54,6 +59,8 @@ private:
     HdResourceRegistrySharedPtr _registry;
     mutable std::mutex _statsMutex;
     nimbus_hydra::PassInfo _progress;
+    std::mutex _passesMutex;
+    std::set<class HdNimbusRenderPass *> _passes;
 };
 
 PXR_NAMESPACE_CLOSE_SCOPE

@@ -16,7 +16,9 @@ HdNimbusRenderPass::HdNimbusRenderPass(HdRenderIndex *index,
                                        HdRprimCollection const &collection,
                                        HdNimbusRenderDelegate *delegate)
     : HdRenderPass(index, collection), _delegate(delegate),
-      _renderer(nimbus_hydra::new_renderer()) {}
+      _renderer(nimbus_hydra::new_renderer()) {
+    _delegate->AddRenderPass(this);
+}
 
 // The camera as plain data (Hydra's world units).
 static nimbus_hydra::CameraDesc _Camera(HdCamera const *cam) {
@@ -47,7 +49,20 @@ static std::vector<double> _CameraKey(nimbus_hydra::CameraDesc const &c, bool ha
     return k;
 }
 
-HdNimbusRenderPass::~HdNimbusRenderPass() { _Stop(); }
+HdNimbusRenderPass::~HdNimbusRenderPass() {
+    _delegate->RemoveRenderPass(this);
+    _Stop();
+}
+
+void HdNimbusRenderPass::Release(HdNimbusRenderBuffer *buffer) {
+    for (auto const &b : _buffers) {
+        if (b.second != buffer) continue;
+        _Stop();
+        _buffers.clear();
+        _started = false;
+        return;
+    }
+}
 
 void HdNimbusRenderPass::_Stop() {
     _stop.store(true);

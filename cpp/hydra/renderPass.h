@@ -26,6 +26,9 @@ public:
                        HdNimbusRenderDelegate *delegate);
     ~HdNimbusRenderPass() override;
     bool IsConverged() const override { return _converged.load(); }
+    // Stops the render thread if it writes `buffer` (about to be destroyed); the next
+    // Execute starts again with the bindings it is given.
+    void Release(class HdNimbusRenderBuffer *buffer);
 
 protected:
     void _Execute(HdRenderPassStateSharedPtr const &state,
