@@ -210,23 +210,28 @@ void HdNimbusMaterial::Sync(HdSceneDelegate *delegate, HdRenderParam *param,
     if (resource.IsHolding<HdMaterialNetworkMap>()) {
         HdMaterialNetworkMap const &map = resource.UncheckedGet<HdMaterialNetworkMap>();
         // The volume shader Nimbus reads, wherever it sits in the networks; else the
-        // volume terminal's node (named in the warning).
+        // volume terminal's first node (named in the warning).
+        auto take = [&rec](HdMaterialNode const &node) {
+            rec.shaderPath = node.path.GetString();
+            rec.shaderId = node.identifier.GetString();
+            rec.params.clear();
+            for (auto const &p : node.parameters) {
+                rec.params.push_back(HdNimbusParam(p.first.GetString(), p.second));
+            }
+        };
+        bool found = false;
         for (auto const &net : map.map) {
             for (HdMaterialNode const &node : net.second.nodes) {
                 std::string const &nid = node.identifier.GetString();
-                bool nimbus = nid == "PxrVolume" || nid == "ND_anisotropic_vdf";
-                bool terminal = net.first == HdMaterialTerminalTokens->volume;
-                if (!nimbus && !(terminal && rec.shaderId.empty())) continue;
-                rec.shaderPath = node.path.GetString();
-                rec.shaderId = nid;
-                rec.params.clear();
-                for (auto const &p : node.parameters) {
-                    rec.params.push_back(HdNimbusParam(p.first.GetString(), p.second));
+                if (!found && (nid == "PxrVolume" || nid == "ND_anisotropic_vdf")) {
+                    take(node);
+                    found = true;
+                } else if (!found && rec.shaderId.empty() &&
+                           net.first == HdMaterialTerminalTokens->volume) {
+                    take(node);
                 }
-                if (nimbus) goto found;
             }
         }
-    found:;
     }
     HdNimbusStore(param).SetMaterial(id, std::move(rec));
     *dirtyBits = Clean;

@@ -32,12 +32,9 @@ HdNimbusRenderDelegate::HdNimbusRenderDelegate(HdRenderSettingsMap const &settin
 void HdNimbusRenderDelegate::_Init() {
     _param = std::make_unique<HdNimbusRenderParam>();
     _registry = std::make_shared<HdResourceRegistry>();
-    // The settings' defaults, unless the host gave them.
-    for (HdRenderSettingDescriptor const &d : GetRenderSettingDescriptors()) {
-        if (_settingsMap.find(d.key) == _settingsMap.end()) {
-            _settingsMap[d.key] = d.defaultValue;
-        }
-    }
+    // The descriptors' defaults are not put into the settings: only what the host sets
+    // reaches the renderer, as only what a stage authors does (an authored
+    // nimbus:octreeDepth, even 0, keeps `auto` from choosing the majorants).
 }
 
 TfTokenVector const &HdNimbusRenderDelegate::GetSupportedRprimTypes() const {

@@ -240,6 +240,12 @@ pub fn setting_descriptors() -> Vec<SettingDescriptor> {
         token("nimbus:scheme", "Scheme", ""),
         token("nimbus:transmittance", "Transmittance estimator", ""),
         number(
+            "nimbus:control",
+            "Decomposition control",
+            nimbus::track::select::TrackerSettings::default().control as f64,
+            false,
+        ),
+        number(
             "nimbus:octreeDepth",
             "Majorant octree depth (0: flat grid)",
             0.0,
