@@ -15,7 +15,8 @@
 //! When the delegate is built, the cfg `nimbus_hydra` is set, and
 //! `target/<profile>/hydra/hdNimbus/` receives `plugInfo.json` and a symbolic link
 //! `hdNimbus.so` to the library cargo links next (`target/<profile>/libhd_nimbus.so`):
-//! `PXR_PLUGINPATH_NAME=target/release/hydra/hdNimbus` makes a host find it.
+//! `PXR_PLUGINPATH_NAME=target/release/hydra/hdNimbus` makes a host find it. Beside it
+//! the command-line host `target/<profile>/hydra/nimbus-hydra` (host.cc) is linked.
 //! `NIMBUS_USD_CXXFLAGS` adds compiler flags (e.g. `-D_GLIBCXX_USE_CXX11_ABI=0` for a
 //! host built with the old ABI).
 
@@ -154,6 +155,7 @@ fn find_usd() -> Result<Usd, String> {
 
 fn build_delegate(usd: &Usd) {
     let mut build = cxx_build::bridge("src/ffi.rs");
+    let host_build = build.clone();
     build
         .files(SOURCES)
         .std("c++17")
@@ -210,22 +212,117 @@ fn build_delegate(usd: &Usd) {
     println!("cargo:rustc-cdylib-link-arg=-Wl,-rpath,{lib}");
     println!("cargo:rustc-cdylib-link-arg=-Wl,--no-undefined");
     println!("cargo:rustc-cfg=nimbus_hydra");
-    lay_out_plugin();
+    let dir = lay_out_plugin();
+    println!("cargo:rerun-if-changed=host.cc");
+    if let Some(dir) = dir {
+        build_host(&host_build, usd, &dir.join("nimbus-hydra"));
+    }
 }
 
-/// `target/<profile>/hydra/hdNimbus/{plugInfo.json, hdNimbus.so -> ../../libhd_nimbus.so}`.
-fn lay_out_plugin() {
+/// The command-line host `target/<profile>/hydra/nimbus-hydra` (host.cc), linked
+/// against the same USD. A USD built with Python support (Blender's) needs libpython
+/// too: `NIMBUS_USD_HOST_LIBS` names extra link arguments, else the `python3` on PATH's
+/// library is tried when the link without it fails. A host that does not link is a
+/// warning (an error under NIMBUS_HYDRA=require): the plug-in does not need it.
+fn build_host(build: &cc::Build, usd: &Usd, exe: &Path) {
+    let required = env::var("NIMBUS_HYDRA")
+        .map(|m| matches!(m.trim(), "require" | "on" | "1" | "yes" | "true"))
+        .unwrap_or(false);
+    let lib = &usd.lib_dir;
+    let attempt = |extra: &[String]| -> Result<(), String> {
+        let mut cmd = build.get_compiler().to_command();
+        cmd.args(["-std=c++17", "-O2", "-fPIC", "-D_GLIBCXX_USE_CXX11_ABI=1"])
+            .arg("-DTBB_SUPPRESS_DEPRECATED_MESSAGES=1")
+            .arg("-isystem")
+            .arg(&usd.include)
+            .arg("-isystem")
+            .arg(&usd.tbb_include)
+            .arg("host.cc")
+            .arg("-o")
+            .arg(exe)
+            .arg(format!("-L{}", lib.display()));
+        for l in &usd.libs {
+            cmd.arg(format!("-l{l}"));
+        }
+        if lib.join("libtbb.so.2").exists() {
+            cmd.arg("-l:libtbb.so.2");
+        } else if lib.join("libtbb.so").exists() {
+            cmd.arg("-ltbb");
+        }
+        cmd.arg(format!("-Wl,-rpath,{}", lib.display()));
+        cmd.args(extra);
+        if let Ok(flags) = env::var("NIMBUS_USD_CXXFLAGS") {
+            cmd.args(flags.split_whitespace());
+        }
+        let o = cmd
+            .output()
+            .map_err(|e| format!("cannot run the compiler: {e}"))?;
+        match o.status.success() {
+            true => Ok(()),
+            false => Err(String::from_utf8_lossy(&o.stderr)
+                .lines()
+                .filter(|l| l.contains("error") || l.contains("undefined"))
+                .take(5)
+                .collect::<Vec<_>>()
+                .join("\n")),
+        }
+    };
+    let extra: Vec<String> = env::var("NIMBUS_USD_HOST_LIBS")
+        .map(|v| v.split_whitespace().map(str::to_string).collect())
+        .unwrap_or_default();
+    let mut result = attempt(&extra);
+    if result.is_err() && extra.is_empty() {
+        if let Some(python) = python_link_args() {
+            result = attempt(&python);
+        }
+    }
+    match result {
+        Ok(()) => {}
+        Err(why) if required => panic!(
+            "NIMBUS_HYDRA=require: the command-line host nimbus-hydra does not link: {why}\n\
+             (NIMBUS_USD_HOST_LIBS names extra link arguments, e.g. the libpython a USD \
+             built with Python support needs)"
+        ),
+        Err(why) => println!("cargo:warning=nimbus-hydra (the command-line host) not built: {why}"),
+    }
+}
+
+/// `-L<dir> -lpython3.X -Wl,-rpath,<dir>` of the `python3` on PATH, if it has a shared
+/// library.
+fn python_link_args() -> Option<Vec<String>> {
+    let o = std::process::Command::new("python3")
+        .args([
+            "-c",
+            "import sysconfig as s; print(s.get_config_var('LIBDIR')); print(s.get_config_var('LDLIBRARY'))",
+        ])
+        .output()
+        .ok()?;
+    let text = String::from_utf8(o.stdout).ok()?;
+    let mut lines = text.lines();
+    let (dir, file) = (lines.next()?, lines.next()?);
+    let name = file.strip_prefix("lib")?.strip_suffix(".so")?;
+    Path::new(dir).join(file).exists().then(|| {
+        vec![
+            format!("-L{dir}"),
+            format!("-l{name}"),
+            format!("-Wl,-rpath,{dir}"),
+        ]
+    })
+}
+
+/// `target/<profile>/hydra/hdNimbus/{plugInfo.json, hdNimbus.so -> ../../libhd_nimbus.so}`;
+/// returns `target/<profile>/hydra`.
+fn lay_out_plugin() -> Option<PathBuf> {
     // OUT_DIR is target/<profile>/build/nimbus-hydra-HASH/out.
     let out = PathBuf::from(env::var("OUT_DIR").expect("OUT_DIR"));
-    let Some(profile_dir) = out.ancestors().nth(3) else {
-        return;
-    };
+    let profile_dir = out.ancestors().nth(3)?;
     let dir = profile_dir.join("hydra").join("hdNimbus");
     std::fs::create_dir_all(&dir).expect("create the hydra/hdNimbus folder");
     std::fs::copy("plugInfo.json", dir.join("plugInfo.json")).expect("copy plugInfo.json");
     let link = dir.join("hdNimbus.so");
     let _ = std::fs::remove_file(&link);
     symlink(Path::new("../../libhd_nimbus.so"), &link);
+    Some(profile_dir.join("hydra"))
 }
 
 #[cfg(unix)]
