@@ -1,8 +1,10 @@
 //! The whole Hydra path on the example stages: `target/release/hydra/nimbus-hydra` (the
 //! command-line Hydra host, `cpp/hydra/host.cc`: its own minimal scene delegate over
-//! pxr/usd, since the SDK here has no UsdImaging) renders each of `scenes/*` through
-//! hdNimbus, and `nimbus render` renders the same stage with the same resolution,
-//! samples and seed.
+//! pxr/usd, since the SDK here has no UsdImaging) renders each of `scenes/*` and the
+//! shot stage of `tests/shot.rs` (holdout cubes and quads, a light in a box, light
+//! groups; written by `tests/fixtures/make_shot_stage.py`, which needs Python's pxr)
+//! through hdNimbus, and `nimbus render` renders the same stage with the same
+//! resolution, samples and seed (measured: the shot stage bit-identical in every pixel).
 //!
 //! **What must hold.** The scene descriptions are the same but for Hydra's float
 //! camera parameters (UsdGeomCamera's lengths × 0.1 in float, × 10 again in Rust) and
@@ -71,8 +73,38 @@ mod hydra_host {
         let _ = std::fs::remove_dir_all(&out);
         std::fs::create_dir_all(&out).unwrap();
         let res = format!("{}x{}", RES.0, RES.1);
-        for name in ["chromatic", "cloud", "fire", "overlap"] {
-            let stage = common::repo().join(format!("scenes/{name}/{name}.usda"));
+        // The shot test stage (tests/shot.rs: a slab volume, a sun, a sphere light in a
+        // closed box, holdout cubes and quads, light groups), with its slab VDB.
+        let Some((shot_dir, _)) = common::data::pxr_fixtures(
+            "make_shot_stage.py",
+            &["pxr"],
+            "pip install usd-core",
+            true,
+        ) else {
+            return;
+        };
+        // As tests/shot.rs writes it: a 32³ grid of density 1 over [-1, 1]³.
+        let vs = 2.0 / 32.0;
+        let grid = nimbus::volume::procedural::grid_from_fn(
+            "density",
+            [32; 3],
+            glam::DVec3::splat(-1.0 + 0.5 * vs),
+            vs,
+            |_| 1.0,
+        );
+        nimbus::volume::vdb::write_float_grid(&shot_dir.path().join("slab.vdb"), &grid).unwrap();
+        let stages: Vec<(String, PathBuf)> = ["chromatic", "cloud", "fire", "overlap"]
+            .iter()
+            .map(|n| {
+                (
+                    n.to_string(),
+                    common::repo().join(format!("scenes/{n}/{n}.usda")),
+                )
+            })
+            .chain([("shot".to_string(), shot_dir.path().join("shot.usda"))])
+            .collect();
+        for (name, stage) in stages {
+            let name = name.as_str();
             let hydra_exr = out.join(format!("{name}_hydra.exr"));
             let o = Command::new(&host)
                 .arg(&stage)

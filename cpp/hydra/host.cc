@@ -6,7 +6,8 @@
 // host has its own minimal scene delegate over pxr/usd (StageSceneDelegate below)
 // instead of UsdImagingDelegate / the stage scene index. It hands over what hdNimbus
 // reads: volumes with their openvdbAsset fields (NimbusVolumeAPI's `nimbus:*`
-// attributes as constant primvars), meshes, the UsdLux lights, the camera, and the
+// attributes as constant primvars), meshes and cubes (as meshes, as UsdImaging hands
+// them; `nimbus:holdout = false` leaves one out), the UsdLux lights, the camera, and the
 // render settings prim's `nimbus:*` attributes as render settings. No materials,
 // instancing, motion or purposes.
 //
@@ -37,6 +38,7 @@
 #include "pxr/usd/usd/primRange.h"
 #include "pxr/usd/usd/stage.h"
 #include "pxr/usd/usdGeom/camera.h"
+#include "pxr/usd/usdGeom/cube.h"
 #include "pxr/usd/usdGeom/imageable.h"
 #include "pxr/usd/usdGeom/mesh.h"
 #include "pxr/usd/usdGeom/xformCache.h"
@@ -77,8 +79,13 @@ public:
                                        : TfToken("field3dAsset");
                     if (!index.GetBprim(type, f.second)) index.InsertBprim(type, this, f.second);
                 }
-            } else if (prim.IsA<UsdGeomMesh>()) {
-                index.InsertRprim(HdPrimTypeTokens->mesh, this, p);
+            } else if (prim.IsA<UsdGeomMesh>() || prim.IsA<UsdGeomCube>()) {
+                // `nimbus:holdout = false` leaves a gprim out, as the USD reader does.
+                bool holdout = true;
+                UsdAttribute h = prim.GetAttribute(TfToken("nimbus:holdout"));
+                if (h) h.Get(&holdout);
+                // A Cube as UsdImaging hands it over: a mesh of its six faces.
+                if (holdout) index.InsertRprim(HdPrimTypeTokens->mesh, this, p);
             } else if (prim.IsA<UsdGeomCamera>()) {
                 index.InsertSprim(HdPrimTypeTokens->camera, this, p);
                 if (_firstCamera.IsEmpty()) _firstCamera = p;
@@ -117,7 +124,16 @@ public:
     }
 
     HdMeshTopology GetMeshTopology(SdfPath const &id) override {
-        UsdGeomMesh mesh(_stage->GetPrimAtPath(id));
+        UsdPrim prim = _stage->GetPrimAtPath(id);
+        if (prim.IsA<UsdGeomCube>()) {
+            // Corners by bits (1: +x, 2: +y, 4: +z), faces as the USD reader's.
+            VtIntArray counts(6, 4);
+            VtIntArray indices = {0, 2, 6, 4, 1, 5, 7, 3, 0, 4, 5, 1,
+                                  2, 3, 7, 6, 0, 1, 3, 2, 4, 6, 7, 5};
+            return HdMeshTopology(PxOsdOpenSubdivTokens->none, HdTokens->rightHanded, counts,
+                                  indices);
+        }
+        UsdGeomMesh mesh(prim);
         VtIntArray counts, indices, holes;
         mesh.GetFaceVertexCountsAttr().Get(&counts);
         mesh.GetFaceVertexIndicesAttr().Get(&indices);
@@ -130,6 +146,16 @@ public:
     VtValue Get(SdfPath const &id, TfToken const &key) override {
         UsdPrim prim = _stage->GetPrimAtPath(id);
         if (!prim) return VtValue();
+        if (key == HdTokens->points && prim.IsA<UsdGeomCube>()) {
+            double size = 2.0;
+            UsdGeomCube(prim).GetSizeAttr().Get(&size);
+            float h = float(size / 2.0);
+            VtVec3fArray points(8);
+            for (int i = 0; i < 8; ++i) {
+                points[i] = GfVec3f(i & 1 ? h : -h, i & 2 ? h : -h, i & 4 ? h : -h);
+            }
+            return VtValue(points);
+        }
         if (key == HdTokens->points) {
             VtVec3fArray points;
             UsdGeomMesh(prim).GetPointsAttr().Get(&points);
