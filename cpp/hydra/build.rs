@@ -58,6 +58,7 @@ fn main() {
     let required = match mode.trim().to_ascii_lowercase().as_str() {
         "off" | "0" | "no" | "false" => {
             println!("cargo:warning=NIMBUS_HYDRA=off: building only the Rust half of hdNimbus (no plug-in)");
+            remove_plugin();
             return;
         }
         "auto" | "" => false,
@@ -72,9 +73,27 @@ fn main() {
              NIMBUS_USD_INCLUDE, NIMBUS_USD_LIB and NIMBUS_TBB_INCLUDE (docs/hydra.md), \
              or build with NIMBUS_HYDRA=auto|off."
         ),
-        Err(why) => println!(
-            "cargo:warning=USD SDK not found ({why}); building only the Rust half of hdNimbus (no plug-in)"
-        ),
+        Err(why) => {
+            println!(
+                "cargo:warning=USD SDK not found ({why}); building only the Rust half of hdNimbus (no plug-in)"
+            );
+            remove_plugin();
+        }
+    }
+}
+
+/// `target/<profile>/hydra`, from OUT_DIR (target/<profile>/build/nimbus-hydra-HASH/out).
+fn hydra_dir() -> Option<PathBuf> {
+    let out = PathBuf::from(env::var("OUT_DIR").ok()?);
+    Some(out.ancestors().nth(3)?.join("hydra"))
+}
+
+/// A build without the C++ half leaves no plug-in folder or host behind: the library
+/// an earlier build's folder links to no longer holds the delegate.
+fn remove_plugin() {
+    if let Some(dir) = hydra_dir() {
+        let _ = std::fs::remove_dir_all(dir.join("hdNimbus"));
+        let _ = std::fs::remove_file(dir.join("nimbus-hydra"));
     }
 }
 
@@ -313,16 +332,14 @@ fn python_link_args() -> Option<Vec<String>> {
 /// `target/<profile>/hydra/hdNimbus/{plugInfo.json, hdNimbus.so -> ../../libhd_nimbus.so}`;
 /// returns `target/<profile>/hydra`.
 fn lay_out_plugin() -> Option<PathBuf> {
-    // OUT_DIR is target/<profile>/build/nimbus-hydra-HASH/out.
-    let out = PathBuf::from(env::var("OUT_DIR").expect("OUT_DIR"));
-    let profile_dir = out.ancestors().nth(3)?;
-    let dir = profile_dir.join("hydra").join("hdNimbus");
+    let hydra = hydra_dir()?;
+    let dir = hydra.join("hdNimbus");
     std::fs::create_dir_all(&dir).expect("create the hydra/hdNimbus folder");
     std::fs::copy("plugInfo.json", dir.join("plugInfo.json")).expect("copy plugInfo.json");
     let link = dir.join("hdNimbus.so");
     let _ = std::fs::remove_file(&link);
     symlink(Path::new("../../libhd_nimbus.so"), &link);
-    Some(profile_dir.join("hydra"))
+    Some(hydra)
 }
 
 #[cfg(unix)]
