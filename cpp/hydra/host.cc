@@ -1,0 +1,377 @@
+// nimbus-hydra: a command-line Hydra host. Opens a USD stage, renders it through a
+// Hydra render delegate (hdNimbus unless --delegate names another) without GL, and
+// writes the color AOV as an EXR: what `husk` and `usdrecord` do.
+//
+// A substitution: the SDK this is built against here has no UsdImaging headers, so the
+// host has its own minimal scene delegate over pxr/usd (StageSceneDelegate below)
+// instead of UsdImagingDelegate / the stage scene index. It hands over what hdNimbus
+// reads: volumes with their openvdbAsset fields (NimbusVolumeAPI's `nimbus:*`
+// attributes as constant primvars), meshes and cubes (as meshes, as UsdImaging hands
+// them; `nimbus:holdout = false` leaves one out), the UsdLux lights, the camera, and the
+// render settings prim's `nimbus:*` attributes as render settings. No materials,
+// instancing, motion or purposes.
+//
+//   nimbus-hydra STAGE -o OUT.exr [--res WxH] [--spp N] [--camera PATH] [--delegate NAME]
+
+#include "pxr/pxr.h"
+#include "pxr/base/arch/systemInfo.h"
+#include "pxr/base/gf/camera.h"
+#include "pxr/base/gf/range1f.h"
+#include "pxr/base/plug/registry.h"
+#include "pxr/base/tf/diagnostic.h"
+#include "pxr/base/tf/getenv.h"
+#include "pxr/imaging/cameraUtil/framing.h"
+#include "pxr/imaging/hd/camera.h"
+#include "pxr/imaging/hd/engine.h"
+#include "pxr/imaging/hd/light.h"
+#include "pxr/imaging/hd/renderBuffer.h"
+#include "pxr/imaging/hd/renderDelegate.h"
+#include "pxr/imaging/hd/renderIndex.h"
+#include "pxr/imaging/hd/pluginRenderDelegateUniqueHandle.h"
+#include "pxr/imaging/hd/rendererPlugin.h"
+#include "pxr/imaging/hd/rendererPluginRegistry.h"
+#include "pxr/imaging/hd/sceneDelegate.h"
+#include "pxr/imaging/hd/tokens.h"
+#include "pxr/imaging/hdx/taskController.h"
+#include "pxr/imaging/hio/image.h"
+#include "pxr/usd/usd/prim.h"
+#include "pxr/usd/usd/primRange.h"
+#include "pxr/usd/usd/stage.h"
+#include "pxr/usd/usdGeom/camera.h"
+#include "pxr/usd/usdGeom/cube.h"
+#include "pxr/usd/usdGeom/imageable.h"
+#include "pxr/usd/usdGeom/mesh.h"
+#include "pxr/usd/usdGeom/xformCache.h"
+#include "pxr/usd/usdLux/boundableLightBase.h"
+#include "pxr/usd/usdLux/nonboundableLightBase.h"
+#include "pxr/usd/usdRender/settings.h"
+#include "pxr/usd/usdVol/openVDBAsset.h"
+#include "pxr/usd/usdVol/volume.h"
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <thread>
+
+PXR_NAMESPACE_USING_DIRECTIVE
+
+namespace {
+
+// The stage as Hydra prims: the subset hdNimbus reads (see the file comment).
+class StageSceneDelegate final : public HdSceneDelegate {
+public:
+    StageSceneDelegate(HdRenderIndex *index, UsdStageRefPtr stage)
+        : HdSceneDelegate(index, SdfPath::AbsoluteRootPath()), _stage(stage),
+          _xf(UsdTimeCode::Default()) {}
+
+    // Inserts the stage's prims into the render index.
+    void Populate() {
+        HdRenderIndex &index = GetRenderIndex();
+        for (UsdPrim const &prim : _stage->Traverse()) {
+            SdfPath const &p = prim.GetPath();
+            if (prim.IsA<UsdVolVolume>()) {
+                index.InsertRprim(HdPrimTypeTokens->volume, this, p);
+                for (auto const &f : UsdVolVolume(prim).GetFieldPaths()) {
+                    UsdPrim field = _stage->GetPrimAtPath(f.second);
+                    TfToken type = field && field.IsA<UsdVolOpenVDBAsset>()
+                                       ? TfToken("openvdbAsset")
+                                       : TfToken("field3dAsset");
+                    if (!index.GetBprim(type, f.second)) index.InsertBprim(type, this, f.second);
+                }
+            } else if (prim.IsA<UsdGeomMesh>() || prim.IsA<UsdGeomCube>()) {
+                // `nimbus:holdout = false` leaves a gprim out, as the USD reader does.
+                bool holdout = true;
+                UsdAttribute h = prim.GetAttribute(TfToken("nimbus:holdout"));
+                if (h) h.Get(&holdout);
+                // A Cube as UsdImaging hands it over: a mesh of its six faces.
+                if (holdout) index.InsertRprim(HdPrimTypeTokens->mesh, this, p);
+            } else if (prim.IsA<UsdGeomCamera>()) {
+                index.InsertSprim(HdPrimTypeTokens->camera, this, p);
+                if (_firstCamera.IsEmpty()) _firstCamera = p;
+            } else if (prim.IsA<UsdLuxBoundableLightBase>() ||
+                       prim.IsA<UsdLuxNonboundableLightBase>()) {
+                // The schema's type name, lower camel case, is Hydra's light type.
+                std::string t = prim.GetTypeName().GetString();
+                if (!t.empty()) t[0] = char(std::tolower(t[0]));
+                TfToken type(t);
+                if (HdPrimTypeIsLight(type) && index.IsSprimTypeSupported(type)) {
+                    index.InsertSprim(type, this, p);
+                } else {
+                    TF_WARN("nimbus-hydra: light %s: type %s is not a Hydra light type the delegate supports; left out",
+                            p.GetText(), t.c_str());
+                }
+            }
+        }
+    }
+
+    SdfPath FirstCamera() const { return _firstCamera; }
+
+    GfMatrix4d GetTransform(SdfPath const &id) override {
+        UsdPrim prim = _stage->GetPrimAtPath(id);
+        return prim ? _xf.GetLocalToWorldTransform(prim) : GfMatrix4d(1.0);
+    }
+
+    bool GetVisible(SdfPath const &id) override {
+        UsdGeomImageable im(_stage->GetPrimAtPath(id));
+        return !im || im.ComputeVisibility() != UsdGeomTokens->invisible;
+    }
+
+    bool GetDoubleSided(SdfPath const &id) override {
+        bool d = false;
+        UsdGeomMesh(_stage->GetPrimAtPath(id)).GetDoubleSidedAttr().Get(&d);
+        return d;
+    }
+
+    HdMeshTopology GetMeshTopology(SdfPath const &id) override {
+        UsdPrim prim = _stage->GetPrimAtPath(id);
+        if (prim.IsA<UsdGeomCube>()) {
+            // Corners by bits (1: +x, 2: +y, 4: +z), faces as the USD reader's.
+            VtIntArray counts(6, 4);
+            VtIntArray indices = {0, 2, 6, 4, 1, 5, 7, 3, 0, 4, 5, 1,
+                                  2, 3, 7, 6, 0, 1, 3, 2, 4, 6, 7, 5};
+            return HdMeshTopology(PxOsdOpenSubdivTokens->none, HdTokens->rightHanded, counts,
+                                  indices);
+        }
+        UsdGeomMesh mesh(prim);
+        VtIntArray counts, indices, holes;
+        mesh.GetFaceVertexCountsAttr().Get(&counts);
+        mesh.GetFaceVertexIndicesAttr().Get(&indices);
+        mesh.GetHoleIndicesAttr().Get(&holes);
+        HdMeshTopology t(PxOsdOpenSubdivTokens->none, HdTokens->rightHanded, counts, indices);
+        t.SetHoleIndices(holes);
+        return t;
+    }
+
+    VtValue Get(SdfPath const &id, TfToken const &key) override {
+        UsdPrim prim = _stage->GetPrimAtPath(id);
+        if (!prim) return VtValue();
+        if (key == HdTokens->points && prim.IsA<UsdGeomCube>()) {
+            double size = 2.0;
+            UsdGeomCube(prim).GetSizeAttr().Get(&size);
+            float h = float(size / 2.0);
+            VtVec3fArray points(8);
+            for (int i = 0; i < 8; ++i) {
+                points[i] = GfVec3f(i & 1 ? h : -h, i & 2 ? h : -h, i & 4 ? h : -h);
+            }
+            return VtValue(points);
+        }
+        if (key == HdTokens->points) {
+            VtVec3fArray points;
+            UsdGeomMesh(prim).GetPointsAttr().Get(&points);
+            return VtValue(points);
+        }
+        UsdAttribute a = prim.GetAttribute(key);
+        VtValue v;
+        if (a) a.Get(&v);
+        return v;
+    }
+
+    HdVolumeFieldDescriptorVector GetVolumeFieldDescriptors(SdfPath const &id) override {
+        HdVolumeFieldDescriptorVector out;
+        for (auto const &f : UsdVolVolume(_stage->GetPrimAtPath(id)).GetFieldPaths()) {
+            UsdPrim field = _stage->GetPrimAtPath(f.second);
+            TfToken type = field && field.IsA<UsdVolOpenVDBAsset>() ? TfToken("openvdbAsset")
+                                                                    : TfToken("field3dAsset");
+            out.emplace_back(f.first, type, f.second);
+        }
+        return out;
+    }
+
+    // A volume's NimbusVolumeAPI attributes (`nimbus:*`) as constant primvars.
+    HdPrimvarDescriptorVector GetPrimvarDescriptors(SdfPath const &id,
+                                                    HdInterpolation interpolation) override {
+        HdPrimvarDescriptorVector out;
+        UsdPrim prim = _stage->GetPrimAtPath(id);
+        if (interpolation != HdInterpolationConstant || !prim || !prim.IsA<UsdVolVolume>()) {
+            return out;
+        }
+        for (UsdAttribute const &a : prim.GetAttributes()) {
+            if (a.GetName().GetString().rfind("nimbus:", 0) == 0 && a.HasAuthoredValue()) {
+                out.emplace_back(a.GetName(), HdInterpolationConstant);
+            }
+        }
+        return out;
+    }
+
+    VtValue GetLightParamValue(SdfPath const &id, TfToken const &name) override {
+        UsdPrim prim = _stage->GetPrimAtPath(id);
+        if (!prim) return VtValue();
+        VtValue v;
+        for (std::string const &n : {"inputs:" + name.GetString(), name.GetString()}) {
+            UsdAttribute a = prim.GetAttribute(TfToken(n));
+            if (a && a.Get(&v)) {
+                if (v.IsHolding<SdfAssetPath>()) {
+                    SdfAssetPath const &p = v.UncheckedGet<SdfAssetPath>();
+                    return VtValue(SdfAssetPath(p.GetAssetPath(), p.GetResolvedPath()));
+                }
+                return v;
+            }
+        }
+        return VtValue();
+    }
+
+    // UsdGeomCamera in Hydra's units: lengths in scene units (tenths of the schema's).
+    VtValue GetCameraParamValue(SdfPath const &id, TfToken const &key) override {
+        UsdGeomCamera cam(_stage->GetPrimAtPath(id));
+        if (!cam) return VtValue();
+        GfCamera c = cam.GetCamera(UsdTimeCode::Default());
+        double const unit = GfCamera::APERTURE_UNIT;
+        if (key == HdCameraTokens->projection) {
+            return VtValue(c.GetProjection() == GfCamera::Orthographic ? HdCamera::Orthographic
+                                                                       : HdCamera::Perspective);
+        }
+        if (key == HdCameraTokens->focalLength) return VtValue(float(c.GetFocalLength() * unit));
+        if (key == HdCameraTokens->horizontalAperture)
+            return VtValue(float(c.GetHorizontalAperture() * unit));
+        if (key == HdCameraTokens->verticalAperture)
+            return VtValue(float(c.GetVerticalAperture() * unit));
+        if (key == HdCameraTokens->horizontalApertureOffset)
+            return VtValue(float(c.GetHorizontalApertureOffset() * unit));
+        if (key == HdCameraTokens->verticalApertureOffset)
+            return VtValue(float(c.GetVerticalApertureOffset() * unit));
+        if (key == HdCameraTokens->clippingRange) {
+            GfRange1f r = c.GetClippingRange();
+            return VtValue(r);
+        }
+        if (key == HdCameraTokens->fStop) return VtValue(c.GetFStop());
+        if (key == HdCameraTokens->focusDistance) return VtValue(c.GetFocusDistance());
+        return VtValue();
+    }
+
+private:
+    UsdStageRefPtr _stage;
+    UsdGeomXformCache _xf;
+    SdfPath _firstCamera;
+};
+
+int Usage(char const *why) {
+    std::fprintf(stderr,
+                 "nimbus-hydra: error: %s\nusage: nimbus-hydra STAGE -o OUT.exr [--res WxH] "
+                 "[--spp N] [--camera PATH] [--delegate NAME]\n",
+                 why);
+    return 2;
+}
+
+}  // namespace
+
+int main(int argc, char **argv) {
+    std::string stagePath, out, cameraArg, delegateName = "HdNimbusRendererPlugin";
+    int width = 0, height = 0, spp = 0;
+    for (int i = 1; i < argc; ++i) {
+        std::string a = argv[i];
+        auto next = [&]() -> std::string { return i + 1 < argc ? argv[++i] : std::string(); };
+        if (a == "-o") out = next();
+        else if (a == "--res") {
+            std::string r = next();
+            if (std::sscanf(r.c_str(), "%dx%d", &width, &height) != 2 || width <= 0 || height <= 0)
+                return Usage("--res takes WxH");
+        } else if (a == "--spp") spp = std::atoi(next().c_str());
+        else if (a == "--camera") cameraArg = next();
+        else if (a == "--delegate") delegateName = next();
+        else if (!a.empty() && a[0] == '-') return Usage(("unknown option " + a).c_str());
+        else stagePath = a;
+    }
+    if (stagePath.empty() || out.empty()) return Usage("a stage and -o OUT.exr are required");
+
+    // hdNimbus lives beside this program (hydra/hdNimbus/plugInfo.json).
+    std::string self = ArchGetExecutablePath();
+    std::string dir = self.substr(0, self.rfind('/'));
+    PlugRegistry::GetInstance().RegisterPlugins(dir + "/hdNimbus");
+
+    UsdStageRefPtr stage = UsdStage::Open(stagePath);
+    if (!stage) {
+        std::fprintf(stderr, "nimbus-hydra: error: %s: cannot open the stage\n", stagePath.c_str());
+        return 1;
+    }
+    HdRendererPluginRegistry &plugins = HdRendererPluginRegistry::GetInstance();
+    HdPluginRenderDelegateUniqueHandle delegate =
+        plugins.CreateRenderDelegate(TfToken(delegateName));
+    if (!delegate) {
+        std::fprintf(stderr, "nimbus-hydra: error: no render delegate %s\n", delegateName.c_str());
+        return 1;
+    }
+    // The render settings prim's nimbus:* attributes and resolution, then the flags.
+    UsdRenderSettings settings = UsdRenderSettings::GetStageRenderSettings(stage);
+    if (!settings) {
+        for (UsdPrim const &p : stage->Traverse()) {
+            if (p.IsA<UsdRenderSettings>()) {
+                settings = UsdRenderSettings(p);
+                break;
+            }
+        }
+    }
+    SdfPath cameraPath = cameraArg.empty() ? SdfPath() : SdfPath(cameraArg);
+    if (settings) {
+        for (UsdAttribute const &a : settings.GetPrim().GetAttributes()) {
+            VtValue v;
+            if (a.GetName().GetString().rfind("nimbus:", 0) == 0 && a.Get(&v)) {
+                delegate->SetRenderSetting(a.GetName(), v);
+            }
+        }
+        GfVec2i res;
+        if (width == 0 && settings.GetResolutionAttr().Get(&res)) {
+            width = res[0];
+            height = res[1];
+        }
+        SdfPathVector cams;
+        if (cameraPath.IsEmpty() && settings.GetCameraRel().GetForwardedTargets(&cams) &&
+            !cams.empty()) {
+            cameraPath = cams[0];
+        }
+    }
+    if (width == 0) {
+        width = 640;
+        height = 480;
+    }
+    if (spp > 0) delegate->SetRenderSetting(TfToken("nimbus:samples"), VtValue(spp));
+
+    HdRenderIndex *index = HdRenderIndex::New(delegate.Get(), {});
+    StageSceneDelegate scene(index, stage);
+    scene.Populate();
+    if (cameraPath.IsEmpty()) cameraPath = scene.FirstCamera();
+    if (cameraPath.IsEmpty()) {
+        std::fprintf(stderr, "nimbus-hydra: error: %s: no camera (name one with --camera)\n",
+                     stagePath.c_str());
+        return 1;
+    }
+    {
+        HdxTaskController tasks(index, SdfPath("/nimbusHydraTasks"), /*gpuEnabled=*/false);
+        tasks.SetRenderOutputs({HdAovTokens->color});
+        tasks.SetRenderBufferSize(GfVec2i(width, height));
+        tasks.SetFraming(CameraUtilFraming(GfRect2i(GfVec2i(0, 0), width, height)));
+        tasks.SetCameraPath(cameraPath);
+        HdEngine engine;
+        auto start = std::chrono::steady_clock::now();
+        do {
+            HdTaskSharedPtrVector t = tasks.GetRenderingTasks();
+            engine.Execute(index, &t);
+            std::this_thread::sleep_for(std::chrono::milliseconds(5));
+        } while (!tasks.IsConverged());
+        double seconds =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        HdRenderBuffer *color = tasks.GetRenderOutput(HdAovTokens->color);
+        if (!color) {
+            std::fprintf(stderr, "nimbus-hydra: error: no color buffer\n");
+            return 1;
+        }
+        color->Resolve();
+        HioImage::StorageSpec spec;
+        spec.width = int(color->GetWidth());
+        spec.height = int(color->GetHeight());
+        spec.format = HioFormatFloat32Vec4;
+        spec.flipped = true;  // Hydra's rows start at the bottom
+        spec.data = color->Map();
+        HioImageSharedPtr image = HioImage::OpenForWriting(out);
+        bool ok = image && image->Write(spec);
+        color->Unmap();
+        if (!ok) {
+            std::fprintf(stderr, "nimbus-hydra: error: %s: cannot write the image\n", out.c_str());
+            return 1;
+        }
+        std::fprintf(stderr, "nimbus-hydra: wrote %s (%dx%d, %.2f s through %s)\n", out.c_str(),
+                     width, height, seconds, delegateName.c_str());
+    }
+    delete index;
+    return 0;
+}

@@ -1,0 +1,828 @@
+//! What Hydra hands over, as the scene description the USD reader builds
+//! ([`nimbus::scene::Scene`]): the second reader of the one render pipeline. The
+//! conversions follow the USD reader's (`nimbus::scene::stage`): world transforms, UsdLux
+//! parameters with schema fallbacks, NimbusVolumeAPI's fallback coefficients, holdout
+//! meshes fan-triangulated.
+
+use crate::ffi::bridge::{
+    CameraDesc, FieldDesc, LightDesc, MeshDesc, ParamDesc, SceneDesc, SettingDesc, VolumeDesc,
+};
+use anyhow::{anyhow, bail, Result};
+use glam::{DMat4, DVec3};
+use nimbus::scene::{
+    Camera, Collection, CylinderLight, DiskLight, DistantLight, DomeLight, Field, HoldoutMesh,
+    LightControls, Projection, RectLight, RenderSettings, Scene, Shaping, SphereLight, Volume,
+    VolumeEmission,
+};
+use nimbus::volume::asset::AssetLocation;
+use std::path::PathBuf;
+
+/// What the errors and warnings of a Hydra render name as their "stage".
+pub const STAGE_NAME: &str = "hdNimbus";
+
+/// UsdGeomCamera's lengths are tenths of a scene unit; Hydra's are scene units.
+const APERTURE_UNIT: f64 = 10.0;
+
+/// The scene Hydra describes, and the warnings about what it does not render as given.
+pub fn scene_of(desc: &SceneDesc) -> Result<(Scene, Vec<String>)> {
+    let mut warnings = Vec::new();
+    for l in &desc.unsupported_lights {
+        warnings.push(format!(
+            "light {l}: a light type Nimbus does not render; it is left out"
+        ));
+    }
+    let mut scene = Scene {
+        stage_path: PathBuf::from(STAGE_NAME),
+        time: f64::NAN,
+        camera: nimbus::scene::defaults::placeholder_camera(),
+        distant_lights: Vec::new(),
+        dome_lights: Vec::new(),
+        sphere_lights: Vec::new(),
+        rect_lights: Vec::new(),
+        disk_lights: Vec::new(),
+        cylinder_lights: Vec::new(),
+        volumes: Vec::new(),
+        holdouts: Vec::new(),
+        settings: settings(&desc.settings, (desc.width, desc.height))?,
+        light_prims: desc.lights.len() + desc.unsupported_lights.len(),
+        warnings: Default::default(),
+    };
+    if desc.has_camera {
+        scene.camera = camera(&desc.camera);
+    }
+    // Hydra syncs prims in no particular order; sort so a light's id (its index in
+    // the renderer) and the image do not depend on the host's threads.
+    let mut lights: Vec<&LightDesc> = desc.lights.iter().collect();
+    lights.sort_by(|a, b| a.path.cmp(&b.path));
+    for l in lights {
+        add_light(&mut scene, l, &mut warnings)?;
+    }
+    let mut volumes: Vec<&VolumeDesc> = desc.volumes.iter().collect();
+    volumes.sort_by(|a, b| a.path.cmp(&b.path));
+    for v in volumes {
+        scene.volumes.push(volume(v, &mut warnings)?);
+    }
+    let mut meshes: Vec<&MeshDesc> = desc.meshes.iter().collect();
+    meshes.sort_by(|a, b| a.path.cmp(&b.path));
+    for m in meshes {
+        if let Some(h) = holdout(m)? {
+            scene.holdouts.push(h);
+        }
+    }
+    Ok((scene, warnings))
+}
+
+fn matrix(m: &[f64; 16]) -> DMat4 {
+    DMat4::from_cols_array(m)
+}
+
+fn finite_matrix(path: &str, m: &[f64; 16]) -> Result<DMat4> {
+    if m.iter().all(|v| v.is_finite()) {
+        Ok(matrix(m))
+    } else {
+        bail!("{path}: its transform has a non-finite entry")
+    }
+}
+
+fn camera(c: &CameraDesc) -> Camera {
+    Camera {
+        prim_path: c.path.clone(),
+        camera_to_world: matrix(&c.xform),
+        projection: match c.orthographic {
+            true => Projection::Orthographic,
+            false => Projection::Perspective,
+        },
+        focal_length: c.focal_length * APERTURE_UNIT,
+        horizontal_aperture: c.horizontal_aperture * APERTURE_UNIT,
+        vertical_aperture: c.vertical_aperture * APERTURE_UNIT,
+        horizontal_aperture_offset: c.horizontal_aperture_offset * APERTURE_UNIT,
+        vertical_aperture_offset: c.vertical_aperture_offset * APERTURE_UNIT,
+        clipping_range: (c.near, c.far),
+        f_stop: c.f_stop,
+        focus_distance: c.focus_distance,
+    }
+}
+
+fn controls(l: &LightDesc) -> LightControls {
+    LightControls {
+        diffuse: l.diffuse,
+        shaping: l.has_shaping.then(|| Shaping {
+            focus: l.shaping_focus.max(0.0),
+            focus_tint: l.shaping_focus_tint,
+            cone_angle: l.shaping_cone_angle,
+            cone_softness: l.shaping_cone_softness.clamp(0.0, 1.0),
+            ies_file: (!l.shaping_ies_file.is_empty()).then(|| l.shaping_ies_file.clone()),
+            ies_angle_scale: l.shaping_ies_angle_scale,
+            ies_normalize: l.shaping_ies_normalize,
+        }),
+        light_link: Collection::default(),
+        shadow_link: Collection::default(),
+        unshadowed: !l.shadow_enable,
+    }
+}
+
+fn add_light(scene: &mut Scene, l: &LightDesc, warnings: &mut Vec<String>) -> Result<()> {
+    let to_world = finite_matrix(&l.path, &l.xform)?;
+    let temperature = l.enable_color_temperature.then_some(l.color_temperature);
+    let group = (!l.light_group.is_empty()).then(|| l.light_group.clone());
+    let path = l.path.clone();
+    match l.kind.as_str() {
+        "distantLight" => {
+            let d = to_world.transform_vector3(DVec3::Z);
+            if d.length_squared() == 0.0 {
+                bail!("{}: its transform collapses its direction", l.path);
+            }
+            scene.distant_lights.push(DistantLight {
+                prim_path: path,
+                controls: controls(l),
+                light_group: group,
+                direction: d.normalize().to_array(),
+                intensity: l.intensity,
+                exposure: l.exposure,
+                color: l.color,
+                normalize: l.normalize,
+                color_temperature: temperature,
+                angle_degrees: l.angle,
+            })
+        }
+        "domeLight" => scene.dome_lights.push(DomeLight {
+            prim_path: path,
+            controls: controls(l),
+            light_group: group,
+            light_to_world: to_world,
+            intensity: l.intensity,
+            exposure: l.exposure,
+            color: l.color,
+            color_temperature: temperature,
+            texture_file: (!l.texture_file.is_empty()).then(|| l.texture_file.clone()),
+            texture_format: match l.texture_format.is_empty() {
+                true => "automatic".to_string(),
+                false => l.texture_format.clone(),
+            },
+        }),
+        "sphereLight" => scene.sphere_lights.push(SphereLight {
+            prim_path: path,
+            controls: controls(l),
+            light_group: group,
+            light_to_world: to_world,
+            intensity: l.intensity,
+            exposure: l.exposure,
+            color: l.color,
+            normalize: l.normalize,
+            color_temperature: temperature,
+            radius: l.radius,
+            treat_as_point: l.treat_as_point,
+        }),
+        "rectLight" => scene.rect_lights.push(RectLight {
+            prim_path: path,
+            controls: controls(l),
+            light_group: group,
+            light_to_world: to_world,
+            intensity: l.intensity,
+            exposure: l.exposure,
+            color: l.color,
+            normalize: l.normalize,
+            color_temperature: temperature,
+            width: l.width,
+            height: l.height,
+        }),
+        "diskLight" => scene.disk_lights.push(DiskLight {
+            prim_path: path,
+            controls: controls(l),
+            light_group: group,
+            light_to_world: to_world,
+            intensity: l.intensity,
+            exposure: l.exposure,
+            color: l.color,
+            normalize: l.normalize,
+            color_temperature: temperature,
+            radius: l.radius,
+        }),
+        "cylinderLight" => scene.cylinder_lights.push(CylinderLight {
+            prim_path: path,
+            controls: controls(l),
+            light_group: group,
+            light_to_world: to_world,
+            intensity: l.intensity,
+            exposure: l.exposure,
+            color: l.color,
+            normalize: l.normalize,
+            color_temperature: temperature,
+            length: l.length,
+            radius: l.radius,
+            treat_as_line: l.treat_as_line,
+        }),
+        other => warnings.push(format!(
+            "light {}: type {other} is not one Nimbus renders; it is left out",
+            l.path
+        )),
+    }
+    Ok(())
+}
+
+/// NimbusVolumeAPI's names, read as constant primvars (`primvars:nimbus:…`).
+fn param<'a>(params: &'a [ParamDesc], name: &str) -> Option<&'a ParamDesc> {
+    params
+        .iter()
+        .find(|p| p.name == name || p.name.strip_prefix("primvars:") == Some(name))
+}
+
+fn scalar(path: &str, params: &[ParamDesc], name: &str) -> Result<Option<f64>> {
+    match param(params, name) {
+        None => Ok(None),
+        Some(p) if p.numbers.len() == 1 && p.numbers[0].is_finite() => Ok(Some(p.numbers[0])),
+        Some(p) => bail!(
+            "{path}: {name} must be one finite number, got {:?}",
+            p.numbers
+        ),
+    }
+}
+
+fn color3(path: &str, params: &[ParamDesc], name: &str) -> Result<Option<[f64; 3]>> {
+    match param(params, name) {
+        None => Ok(None),
+        Some(p) if p.numbers.len() == 3 && p.numbers.iter().all(|v| v.is_finite()) => {
+            Ok(Some([p.numbers[0], p.numbers[1], p.numbers[2]]))
+        }
+        Some(p) if p.numbers.len() == 1 && p.numbers[0].is_finite() => Ok(Some([p.numbers[0]; 3])),
+        Some(p) => bail!("{path}: {name} must be a colour, got {:?}", p.numbers),
+    }
+}
+
+fn text<'a>(params: &'a [ParamDesc], name: &str) -> Option<&'a str> {
+    param(params, name)
+        .map(|p| p.text.as_str())
+        .filter(|t| !t.is_empty())
+}
+
+fn field(volume: &str, f: &FieldDesc) -> Result<Field> {
+    if f.prim_type != "openvdbAsset" {
+        bail!(
+            "{volume}: field {} ({}) is a {}; Nimbus reads only openvdbAsset fields",
+            f.name,
+            f.path,
+            f.prim_type
+        );
+    }
+    if f.file.is_empty() {
+        bail!("{volume}: field {} ({}) has no filePath", f.name, f.path);
+    }
+    Ok(Field {
+        prim_path: f.path.clone(),
+        file: AssetLocation::File(PathBuf::from(&f.file)),
+        field_name: f.grid.clone(),
+        field_index: (f.index >= 0).then_some(f.index),
+    })
+}
+
+/// A volume shader's coefficients, as the USD reader maps PxrVolume and MaterialX's
+/// `ND_volume`/`ND_anisotropic_vdf` (see `nimbus::scene::shading`): extinction and
+/// albedo become σs = albedo · density, σa = (1 − albedo) · density.
+struct ShaderCoefficients {
+    density_field: Option<String>,
+    density_scale: f64,
+    absorption: [f64; 3],
+    scattering: [f64; 3],
+    anisotropy: f64,
+}
+
+fn shader(v: &VolumeDesc) -> Result<Option<ShaderCoefficients>> {
+    let p = &v.shader_params;
+    let at = |n: &str| format!("{} ({})", v.shader_path, n);
+    match v.shader_id.as_str() {
+        "PxrVolume" => {
+            // As the USD reader: the primvar's field scaled by densityMultiplier, else
+            // the `density` field scaled by densityFloat too; albedo diffuseColor.
+            let density = scalar(&at("densityFloat"), p, "densityFloat")?.unwrap_or(1.0);
+            let multiplier =
+                scalar(&at("densityMultiplier"), p, "densityMultiplier")?.unwrap_or(1.0);
+            let albedo = color3(&at("diffuseColor"), p, "diffuseColor")?.unwrap_or([1.0; 3]);
+            let g = scalar(&at("anisotropy"), p, "anisotropy")?.unwrap_or(0.0);
+            let field = text(p, "densityFloatPrimVar").map(str::to_string);
+            let scale = match field {
+                Some(_) => multiplier,
+                None => multiplier * density,
+            };
+            Ok(Some(ShaderCoefficients {
+                density_field: field,
+                density_scale: scale,
+                absorption: albedo.map(|a| (1.0 - a).max(0.0)),
+                scattering: albedo,
+                anisotropy: g,
+            }))
+        }
+        "ND_anisotropic_vdf" => {
+            let absorption = color3(&at("absorption"), p, "absorption")?.unwrap_or([0.0; 3]);
+            let scattering = color3(&at("scattering"), p, "scattering")?.unwrap_or([0.0; 3]);
+            let g = scalar(&at("anisotropy"), p, "anisotropy")?.unwrap_or(0.0);
+            Ok(Some(ShaderCoefficients {
+                density_field: None,
+                density_scale: 1.0,
+                absorption,
+                scattering,
+                anisotropy: g,
+            }))
+        }
+        _ => Ok(None),
+    }
+}
+
+fn volume(v: &VolumeDesc, warnings: &mut Vec<String>) -> Result<Volume> {
+    let path = v.path.as_str();
+    if v.fields.is_empty() {
+        bail!("{path}: volume has no fields");
+    }
+    let fields: Vec<(String, Field)> = v
+        .fields
+        .iter()
+        .map(|f| Ok((f.name.clone(), field(path, f)?)))
+        .collect::<Result<_>>()?;
+    let named = |name: &str| -> Result<Field> {
+        fields
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, f)| f.clone())
+            .ok_or_else(|| {
+                anyhow!(
+                    "{path}: no field named {name} (fields: {})",
+                    fields
+                        .iter()
+                        .map(|(n, _)| n.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )
+            })
+    };
+    let pv = &v.primvars;
+    let has_nimbus = pv.iter().any(|p| {
+        p.name
+            .trim_start_matches("primvars:")
+            .starts_with("nimbus:")
+    });
+    let material = match has_nimbus {
+        true => None,
+        false => shader(v)?,
+    };
+    if !has_nimbus && material.is_none() && !v.material_path.is_empty() {
+        warnings.push(format!(
+            "volume {path}: material {} ({}) is not one Nimbus reads (PxrVolume, ND_anisotropic_vdf or nimbus:* primvars); the schema's fallback coefficients are used",
+            v.material_path,
+            match v.shader_id.is_empty() {
+                true => "no volume shader",
+                false => v.shader_id.as_str(),
+            }
+        ));
+    }
+    let volume_to_world = finite_matrix(path, &v.xform)?;
+    if let Some(m) = material {
+        let density_name = m.density_field.unwrap_or_else(|| "density".to_string());
+        return Ok(Volume {
+            prim_path: v.path.clone(),
+            light_group: None,
+            volume_to_world,
+            density: named(&density_name)?,
+            density_scale: m.density_scale,
+            absorption: m.absorption,
+            scattering: m.scattering,
+            anisotropy: m.anisotropy,
+            fields,
+            emission: VolumeEmission::default(),
+            albedo: None,
+            material_shader: Some(format!("{} ({})", v.shader_path, v.shader_id)),
+        });
+    }
+    let density_name = text(pv, "nimbus:densityField").unwrap_or("density");
+    let optional = |attr: &str| -> Result<Option<(String, Field)>> {
+        match text(pv, attr) {
+            None => Ok(None),
+            Some(n) => Ok(Some((n.to_string(), named(n)?))),
+        }
+    };
+    let defaults = VolumeEmission::default();
+    let emission = VolumeEmission {
+        temperature: optional("nimbus:temperatureField")?,
+        temperature_scale: scalar(path, pv, "nimbus:temperatureScale")?
+            .unwrap_or(defaults.temperature_scale),
+        blackbody_intensity: scalar(path, pv, "nimbus:blackbodyIntensity")?
+            .unwrap_or(defaults.blackbody_intensity),
+        emission: optional("nimbus:emissionField")?,
+        emission_color: color3(path, pv, "nimbus:emissionColor")?
+            .unwrap_or(defaults.emission_color),
+        emission_scale: scalar(path, pv, "nimbus:emissionScale")?
+            .unwrap_or(defaults.emission_scale),
+    };
+    let density = named(density_name)?;
+    let albedo = optional("nimbus:albedoField")?;
+    Ok(Volume {
+        prim_path: v.path.clone(),
+        light_group: text(pv, "nimbus:lightGroup").map(str::to_string),
+        volume_to_world,
+        density,
+        density_scale: scalar(path, pv, "nimbus:densityScale")?.unwrap_or(1.0),
+        absorption: color3(path, pv, "nimbus:absorption")?.unwrap_or([0.1; 3]),
+        scattering: color3(path, pv, "nimbus:scattering")?.unwrap_or([0.9; 3]),
+        anisotropy: scalar(path, pv, "nimbus:anisotropy")?.unwrap_or(0.0),
+        fields,
+        emission,
+        albedo,
+        material_shader: None,
+    })
+}
+
+/// A mesh as a holdout: world-space points, fan-triangulated faces without holes,
+/// degenerate triangles left out (as `nimbus::scene::geometry` does).
+fn holdout(m: &MeshDesc) -> Result<Option<HoldoutMesh>> {
+    let path = &m.path;
+    let to_world = finite_matrix(path, &m.xform)?;
+    if m.points.len() % 3 != 0 {
+        bail!("{path}: points are not triples");
+    }
+    let points: Vec<[f64; 3]> = m
+        .points
+        .chunks_exact(3)
+        .map(|p| {
+            to_world
+                .transform_point3(DVec3::new(p[0], p[1], p[2]))
+                .to_array()
+        })
+        .collect();
+    if points.iter().flatten().any(|v| !v.is_finite()) {
+        bail!("{path}: a point is not finite");
+    }
+    let n = points.len();
+    let mut triangles = Vec::new();
+    let (mut faces, mut degenerate, mut at) = (0usize, 0usize, 0usize);
+    for (face, &count) in m.face_counts.iter().enumerate() {
+        let count =
+            usize::try_from(count).map_err(|_| anyhow!("{path}: negative face vertex count"))?;
+        let idx = m.face_indices.get(at..at + count).ok_or_else(|| {
+            anyhow!("{path}: faceVertexIndices shorter than faceVertexCounts ask")
+        })?;
+        at += count;
+        if m.hole_indices.contains(&(face as i32)) || count < 3 {
+            continue;
+        }
+        let idx: Vec<u32> = idx
+            .iter()
+            .map(|&i| match usize::try_from(i) {
+                Ok(i) if i < n => Ok(i as u32),
+                _ => Err(anyhow!(
+                    "{path}: face vertex index {i} outside the {n} points"
+                )),
+            })
+            .collect::<Result<_>>()?;
+        faces += 1;
+        for k in 1..count - 1 {
+            let t = [idx[0], idx[k], idx[k + 1]];
+            if is_degenerate(&points, t) {
+                degenerate += 1;
+            } else {
+                triangles.push(t);
+            }
+        }
+    }
+    if triangles.is_empty() {
+        return Ok(None);
+    }
+    Ok(Some(HoldoutMesh {
+        prim_path: m.path.clone(),
+        prim_type: "Mesh".to_string(),
+        points,
+        triangles,
+        faces,
+        degenerate_triangles: degenerate,
+        double_sided: m.double_sided,
+    }))
+}
+
+fn is_degenerate(points: &[[f64; 3]], [a, b, c]: [u32; 3]) -> bool {
+    if a == b || b == c || a == c {
+        return true;
+    }
+    let p = |i: u32| DVec3::from_array(points[i as usize]);
+    (p(b) - p(a)).cross(p(c) - p(a)).length_squared() == 0.0
+}
+
+/// Render settings by the schema's names (`nimbus:samples`, …); unknown keys (the
+/// host's own) are ignored.
+fn settings(list: &[SettingDesc], (w, h): (u32, u32)) -> Result<RenderSettings> {
+    let mut s = RenderSettings {
+        prim_path: Some("render settings".to_string()),
+        resolution: (w, h),
+        ..RenderSettings::default()
+    };
+    for set in list {
+        let key = set.key.as_str();
+        let int = |lo: f64, hi: f64| -> Result<f64> {
+            let v = set.number;
+            if set.is_text || !(v.is_finite() && v.fract() == 0.0 && (lo..=hi).contains(&v)) {
+                bail!(
+                    "render setting {key} must be an integer in {lo}..={hi}, got {}",
+                    shown(set)
+                );
+            }
+            Ok(v)
+        };
+        let token = || -> Result<Option<String>> {
+            match set.is_text {
+                true => Ok(Some(set.text.clone()).filter(|t| !t.is_empty())),
+                false => bail!("render setting {key} must be a token, got {}", shown(set)),
+            }
+        };
+        match key {
+            "nimbus:samples" => s.samples = int(1.0, u32::MAX as f64)? as u32,
+            "nimbus:maxDepth" => s.max_depth = int(0.0, u32::MAX as f64)? as u32,
+            "nimbus:seed" => s.seed = int(0.0, 2f64.powi(53))? as u64,
+            "nimbus:octreeDepth" => s.octree_depth = Some(int(0.0, 64.0)? as i64),
+            "nimbus:tracker" => s.tracker = token()?,
+            "nimbus:scheme" => s.scheme = token()?,
+            "nimbus:transmittance" => s.transmittance = token()?,
+            "nimbus:control" if !set.is_text => s.control = Some(set.number),
+            "nimbus:control" => bail!("render setting nimbus:control must be a number"),
+            "nimbus:strict" => s.strict = !set.is_text && set.number != 0.0,
+            _ => {}
+        }
+    }
+    Ok(s)
+}
+
+fn shown(s: &SettingDesc) -> String {
+    match s.is_text {
+        true => format!("{:?}", s.text),
+        false => format!("{}", s.number),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn identity() -> [f64; 16] {
+        DMat4::IDENTITY.to_cols_array()
+    }
+
+    fn smoke_volume() -> VolumeDesc {
+        VolumeDesc {
+            path: "/smoke".into(),
+            xform: identity(),
+            fields: vec![FieldDesc {
+                name: "density".into(),
+                path: "/smoke/density".into(),
+                prim_type: "openvdbAsset".into(),
+                file: "/data/smoke.vdb".into(),
+                grid: "density".into(),
+                index: -1,
+            }],
+            ..VolumeDesc::default()
+        }
+    }
+
+    fn light(kind: &str) -> LightDesc {
+        LightDesc {
+            kind: kind.into(),
+            path: format!("/{kind}"),
+            xform: identity(),
+            intensity: 2.0,
+            color: [1.0; 3],
+            diffuse: 1.0,
+            shadow_enable: true,
+            ..LightDesc::default()
+        }
+    }
+
+    /// A light type the core lacks is a warning naming it, and is left out; the types
+    /// it has each land in their list.
+    #[test]
+    fn lights_by_type_and_an_unknown_one_warned() {
+        let desc = SceneDesc {
+            lights: [
+                "distantLight",
+                "sphereLight",
+                "rectLight",
+                "diskLight",
+                "cylinderLight",
+                "domeLight",
+                "meshLight",
+            ]
+            .map(light)
+            .to_vec(),
+            unsupported_lights: vec!["/portal (portalLight)".into()],
+            volumes: vec![smoke_volume()],
+            width: 8,
+            height: 8,
+            ..SceneDesc::default()
+        };
+        let (scene, warnings) = scene_of(&desc).unwrap();
+        assert_eq!(
+            [
+                scene.distant_lights.len(),
+                scene.sphere_lights.len(),
+                scene.rect_lights.len(),
+                scene.disk_lights.len(),
+                scene.cylinder_lights.len(),
+                scene.dome_lights.len()
+            ],
+            [1; 6]
+        );
+        assert!(
+            warnings
+                .iter()
+                .any(|w| w.contains("/meshLight") && w.contains("meshLight")),
+            "{warnings:?}"
+        );
+        assert!(
+            warnings.iter().any(|w| w.contains("/portal (portalLight)")),
+            "{warnings:?}"
+        );
+        assert_eq!(scene.light_prims, 8);
+        // A distant light shines along its local -Z: the direction towards it is +Z.
+        assert_eq!(scene.distant_lights[0].direction, [0.0, 0.0, 1.0]);
+    }
+
+    /// A field of another type than openvdbAsset, or one never synced (no file), is an
+    /// error naming the volume and the field.
+    #[test]
+    fn unsupported_or_unsynced_fields_are_errors() {
+        let mut v = smoke_volume();
+        v.fields[0].prim_type = "field3dAsset".into();
+        let desc = SceneDesc {
+            volumes: vec![v],
+            ..SceneDesc::default()
+        };
+        let e = scene_of(&desc).unwrap_err().to_string();
+        assert!(e.contains("/smoke") && e.contains("field3dAsset"), "{e}");
+        let mut v = smoke_volume();
+        v.fields[0].file = String::new();
+        let desc = SceneDesc {
+            volumes: vec![v],
+            ..SceneDesc::default()
+        };
+        let e = scene_of(&desc).unwrap_err().to_string();
+        assert!(
+            e.contains("/smoke/density") && e.contains("filePath"),
+            "{e}"
+        );
+    }
+
+    /// Without nimbus:* primvars or a material, NimbusVolumeAPI's fallbacks (as the USD
+    /// reader gives a volume with neither); nimbus:* primvars override them; a
+    /// PxrVolume material maps as the USD reader maps it.
+    #[test]
+    fn volume_coefficients_from_fallbacks_primvars_and_pxr_volume() {
+        let desc = |v: VolumeDesc| SceneDesc {
+            volumes: vec![v],
+            ..SceneDesc::default()
+        };
+        let (s, _) = scene_of(&desc(smoke_volume())).unwrap();
+        let v = &s.volumes[0];
+        assert_eq!(
+            (v.density_scale, v.absorption, v.scattering),
+            (1.0, [0.1; 3], [0.9; 3])
+        );
+
+        let mut pv = smoke_volume();
+        pv.primvars = vec![
+            ParamDesc {
+                name: "primvars:nimbus:densityScale".into(),
+                numbers: vec![4.0],
+                text: String::new(),
+            },
+            ParamDesc {
+                name: "nimbus:scattering".into(),
+                numbers: vec![0.5, 0.6, 0.7],
+                text: String::new(),
+            },
+        ];
+        let (s, _) = scene_of(&desc(pv)).unwrap();
+        assert_eq!(s.volumes[0].density_scale, 4.0);
+        assert_eq!(s.volumes[0].scattering, [0.5, 0.6, 0.7]);
+
+        let mut m = smoke_volume();
+        m.material_path = "/mat".into();
+        m.shader_path = "/mat/vol".into();
+        m.shader_id = "PxrVolume".into();
+        m.shader_params = vec![
+            ParamDesc {
+                name: "densityFloat".into(),
+                numbers: vec![3.0],
+                text: String::new(),
+            },
+            ParamDesc {
+                name: "diffuseColor".into(),
+                numbers: vec![0.8, 0.8, 0.8],
+                text: String::new(),
+            },
+        ];
+        let (s, _) = scene_of(&desc(m)).unwrap();
+        let v = &s.volumes[0];
+        assert_eq!(v.density_scale, 3.0);
+        assert_eq!(v.scattering, [0.8; 3]);
+        assert!((v.absorption[0] - 0.2).abs() < 1e-12);
+
+        let mut other = smoke_volume();
+        other.material_path = "/principled".into();
+        other.shader_id = "UsdPreviewSurface".into();
+        let (_, w) = scene_of(&desc(other)).unwrap();
+        assert!(
+            w.iter()
+                .any(|w| w.contains("/principled") && w.contains("fallback")),
+            "{w:?}"
+        );
+    }
+
+    /// Hydra's camera lengths are scene units; UsdGeomCamera's (the Scene's) tenths.
+    #[test]
+    fn camera_lengths_in_tenths() {
+        let desc = SceneDesc {
+            has_camera: true,
+            camera: CameraDesc {
+                path: "/cam".into(),
+                xform: identity(),
+                focal_length: 5.0,
+                horizontal_aperture: 3.6,
+                vertical_aperture: 2.4,
+                near: 0.1,
+                far: 100.0,
+                ..CameraDesc::default()
+            },
+            ..SceneDesc::default()
+        };
+        let (s, _) = scene_of(&desc).unwrap();
+        assert_eq!(s.camera.focal_length, 50.0);
+        assert_eq!(s.camera.horizontal_aperture, 36.0);
+        assert_eq!(s.camera.vertical_aperture, 24.0);
+        assert_eq!(s.camera.clipping_range, (0.1, 100.0));
+    }
+
+    /// A quad and a pentagon fan into 1 + 3 triangles in world space; a hole and a
+    /// bad index.
+    #[test]
+    fn meshes_fan_triangulated_holes_skipped_bad_indices_refused() {
+        let mut xform = identity();
+        xform[14] = 2.0; // translate z by 2
+        let mesh = MeshDesc {
+            path: "/m".into(),
+            xform,
+            points: vec![
+                0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0, 0.0, 0.5, 1.5, 0.0,
+            ],
+            face_counts: vec![4, 5, 3],
+            face_indices: vec![0, 1, 2, 3, 0, 1, 2, 4, 3, 0, 1, 2],
+            hole_indices: vec![2],
+            double_sided: false,
+        };
+        let desc = SceneDesc {
+            meshes: vec![mesh.clone()],
+            ..SceneDesc::default()
+        };
+        let (s, _) = scene_of(&desc).unwrap();
+        let h = &s.holdouts[0];
+        assert_eq!((h.faces, h.triangles.len()), (2, 5));
+        assert_eq!(h.points[0], [0.0, 0.0, 2.0]);
+        let mut bad = mesh;
+        bad.face_indices[0] = 9;
+        let desc = SceneDesc {
+            meshes: vec![bad],
+            ..SceneDesc::default()
+        };
+        let e = scene_of(&desc).unwrap_err().to_string();
+        assert!(e.contains("/m") && e.contains("9"), "{e}");
+    }
+
+    /// Settings by the schema's names; a wrong kind of value names the setting.
+    #[test]
+    fn settings_by_schema_name() {
+        let set = |key: &str, number: f64| SettingDesc {
+            key: key.into(),
+            is_text: false,
+            number,
+            text: String::new(),
+        };
+        let tok = |key: &str, text: &str| SettingDesc {
+            key: key.into(),
+            is_text: true,
+            number: 0.0,
+            text: text.into(),
+        };
+        let s = settings(
+            &[
+                set("nimbus:samples", 64.0),
+                set("nimbus:seed", 7.0),
+                tok("nimbus:tracker", "delta"),
+                set("aovToken:Combined", 1.0),
+            ],
+            (32, 16),
+        )
+        .unwrap();
+        assert_eq!((s.samples, s.seed, s.resolution), (64, 7, (32, 16)));
+        assert_eq!(s.tracker.as_deref(), Some("delta"));
+        let e = settings(&[set("nimbus:samples", 0.5)], (1, 1))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("nimbus:samples"), "{e}");
+        let e = settings(&[set("nimbus:tracker", 1.0)], (1, 1))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("nimbus:tracker"), "{e}");
+    }
+}
