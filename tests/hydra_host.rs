@@ -4,7 +4,9 @@
 //! shot stage of `tests/shot.rs` (holdout cubes and quads, a light in a box, light
 //! groups; written by `tests/fixtures/make_shot_stage.py`, which needs Python's pxr)
 //! through hdNimbus, and `nimbus render` renders the same stage with the same
-//! resolution, samples and seed (measured: the shot stage bit-identical in every pixel).
+//! resolution, samples and seed (measured: the shot stage bit-identical in every pixel),
+//! and the shot stage's light-group and path-split AOVs through Hydra against
+//! `nimbus render --aovs` (measured: bit-identical in every pixel).
 //!
 //! **What must hold.** The scene descriptions are the same but for Hydra's float
 //! camera parameters (UsdGeomCamera's lengths × 0.1 in float, × 10 again in Rust) and
@@ -61,6 +63,53 @@ fn rgba(path: &Path) -> [Vec<f32>; 4] {
     })
 }
 
+/// The shot test stages (tests/shot.rs: a slab volume, a sun, a sphere light in a
+/// closed box, holdout cubes and quads; `shot_no_box.usda` without the box) with their
+/// slab VDB, in a temporary folder.
+fn shot_stages() -> Option<tempfile::TempDir> {
+    let (shot_dir, _) =
+        common::data::pxr_fixtures("make_shot_stage.py", &["pxr"], "pip install usd-core", true)?;
+    // As tests/shot.rs writes it: a 32³ grid of density 1 over [-1, 1]³.
+    let vs = 2.0 / 32.0;
+    let grid = nimbus::volume::procedural::grid_from_fn(
+        "density",
+        [32; 3],
+        glam::DVec3::splat(-1.0 + 0.5 * vs),
+        vs,
+        |_| 1.0,
+    );
+    nimbus::volume::vdb::write_float_grid(&shot_dir.path().join("slab.vdb"), &grid).unwrap();
+    Some(shot_dir)
+}
+
+/// Channel `name` of `chans` (as `read_channels` returns them).
+fn channel<'a>(chans: &'a [(String, Vec<f32>)], name: &str, path: &Path) -> &'a [f32] {
+    &chans
+        .iter()
+        .find(|c| c.0 == name)
+        .unwrap_or_else(|| panic!("{}: no channel {name}", path.display()))
+        .1
+}
+
+/// Largest |Σ parts − beauty| over pixels and R, G, B, relative to the bound of
+/// rounding, as `tests/light_groups.rs` measures it (docs/aovs.md): each channel is an
+/// f64 mean rounded once to f32, so |Σ parts − beauty| ≤ 2⁻²⁴ (|beauty| + Σ |parts|).
+/// ≤ 1 passes.
+fn worst_ratio(beauty: &[Vec<f32>; 4], parts: &[&[Vec<f32>; 4]]) -> f64 {
+    let mut worst: f64 = 0.0;
+    for c in 0..3 {
+        for (i, &b) in beauty[c].iter().enumerate() {
+            let vals: Vec<f64> = parts.iter().map(|p| p[c][i] as f64).collect();
+            let sum: f64 = vals.iter().sum();
+            let bound = (b.abs() as f64 + vals.iter().map(|v| v.abs()).sum::<f64>())
+                * 2f64.powi(-24)
+                + 1e-30;
+            worst = worst.max((sum - b as f64).abs() / bound);
+        }
+    }
+    worst
+}
+
 mod hydra_host {
     use super::*;
 
@@ -73,26 +122,9 @@ mod hydra_host {
         let _ = std::fs::remove_dir_all(&out);
         std::fs::create_dir_all(&out).unwrap();
         let res = format!("{}x{}", RES.0, RES.1);
-        // The shot test stage (tests/shot.rs: a slab volume, a sun, a sphere light in a
-        // closed box, holdout cubes and quads, light groups), with its slab VDB.
-        let Some((shot_dir, _)) = common::data::pxr_fixtures(
-            "make_shot_stage.py",
-            &["pxr"],
-            "pip install usd-core",
-            true,
-        ) else {
+        let Some(shot_dir) = shot_stages() else {
             return;
         };
-        // As tests/shot.rs writes it: a 32³ grid of density 1 over [-1, 1]³.
-        let vs = 2.0 / 32.0;
-        let grid = nimbus::volume::procedural::grid_from_fn(
-            "density",
-            [32; 3],
-            glam::DVec3::splat(-1.0 + 0.5 * vs),
-            vs,
-            |_| 1.0,
-        );
-        nimbus::volume::vdb::write_float_grid(&shot_dir.path().join("slab.vdb"), &grid).unwrap();
         let stages: Vec<(String, PathBuf)> = ["chromatic", "cloud", "fire", "overlap"]
             .iter()
             .map(|n| {
@@ -162,5 +194,136 @@ mod hydra_host {
                 );
             }
         }
+    }
+
+    /// The split AOVs through Hydra: the host binds `lightgroup:/World/Bulb`,
+    /// `lightgroup:/World/Sun` (a group named by a light's prim path: the shot stage's
+    /// lights have no `nimbus:lightGroup`), `direct`, `indirect` and `emission` beside
+    /// `color`, hdNimbus fills them each pass, and each must be bit-identical to the
+    /// layer `nimbus render --aovs` writes for the same stage, resolution, samples and
+    /// seed (the scene descriptions are the same: the shot stage's beauty is). The box
+    /// is left out (`shot_no_box.usda`) so that the bulb lights the slab: both groups
+    /// hold light. The parts sum to the beauty within the rounding bound, as
+    /// nimbus render's do (`tests/light_groups.rs`), and one group alone does not
+    /// (the check has power).
+    #[test]
+    fn light_group_and_split_aovs_through_hydra_match_nimbus_render() {
+        let Some(host) = host() else {
+            return;
+        };
+        let Some(shot_dir) = shot_stages() else {
+            return;
+        };
+        let dir = shot_dir.path();
+        let stage = dir.join("shot_no_box.usda");
+        let res = format!("{}x{}", RES.0, RES.1);
+        let aovs = [
+            ("lightgroup:/World/Bulb", "lightgroup__World_Bulb"),
+            ("lightgroup:/World/Sun", "lightgroup__World_Sun"),
+            ("direct", "direct"),
+            ("indirect", "indirect"),
+            ("emission", "emission"),
+        ];
+        let hydra_exr = dir.join("hydra.exr");
+        let mut cmd = Command::new(&host);
+        cmd.arg(&stage)
+            .arg("-o")
+            .arg(&hydra_exr)
+            .args(["--res", &res, "--spp", &SPP.to_string()]);
+        for (aov, layer) in aovs {
+            cmd.arg("--aov").arg(format!(
+                "{aov}={}",
+                dir.join(format!("{layer}.exr")).display()
+            ));
+        }
+        let o = cmd.output().expect("run nimbus-hydra");
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "nimbus-hydra: {e}");
+        assert!(!e.contains("Runtime Error"), "nimbus-hydra: {e}");
+        // A layer hdNimbus could not make is a warning naming the AOV.
+        assert!(!e.contains("AOV "), "nimbus-hydra: {e}");
+
+        let nimbus_exr = dir.join("nimbus.exr");
+        let names: Vec<&str> = aovs.iter().map(|a| a.0).collect();
+        let o = common::cli::nimbus(&[
+            "render",
+            stage.to_str().unwrap(),
+            "-o",
+            nimbus_exr.to_str().unwrap(),
+            "--res",
+            &res,
+            "--spp",
+            &SPP.to_string(),
+            "--aovs",
+            &names.join(","),
+        ]);
+        assert!(
+            o.status.success(),
+            "nimbus render: {}",
+            common::cli::stderr(&o)
+        );
+        let (w, h, nimbus_chans) =
+            nimbus::output::exr::read_channels(&nimbus_exr).unwrap_or_else(|e| panic!("read {e}"));
+        assert_eq!((w, h), RES);
+
+        let beauty = rgba(&hydra_exr);
+        let mut parts = Vec::new();
+        for (aov, layer) in aovs {
+            let path = dir.join(format!("{layer}.exr"));
+            let (w, h, chans) =
+                nimbus::output::exr::read_channels(&path).unwrap_or_else(|e| panic!("read {e}"));
+            assert_eq!((w, h), RES, "{}: size", path.display());
+            let rgb = ["R", "G", "B"].map(|c| channel(&chans, c, &path).to_vec());
+            let mut sum = 0.0f64;
+            for (c, values) in rgb.iter().enumerate() {
+                let name = format!("{layer}.{}", "RGB".as_bytes()[c] as char);
+                let theirs = channel(&nimbus_chans, &name, &nimbus_exr);
+                let same = values
+                    .iter()
+                    .zip(theirs)
+                    .filter(|(p, q)| p.to_bits() == q.to_bits())
+                    .count();
+                eprintln!(
+                    "hydra_host AOV {aov} {}: {same} of {} pixels bit-identical to nimbus render's {name}",
+                    "RGB".as_bytes()[c] as char,
+                    values.len()
+                );
+                assert_eq!(
+                    same,
+                    values.len(),
+                    "AOV {aov}: only {same} of {} pixels bit-identical to nimbus render's {name}",
+                    values.len()
+                );
+                sum += values.iter().map(|&v| v as f64).sum::<f64>();
+            }
+            eprintln!("hydra_host AOV {aov}: sum over pixels and R, G, B {sum:.6}");
+            parts.push([rgb[0].clone(), rgb[1].clone(), rgb[2].clone(), Vec::new()]);
+        }
+        let (bulb, sun, direct, indirect, emission) =
+            (&parts[0], &parts[1], &parts[2], &parts[3], &parts[4]);
+        let total = |p: &[Vec<f32>; 4]| p[..3].iter().flatten().map(|&v| v as f64).sum::<f64>();
+        for (p, what) in [
+            (bulb, "bulb"),
+            (sun, "sun"),
+            (direct, "direct"),
+            (indirect, "indirect"),
+        ] {
+            assert!(total(p) > 0.0, "AOV {what} is black");
+        }
+        let groups = worst_ratio(&beauty, &[bulb, sun]);
+        let splits = worst_ratio(&beauty, &[emission, direct, indirect]);
+        eprintln!(
+            "hydra_host AOVs: |bulb + sun - beauty| at most {groups:.3}x the rounding bound, |emission + direct + indirect - beauty| {splits:.3}x"
+        );
+        assert!(
+            groups <= 1.0,
+            "bulb + sun vs beauty: {groups}× the rounding bound"
+        );
+        assert!(
+            splits <= 1.0,
+            "emission + direct + indirect vs beauty: {splits}× the rounding bound"
+        );
+        assert!(worst_ratio(&beauty, &[sun]) > 1e3);
+        assert!(worst_ratio(&beauty, &[direct]) > 1e3);
     }
 }

@@ -1,6 +1,7 @@
 // nimbus-hydra: a command-line Hydra host. Opens a USD stage, renders it through a
 // Hydra render delegate (hdNimbus unless --delegate names another) without GL, and
-// writes the color AOV as an EXR: what `husk` and `usdrecord` do.
+// writes the color AOV as an EXR (and each `--aov NAME=FILE` as one more): what `husk`
+// and `usdrecord` do.
 //
 // A substitution: the SDK this is built against here has no UsdImaging headers, so the
 // host has its own minimal scene delegate over pxr/usd (StageSceneDelegate below)
@@ -12,6 +13,7 @@
 // instancing, motion or purposes.
 //
 //   nimbus-hydra STAGE -o OUT.exr [--res WxH] [--spp N] [--camera PATH] [--delegate NAME]
+//                [--aov NAME=FILE.exr]...
 
 #include "pxr/pxr.h"
 #include "pxr/base/arch/systemInfo.h"
@@ -53,6 +55,8 @@
 #include <cstdlib>
 #include <string>
 #include <thread>
+#include <utility>
+#include <vector>
 
 PXR_NAMESPACE_USING_DIRECTIVE
 
@@ -248,9 +252,33 @@ private:
 int Usage(char const *why) {
     std::fprintf(stderr,
                  "nimbus-hydra: error: %s\nusage: nimbus-hydra STAGE -o OUT.exr [--res WxH] "
-                 "[--spp N] [--camera PATH] [--delegate NAME]\n",
+                 "[--spp N] [--camera PATH] [--delegate NAME] [--aov NAME=FILE.exr]...\n",
                  why);
     return 2;
+}
+
+// Writes render buffer `rb` (float, 1 to 4 components) to `path` through Hio.
+bool WriteBuffer(HdRenderBuffer *rb, std::string const &path) {
+    rb->Resolve();
+    HioImage::StorageSpec spec;
+    spec.width = int(rb->GetWidth());
+    spec.height = int(rb->GetHeight());
+    switch (rb->GetFormat()) {
+    case HdFormatFloat32: spec.format = HioFormatFloat32; break;
+    case HdFormatFloat32Vec2: spec.format = HioFormatFloat32Vec2; break;
+    case HdFormatFloat32Vec3: spec.format = HioFormatFloat32Vec3; break;
+    case HdFormatFloat32Vec4: spec.format = HioFormatFloat32Vec4; break;
+    default:
+        std::fprintf(stderr, "nimbus-hydra: error: %s: the buffer is not float\n", path.c_str());
+        return false;
+    }
+    spec.flipped = true;  // Hydra's rows start at the bottom
+    spec.data = rb->Map();
+    HioImageSharedPtr image = HioImage::OpenForWriting(path);
+    bool ok = image && image->Write(spec);
+    rb->Unmap();
+    if (!ok) std::fprintf(stderr, "nimbus-hydra: error: %s: cannot write the image\n", path.c_str());
+    return ok;
 }
 
 }  // namespace
@@ -258,6 +286,9 @@ int Usage(char const *why) {
 int main(int argc, char **argv) {
     std::string stagePath, out, cameraArg, delegateName = "HdNimbusRendererPlugin";
     int width = 0, height = 0, spp = 0;
+    // --aov NAME=FILE: the AOV's name (a light group `lightgroup:key`, `direct`, …, as
+    // the delegate names it) and the file to write it to.
+    std::vector<std::pair<TfToken, std::string>> aovs;
     for (int i = 1; i < argc; ++i) {
         std::string a = argv[i];
         auto next = [&]() -> std::string { return i + 1 < argc ? argv[++i] : std::string(); };
@@ -269,6 +300,13 @@ int main(int argc, char **argv) {
         } else if (a == "--spp") spp = std::atoi(next().c_str());
         else if (a == "--camera") cameraArg = next();
         else if (a == "--delegate") delegateName = next();
+        else if (a == "--aov") {
+            std::string v = next();
+            size_t eq = v.rfind('=');
+            if (eq == std::string::npos || eq == 0 || eq + 1 == v.size())
+                return Usage("--aov takes NAME=FILE.exr");
+            aovs.emplace_back(TfToken(v.substr(0, eq)), v.substr(eq + 1));
+        }
         else if (!a.empty() && a[0] == '-') return Usage(("unknown option " + a).c_str());
         else stagePath = a;
     }
@@ -337,7 +375,9 @@ int main(int argc, char **argv) {
     }
     {
         HdxTaskController tasks(index, SdfPath("/nimbusHydraTasks"), /*gpuEnabled=*/false);
-        tasks.SetRenderOutputs({HdAovTokens->color});
+        TfTokenVector outputs = {HdAovTokens->color};
+        for (auto const &a : aovs) outputs.push_back(a.first);
+        tasks.SetRenderOutputs(outputs);
         tasks.SetRenderBufferSize(GfVec2i(width, height));
         tasks.SetFraming(CameraUtilFraming(GfRect2i(GfVec2i(0, 0), width, height)));
         tasks.SetCameraPath(cameraPath);
@@ -355,19 +395,15 @@ int main(int argc, char **argv) {
             std::fprintf(stderr, "nimbus-hydra: error: no color buffer\n");
             return 1;
         }
-        color->Resolve();
-        HioImage::StorageSpec spec;
-        spec.width = int(color->GetWidth());
-        spec.height = int(color->GetHeight());
-        spec.format = HioFormatFloat32Vec4;
-        spec.flipped = true;  // Hydra's rows start at the bottom
-        spec.data = color->Map();
-        HioImageSharedPtr image = HioImage::OpenForWriting(out);
-        bool ok = image && image->Write(spec);
-        color->Unmap();
-        if (!ok) {
-            std::fprintf(stderr, "nimbus-hydra: error: %s: cannot write the image\n", out.c_str());
-            return 1;
+        if (!WriteBuffer(color, out)) return 1;
+        for (auto const &a : aovs) {
+            HdRenderBuffer *rb = tasks.GetRenderOutput(a.first);
+            if (!rb) {
+                std::fprintf(stderr, "nimbus-hydra: error: no buffer for AOV %s\n",
+                             a.first.GetText());
+                return 1;
+            }
+            if (!WriteBuffer(rb, a.second)) return 1;
         }
         std::fprintf(stderr, "nimbus-hydra: wrote %s (%dx%d, %.2f s through %s)\n", out.c_str(),
                      width, height, seconds, delegateName.c_str());

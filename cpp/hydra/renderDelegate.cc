@@ -3,6 +3,7 @@
 #include "renderBuffer.h"
 #include "renderPass.h"
 
+#include "pxr/base/gf/vec3f.h"
 #include "pxr/base/gf/vec4f.h"
 #include "pxr/base/tf/diagnostic.h"
 #include "pxr/imaging/hd/camera.h"
@@ -118,6 +119,10 @@ HdAovDescriptor HdNimbusRenderDelegate::GetDefaultAovDescriptor(TfToken const &n
     }
     if (name == HdAovTokens->depth) {
         return HdAovDescriptor(HdFormatFloat32, false, VtValue(1.0f));
+    }
+    if (nimbus_hydra::is_split_aov(name.GetString())) {
+        // A light group or path split: an RGB part of the beauty.
+        return HdAovDescriptor(HdFormatFloat32Vec3, false, VtValue(GfVec3f(0.0f)));
     }
     if (nimbus_hydra::is_aov(name.GetString())) {
         return HdAovDescriptor(HdFormatFloat32, false, VtValue(0.0f));

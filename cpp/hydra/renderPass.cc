@@ -115,6 +115,7 @@ void HdNimbusRenderPass::_Execute(HdRenderPassStateSharedPtr const &state,
     scene.width = w;
     scene.height = h;
     scene.settings = _delegate->SettingsForRust();
+    for (auto const &b : _buffers) scene.aovs.push_back(b.first.GetString());
     try {
         for (rust::String const &warning : _renderer->reset(scene)) {
             TF_WARN("hdNimbus: %s", std::string(warning).c_str());

@@ -7,7 +7,7 @@
 //! in elements 12..15), which is column-major for column vectors: glam's
 //! `DMat4::from_cols_array` reads them as they are.
 
-use crate::renderer::{is_aov, new_renderer, setting_descriptors, Renderer};
+use crate::renderer::{is_aov, is_split_aov, new_renderer, setting_descriptors, Renderer};
 
 #[cxx::bridge(namespace = "nimbus_hydra")]
 pub mod bridge {
@@ -150,6 +150,9 @@ pub mod bridge {
         height: u32,
         /// How many threads the host synced prims on so far (for the statistics).
         sync_threads: u32,
+        /// The AOVs the render pass is bound to (the split layers among them are
+        /// gathered while rendering).
+        aovs: Vec<String>,
     }
 
     /// Where a render stands after a pass.
@@ -180,5 +183,8 @@ pub mod bridge {
         fn setting_descriptors() -> Vec<SettingDescriptor>;
         /// Whether `name` is an AOV hdNimbus writes.
         fn is_aov(name: &str) -> bool;
+        /// Whether `name` is a split AOV (a light group, `direct`, `indirect`,
+        /// `emission`, or `lpe:` and a light path expression): an RGB image.
+        fn is_split_aov(name: &str) -> bool;
     }
 }

@@ -554,14 +554,14 @@ fn shown(s: &SettingDesc) -> String {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    fn identity() -> [f64; 16] {
+    pub(crate) fn identity() -> [f64; 16] {
         DMat4::IDENTITY.to_cols_array()
     }
 
-    fn smoke_volume() -> VolumeDesc {
+    pub(crate) fn smoke_volume() -> VolumeDesc {
         VolumeDesc {
             path: "/smoke".into(),
             xform: identity(),
@@ -577,7 +577,7 @@ mod tests {
         }
     }
 
-    fn light(kind: &str) -> LightDesc {
+    pub(crate) fn light(kind: &str) -> LightDesc {
         LightDesc {
             kind: kind.into(),
             path: format!("/{kind}"),
