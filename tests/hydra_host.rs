@@ -6,7 +6,8 @@
 //! through hdNimbus, and `nimbus render` renders the same stage with the same
 //! resolution, samples and seed (measured: the shot stage bit-identical in every pixel),
 //! and the shot stage's light-group and path-split AOVs through Hydra against
-//! `nimbus render --aovs` (measured: bit-identical in every pixel).
+//! `nimbus render --aovs` (measured: bit-identical in every pixel), and a stage with
+//! light and shadow linking (the host hands the collections over as UsdImaging does).
 //!
 //! **What must hold.** The scene descriptions are the same but for Hydra's float
 //! camera parameters (UsdGeomCamera's lengths × 0.1 in float, × 10 again in Rust) and
@@ -110,6 +111,154 @@ fn worst_ratio(beauty: &[Vec<f32>; 4], parts: &[&[Vec<f32>; 4]]) -> f64 {
     worst
 }
 
+/// Hydra's image `a` against nimbus render's `b` of stage `name`: at least 99 % of each
+/// channel's pixels within 1e-5 relative, the means within 1 % (see the file comment).
+/// Returns the bit-identical pixels of each channel.
+fn compare(name: &str, a: &[Vec<f32>; 4], b: &[Vec<f32>; 4]) -> [usize; 4] {
+    let mut identical = [0; 4];
+    for (c, (x, y)) in a.iter().zip(b).enumerate() {
+        let same = x
+            .iter()
+            .zip(y)
+            .filter(|(p, q)| p.to_bits() == q.to_bits())
+            .count();
+        identical[c] = same;
+        let close = x
+            .iter()
+            .zip(y)
+            .filter(|(p, q)| (*p - *q).abs() <= 1e-5 * q.abs().max(1e-6))
+            .count();
+        let mean = |v: &[f32]| v.iter().map(|&p| p as f64).sum::<f64>() / v.len() as f64;
+        let (ma, mb) = (mean(x), mean(y));
+        let channel = "RGBA".as_bytes()[c] as char;
+        eprintln!(
+            "hydra_host {name} {channel}: {same} of {} pixels bit-identical, {close} within 1e-5; mean hydra {ma:.6} nimbus {mb:.6}",
+            x.len()
+        );
+        assert!(
+            close * 100 >= x.len() * 99,
+            "{name} {channel}: only {close} of {} pixels within 1e-5 ({same} bit-identical)",
+            x.len()
+        );
+        assert!(
+            (ma - mb).abs() <= 0.01 * mb.abs().max(1e-6),
+            "{name} {channel}: mean {ma} through Hydra, {mb} from nimbus render"
+        );
+    }
+    identical
+}
+
+/// Renders `stage` through the Hydra host into `out` (RES, SPP) and returns its RGBA.
+fn hydra_render(host: &Path, stage: &Path, out: &Path) -> [Vec<f32>; 4] {
+    let o = Command::new(host)
+        .arg(stage)
+        .arg("-o")
+        .arg(out)
+        .args([
+            "--res",
+            &format!("{}x{}", RES.0, RES.1),
+            "--spp",
+            &SPP.to_string(),
+        ])
+        .output()
+        .expect("run nimbus-hydra");
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "nimbus-hydra {}: {e}", stage.display());
+    assert!(
+        !e.contains("Runtime Error"),
+        "nimbus-hydra {}: {e}",
+        stage.display()
+    );
+    rgba(out)
+}
+
+/// Renders `stage` with `nimbus render` into `out` (RES, SPP) and returns its RGBA.
+fn nimbus_render(stage: &Path, out: &Path) -> [Vec<f32>; 4] {
+    let o = common::cli::nimbus(&[
+        "render",
+        stage.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--res",
+        &format!("{}x{}", RES.0, RES.1),
+        "--spp",
+        &SPP.to_string(),
+    ]);
+    assert!(
+        o.status.success(),
+        "nimbus render {}: {}",
+        stage.display(),
+        common::cli::stderr(&o)
+    );
+    rgba(out)
+}
+
+/// The example cloud with a second cloud (`/World/Cloud2`, the same grid moved right
+/// and back), a holdout cube over the cloud, and its sun and sky replaced by a sphere
+/// light whose `lightLink` holds only Cloud2 and whose `shadowLink` leaves the cube out,
+/// and a sun whose `shadowLink` holds only /World/Cloud (neither Cloud2 nor the cube
+/// shadow it). `linked = false`: the same lights without the collections.
+fn linking_stage(dir: &Path, linked: bool) -> PathBuf {
+    let links = |text: &'static str| if linked { text } else { "" };
+    let prims = format!(
+        r#"
+    def Volume "Cloud2" (
+        prepend apiSchemas = ["NimbusVolumeAPI"]
+    )
+    {{
+        rel field:density = </World/Cloud/density>
+        float nimbus:densityScale = 12
+        double3 xformOp:translate = (1.1, 0.2, -1)
+        uniform token[] xformOpOrder = ["xformOp:translate"]
+    }}
+    def Cube "Occ" {{
+        double size = 0.6
+        double3 xformOp:translate = (-0.3, 1.4, 0.3)
+        uniform token[] xformOpOrder = ["xformOp:translate"]
+    }}
+    def SphereLight "ALinked" {{
+        float inputs:intensity = 40
+        float inputs:radius = 0.1
+        {}
+        double3 xformOp:translate = (0.6, 1.8, 0.3)
+        uniform token[] xformOpOrder = ["xformOp:translate"]
+    }}
+    def DistantLight "Sun" {{
+        float inputs:intensity = 4
+        bool inputs:normalize = 1
+        {}
+        float3 xformOp:rotateXYZ = (-70, 10, 0)
+        uniform token[] xformOpOrder = ["xformOp:rotateXYZ"]
+    }}"#,
+        links(
+            "uniform bool collection:lightLink:includeRoot = 0
+        rel collection:lightLink:includes = </World/Cloud2>
+        rel collection:shadowLink:excludes = </World/Occ>"
+        ),
+        links(
+            "uniform bool collection:shadowLink:includeRoot = 0
+        rel collection:shadowLink:includes = </World/Cloud>"
+        ),
+    );
+    let text = std::fs::read_to_string(common::repo().join("scenes/cloud/cloud.usda")).unwrap();
+    let start = text.find("    def DistantLight \"Sun\"").unwrap();
+    let end = text.find("def Scope \"Render\"").unwrap();
+    let text = format!("{}{prims}\n}}\n\n{}", &text[..start], &text[end..]).replace(
+        "@./cloud.vdb@",
+        &format!(
+            "@{}@",
+            common::repo().join("scenes/cloud/cloud.vdb").display()
+        ),
+    );
+    let path = dir.join(if linked {
+        "linked.usda"
+    } else {
+        "unlinked.usda"
+    });
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
 mod hydra_host {
     use super::*;
 
@@ -164,35 +313,7 @@ mod hydra_host {
                 "nimbus render {name}: {}",
                 common::cli::stderr(&o)
             );
-            let (a, b) = (rgba(&hydra_exr), rgba(&nimbus_exr));
-            for (c, (x, y)) in a.iter().zip(&b).enumerate() {
-                let same = x
-                    .iter()
-                    .zip(y)
-                    .filter(|(p, q)| p.to_bits() == q.to_bits())
-                    .count();
-                let close = x
-                    .iter()
-                    .zip(y)
-                    .filter(|(p, q)| (*p - *q).abs() <= 1e-5 * q.abs().max(1e-6))
-                    .count();
-                let mean = |v: &[f32]| v.iter().map(|&p| p as f64).sum::<f64>() / v.len() as f64;
-                let (ma, mb) = (mean(x), mean(y));
-                let channel = "RGBA".as_bytes()[c] as char;
-                eprintln!(
-                    "hydra_host {name} {channel}: {same} of {} pixels bit-identical, {close} within 1e-5; mean hydra {ma:.6} nimbus {mb:.6}",
-                    x.len()
-                );
-                assert!(
-                    close * 100 >= x.len() * 99,
-                    "{name} {channel}: only {close} of {} pixels within 1e-5 ({same} bit-identical)",
-                    x.len()
-                );
-                assert!(
-                    (ma - mb).abs() <= 0.01 * mb.abs().max(1e-6),
-                    "{name} {channel}: mean {ma} through Hydra, {mb} from nimbus render"
-                );
-            }
+            compare(name, &rgba(&hydra_exr), &rgba(&nimbus_exr));
         }
     }
 
@@ -325,5 +446,46 @@ mod hydra_host {
         );
         assert!(worst_ratio(&beauty, &[sun]) > 1e3);
         assert!(worst_ratio(&beauty, &[direct]) > 1e3);
+    }
+
+    /// Light and shadow linking through Hydra: the host hands each light's linking
+    /// collections over as UsdImaging does (a collection that leaves out some rprim by
+    /// its path, the rprims it includes listing that among their categories), hdNimbus
+    /// turns them into the scene's collections, and the image agrees with `nimbus
+    /// render` of the same stage as the example stages do (the cloud's transforms
+    /// handed over in float), and differs from the same stage without the collections
+    /// (the links change the image: the check has power).
+    #[test]
+    fn light_and_shadow_linking_through_hydra_match_nimbus_render() {
+        let Some(host) = host() else {
+            return;
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let linked = linking_stage(d, true);
+        let hydra = hydra_render(&host, &linked, &d.join("linked_hydra.exr"));
+        let nimbus = nimbus_render(&linked, &d.join("linked_nimbus.exr"));
+        compare("linking", &hydra, &nimbus);
+        let unlinked = linking_stage(d, false);
+        let hydra_unlinked = hydra_render(&host, &unlinked, &d.join("unlinked_hydra.exr"));
+        let nimbus_unlinked = nimbus_render(&unlinked, &d.join("unlinked_nimbus.exr"));
+        compare("linking (none)", &hydra_unlinked, &nimbus_unlinked);
+        let differ = hydra[0]
+            .iter()
+            .zip(&hydra_unlinked[0])
+            .filter(|(p, q)| (*p - *q).abs() > 1e-3 * q.abs().max(1e-3))
+            .count();
+        let mean = |v: &[f32]| v.iter().map(|&p| p as f64).sum::<f64>() / v.len() as f64;
+        eprintln!(
+            "hydra_host linking: {differ} of {} R values differ from the unlinked stage's by more than 1e-3; mean R linked {:.6}, unlinked {:.6}",
+            hydra[0].len(),
+            mean(&hydra[0]),
+            mean(&hydra_unlinked[0])
+        );
+        assert!(
+            differ * 4 >= hydra[0].len(),
+            "linking changed only {differ} of {} pixels",
+            hydra[0].len()
+        );
     }
 }

@@ -9,8 +9,11 @@
 // reads: volumes with their openvdbAsset fields (NimbusVolumeAPI's `nimbus:*`
 // attributes as constant primvars), meshes and cubes (as meshes, as UsdImaging hands
 // them; `nimbus:holdout = false` leaves one out), the UsdLux lights, the camera, and the
-// render settings prim's `nimbus:*` attributes as render settings. No materials,
-// instancing, motion or purposes.
+// render settings prim's `nimbus:*` attributes as render settings. Light linking as
+// UsdImaging hands it over: a light's `lightLink` / `shadowLink` collection that leaves
+// out some rprim is named by its collection path (the `lightLink` / `shadowLink` light
+// params), and the rprims it includes list that name among their categories. No
+// materials, instancing, motion or purposes.
 //
 //   nimbus-hydra STAGE -o OUT.exr [--res WxH] [--spp N] [--camera PATH] [--delegate NAME]
 //                [--aov NAME=FILE.exr]...
@@ -36,6 +39,8 @@
 #include "pxr/imaging/hd/tokens.h"
 #include "pxr/imaging/hdx/taskController.h"
 #include "pxr/imaging/hio/image.h"
+#include "pxr/usd/usd/collectionAPI.h"
+#include "pxr/usd/usd/collectionMembershipQuery.h"
 #include "pxr/usd/usd/prim.h"
 #include "pxr/usd/usd/primRange.h"
 #include "pxr/usd/usd/stage.h"
@@ -51,6 +56,7 @@
 #include "pxr/usd/usdVol/volume.h"
 
 #include <chrono>
+#include <map>
 #include <cstdio>
 #include <cstdlib>
 #include <string>
@@ -76,6 +82,7 @@ public:
             SdfPath const &p = prim.GetPath();
             if (prim.IsA<UsdVolVolume>()) {
                 index.InsertRprim(HdPrimTypeTokens->volume, this, p);
+                _rprims.push_back(p);
                 for (auto const &f : UsdVolVolume(prim).GetFieldPaths()) {
                     UsdPrim field = _stage->GetPrimAtPath(f.second);
                     TfToken type = field && field.IsA<UsdVolOpenVDBAsset>()
@@ -89,7 +96,10 @@ public:
                 UsdAttribute h = prim.GetAttribute(TfToken("nimbus:holdout"));
                 if (h) h.Get(&holdout);
                 // A Cube as UsdImaging hands it over: a mesh of its six faces.
-                if (holdout) index.InsertRprim(HdPrimTypeTokens->mesh, this, p);
+                if (holdout) {
+                    index.InsertRprim(HdPrimTypeTokens->mesh, this, p);
+                    _rprims.push_back(p);
+                }
             } else if (prim.IsA<UsdGeomCamera>()) {
                 index.InsertSprim(HdPrimTypeTokens->camera, this, p);
                 if (_firstCamera.IsEmpty()) _firstCamera = p;
@@ -101,6 +111,7 @@ public:
                 TfToken type(t);
                 if (HdPrimTypeIsLight(type) && index.IsSprimTypeSupported(type)) {
                     index.InsertSprim(type, this, p);
+                    _lights.push_back(prim);
                 } else {
                     TF_WARN("nimbus-hydra: light %s: type %s is not a Hydra light type the delegate supports; left out",
                             p.GetText(), t.c_str());
@@ -109,7 +120,32 @@ public:
         }
     }
 
+    // Each light's linking collections: named when they leave out some rprim (a
+    // collection of every rprim is Hydra's empty name, as UsdImaging's collection
+    // cache makes it), the name added to the categories of the rprims it includes.
+    void ComputeLinking() {
+        for (UsdPrim const &light : _lights) {
+            for (TfToken const &name : {HdTokens->lightLink, HdTokens->shadowLink}) {
+                UsdCollectionAPI collection(light, name);
+                UsdCollectionMembershipQuery query = collection.ComputeMembershipQuery();
+                std::vector<SdfPath> members;
+                for (SdfPath const &r : _rprims) {
+                    if (query.IsPathIncluded(r)) members.push_back(r);
+                }
+                if (members.size() == _rprims.size()) continue;
+                TfToken id(collection.GetCollectionPath().GetString());
+                _links[{light.GetPath(), name}] = id;
+                for (SdfPath const &r : members) _categories[r].push_back(id);
+            }
+        }
+    }
+
     SdfPath FirstCamera() const { return _firstCamera; }
+
+    VtArray<TfToken> GetCategories(SdfPath const &id) override {
+        auto it = _categories.find(id);
+        return it == _categories.end() ? VtArray<TfToken>() : it->second;
+    }
 
     GfMatrix4d GetTransform(SdfPath const &id) override {
         UsdPrim prim = _stage->GetPrimAtPath(id);
@@ -199,6 +235,10 @@ public:
     }
 
     VtValue GetLightParamValue(SdfPath const &id, TfToken const &name) override {
+        if (name == HdTokens->lightLink || name == HdTokens->shadowLink) {
+            auto it = _links.find({id, name});
+            return VtValue(it == _links.end() ? TfToken() : it->second);
+        }
         UsdPrim prim = _stage->GetPrimAtPath(id);
         if (!prim) return VtValue();
         VtValue v;
@@ -247,6 +287,11 @@ private:
     UsdStageRefPtr _stage;
     UsdGeomXformCache _xf;
     SdfPath _firstCamera;
+    // The rprims inserted and the lights, in stage order; the linking (ComputeLinking).
+    std::vector<SdfPath> _rprims;
+    std::vector<UsdPrim> _lights;
+    std::map<std::pair<SdfPath, TfToken>, TfToken> _links;
+    std::map<SdfPath, VtArray<TfToken>> _categories;
 };
 
 int Usage(char const *why) {
@@ -367,6 +412,7 @@ int main(int argc, char **argv) {
     HdRenderIndex *index = HdRenderIndex::New(delegate.Get(), {});
     StageSceneDelegate scene(index, stage);
     scene.Populate();
+    scene.ComputeLinking();
     if (cameraPath.IsEmpty()) cameraPath = scene.FirstCamera();
     if (cameraPath.IsEmpty()) {
         std::fprintf(stderr, "nimbus-hydra: error: %s: no camera (name one with --camera)\n",

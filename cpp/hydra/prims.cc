@@ -21,6 +21,13 @@ TfTokenVector const &HdNimbusVolume::GetBuiltinPrimvarNames() const {
     return none;
 }
 
+// The light-linking collections an rprim is in (Hydra's categories).
+static rust::Vec<rust::String> HdNimbusCategories(HdSceneDelegate *delegate, SdfPath const &id) {
+    rust::Vec<rust::String> out;
+    for (TfToken const &c : delegate->GetCategories(id)) out.push_back(c.GetString());
+    return out;
+}
+
 void HdNimbusVolume::Sync(HdSceneDelegate *delegate, HdRenderParam *param,
                           HdDirtyBits *dirtyBits, TfToken const &reprToken) {
     SdfPath const &id = GetId();
@@ -49,6 +56,7 @@ void HdNimbusVolume::Sync(HdSceneDelegate *delegate, HdRenderParam *param,
             HdNimbusParam(pv.name.GetString(), delegate->Get(id, pv.name)));
     }
     rec.materialId = delegate->GetMaterialId(id);
+    rec.desc.categories = HdNimbusCategories(delegate, id);
     store.SetVolume(id, std::move(rec));
     *dirtyBits &= ~HdChangeTracker::AllSceneDirtyBits;
 }
@@ -98,6 +106,7 @@ void HdNimbusMesh::Sync(HdSceneDelegate *delegate, HdRenderParam *param,
         return;
     }
     d.double_sided = delegate->GetDoubleSided(id);
+    d.categories = HdNimbusCategories(delegate, id);
     store.SetMesh(id, std::move(d));
     *dirtyBits &= ~HdChangeTracker::AllSceneDirtyBits;
 }
@@ -177,6 +186,10 @@ void HdNimbusLight::Sync(HdSceneDelegate *delegate, HdRenderParam *param,
     d.shaping_ies_angle_scale = N(t.shapingIesAngleScale, 0.0);
     d.shaping_ies_normalize = B(t.shapingIesNormalize, false);
     d.light_group = HdNimbusText(delegate->GetLightParamValue(id, TfToken("nimbus:lightGroup")));
+    // The linking collections by name (empty: everything); the rprims list the
+    // collections they are in as their categories.
+    d.light_link = HdNimbusText(delegate->GetLightParamValue(id, HdTokens->lightLink));
+    d.shadow_link = HdNimbusText(delegate->GetLightParamValue(id, HdTokens->shadowLink));
     store.SetLight(id, std::move(d));
     *dirtyBits = Clean;
 }

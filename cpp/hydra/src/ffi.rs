@@ -47,6 +47,10 @@ pub mod bridge {
         shaping_ies_normalize: bool,
         /// `nimbus:lightGroup`, "" when none.
         light_group: String,
+        /// The `lightLink` and `shadowLink` collections by the names Hydra gives them
+        /// ("" : every prim); the rprims in one list its name among their categories.
+        light_link: String,
+        shadow_link: String,
     }
 
     /// An `openvdbAsset` field bprim as a volume names it.
@@ -83,6 +87,8 @@ pub mod bridge {
         shader_path: String,
         shader_id: String,
         shader_params: Vec<ParamDesc>,
+        /// The light-linking collections it is in (Hydra's categories).
+        categories: Vec<String>,
     }
 
     /// A mesh rprim: its control cage in object space (a holdout).
@@ -95,6 +101,8 @@ pub mod bridge {
         face_indices: Vec<i32>,
         hole_indices: Vec<i32>,
         double_sided: bool,
+        /// The light-linking collections it is in (Hydra's categories).
+        categories: Vec<String>,
     }
 
     /// The camera rendered through, in Hydra's units (world units, not UsdGeomCamera's

@@ -15,6 +15,7 @@ use nimbus::scene::{
     VolumeEmission,
 };
 use nimbus::volume::asset::AssetLocation;
+use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 /// What the errors and warnings of a Hydra render name as their "stage".
@@ -52,10 +53,11 @@ pub fn scene_of(desc: &SceneDesc) -> Result<(Scene, Vec<String>)> {
     }
     // Hydra syncs prims in no particular order; sort so a light's id (its index in
     // the renderer) and the image do not depend on the host's threads.
+    let links = Links::of(desc);
     let mut lights: Vec<&LightDesc> = desc.lights.iter().collect();
     lights.sort_by(|a, b| a.path.cmp(&b.path));
     for l in lights {
-        add_light(&mut scene, l, &mut warnings)?;
+        add_light(&mut scene, l, &links, &mut warnings)?;
     }
     let mut volumes: Vec<&VolumeDesc> = desc.volumes.iter().collect();
     volumes.sort_by(|a, b| a.path.cmp(&b.path));
@@ -103,7 +105,51 @@ fn camera(c: &CameraDesc) -> Camera {
     }
 }
 
-fn controls(l: &LightDesc) -> LightControls {
+/// Hydra's light linking: a light names its `lightLink` / `shadowLink` collection (an
+/// empty name: every prim) and each rprim lists the collections it is in as its
+/// categories. The USD reader's collections are membership rules over prim paths; a
+/// Hydra collection becomes the rule that includes exactly its members' paths
+/// (`includeRoot` off, `explicitOnly`), which the renderer's linking evaluates over the
+/// volumes and holdouts as it evaluates the reader's.
+struct Links {
+    members: BTreeMap<String, Vec<String>>,
+}
+
+impl Links {
+    fn of(desc: &SceneDesc) -> Links {
+        let mut members: BTreeMap<String, Vec<String>> = BTreeMap::new();
+        let prims = desc
+            .volumes
+            .iter()
+            .map(|v| (&v.path, &v.categories))
+            .chain(desc.meshes.iter().map(|m| (&m.path, &m.categories)));
+        for (path, categories) in prims {
+            for c in categories {
+                members.entry(c.clone()).or_default().push(path.clone());
+            }
+        }
+        for paths in members.values_mut() {
+            paths.sort();
+            paths.dedup();
+        }
+        Links { members }
+    }
+
+    /// The collection named `name` ("": everything; a name no rprim lists: nothing).
+    fn collection(&self, name: &str) -> Collection {
+        if name.is_empty() {
+            return Collection::default();
+        }
+        Collection {
+            include_root: false,
+            includes: self.members.get(name).cloned().unwrap_or_default(),
+            excludes: Vec::new(),
+            explicit_only: true,
+        }
+    }
+}
+
+fn controls(l: &LightDesc, links: &Links) -> LightControls {
     LightControls {
         diffuse: l.diffuse,
         shaping: l.has_shaping.then(|| Shaping {
@@ -115,13 +161,18 @@ fn controls(l: &LightDesc) -> LightControls {
             ies_angle_scale: l.shaping_ies_angle_scale,
             ies_normalize: l.shaping_ies_normalize,
         }),
-        light_link: Collection::default(),
-        shadow_link: Collection::default(),
+        light_link: links.collection(&l.light_link),
+        shadow_link: links.collection(&l.shadow_link),
         unshadowed: !l.shadow_enable,
     }
 }
 
-fn add_light(scene: &mut Scene, l: &LightDesc, warnings: &mut Vec<String>) -> Result<()> {
+fn add_light(
+    scene: &mut Scene,
+    l: &LightDesc,
+    links: &Links,
+    warnings: &mut Vec<String>,
+) -> Result<()> {
     let to_world = finite_matrix(&l.path, &l.xform)?;
     let temperature = l.enable_color_temperature.then_some(l.color_temperature);
     let group = (!l.light_group.is_empty()).then(|| l.light_group.clone());
@@ -134,7 +185,7 @@ fn add_light(scene: &mut Scene, l: &LightDesc, warnings: &mut Vec<String>) -> Re
             }
             scene.distant_lights.push(DistantLight {
                 prim_path: path,
-                controls: controls(l),
+                controls: controls(l, links),
                 light_group: group,
                 direction: d.normalize().to_array(),
                 intensity: l.intensity,
@@ -147,7 +198,7 @@ fn add_light(scene: &mut Scene, l: &LightDesc, warnings: &mut Vec<String>) -> Re
         }
         "domeLight" => scene.dome_lights.push(DomeLight {
             prim_path: path,
-            controls: controls(l),
+            controls: controls(l, links),
             light_group: group,
             light_to_world: to_world,
             intensity: l.intensity,
@@ -162,7 +213,7 @@ fn add_light(scene: &mut Scene, l: &LightDesc, warnings: &mut Vec<String>) -> Re
         }),
         "sphereLight" => scene.sphere_lights.push(SphereLight {
             prim_path: path,
-            controls: controls(l),
+            controls: controls(l, links),
             light_group: group,
             light_to_world: to_world,
             intensity: l.intensity,
@@ -175,7 +226,7 @@ fn add_light(scene: &mut Scene, l: &LightDesc, warnings: &mut Vec<String>) -> Re
         }),
         "rectLight" => scene.rect_lights.push(RectLight {
             prim_path: path,
-            controls: controls(l),
+            controls: controls(l, links),
             light_group: group,
             light_to_world: to_world,
             intensity: l.intensity,
@@ -188,7 +239,7 @@ fn add_light(scene: &mut Scene, l: &LightDesc, warnings: &mut Vec<String>) -> Re
         }),
         "diskLight" => scene.disk_lights.push(DiskLight {
             prim_path: path,
-            controls: controls(l),
+            controls: controls(l, links),
             light_group: group,
             light_to_world: to_world,
             intensity: l.intensity,
@@ -200,7 +251,7 @@ fn add_light(scene: &mut Scene, l: &LightDesc, warnings: &mut Vec<String>) -> Re
         }),
         "cylinderLight" => scene.cylinder_lights.push(CylinderLight {
             prim_path: path,
-            controls: controls(l),
+            controls: controls(l, links),
             light_group: group,
             light_to_world: to_world,
             intensity: l.intensity,
@@ -731,6 +782,63 @@ pub(crate) mod tests {
     }
 
     /// Hydra's camera lengths are scene units; UsdGeomCamera's (the Scene's) tenths.
+    /// Hydra's linking: a light's `lightLink` / `shadowLink` name becomes the collection
+    /// of exactly the rprims (volumes and meshes) that list it among their categories;
+    /// an empty name is every prim, a name no rprim lists is none.
+    #[test]
+    fn linking_collections_from_categories() {
+        let volume = |path: &str, categories: &[&str]| VolumeDesc {
+            path: path.into(),
+            categories: categories.iter().map(|c| c.to_string()).collect(),
+            ..smoke_volume()
+        };
+        let linked = LightDesc {
+            path: "/a".into(),
+            light_link: "/a.collection:lightLink".into(),
+            shadow_link: "/a.collection:shadowLink".into(),
+            ..light("sphereLight")
+        };
+        let nowhere = LightDesc {
+            path: "/b".into(),
+            light_link: "/b.collection:lightLink".into(),
+            ..light("sphereLight")
+        };
+        let desc = SceneDesc {
+            lights: vec![nowhere, linked],
+            volumes: vec![
+                volume("/v2", &["/a.collection:lightLink"]),
+                volume(
+                    "/v1",
+                    &["/a.collection:lightLink", "/a.collection:shadowLink"],
+                ),
+            ],
+            meshes: vec![MeshDesc {
+                path: "/m".into(),
+                xform: identity(),
+                categories: vec!["/a.collection:shadowLink".into()],
+                ..MeshDesc::default()
+            }],
+            width: 8,
+            height: 8,
+            ..SceneDesc::default()
+        };
+        let (scene, _) = scene_of(&desc).unwrap();
+        let only = |paths: &[&str]| Collection {
+            include_root: false,
+            includes: paths.iter().map(|p| p.to_string()).collect(),
+            excludes: Vec::new(),
+            explicit_only: true,
+        };
+        let (a, b) = (&scene.sphere_lights[0], &scene.sphere_lights[1]);
+        assert_eq!(a.prim_path, "/a");
+        assert_eq!(a.controls.light_link, only(&["/v1", "/v2"]));
+        assert_eq!(a.controls.shadow_link, only(&["/m", "/v1"]));
+        assert!(a.controls.light_link.contains("/v2") && !a.controls.light_link.contains("/m"));
+        assert_eq!(b.controls.light_link, only(&[]));
+        assert!(!b.controls.light_link.contains("/v1"));
+        assert_eq!(b.controls.shadow_link, Collection::default());
+    }
+
     #[test]
     fn camera_lengths_in_tenths() {
         let desc = SceneDesc {
@@ -770,6 +878,7 @@ pub(crate) mod tests {
             face_indices: vec![0, 1, 2, 3, 0, 1, 2, 4, 3, 0, 1, 2],
             hole_indices: vec![2],
             double_sided: false,
+            categories: Vec::new(),
         };
         let desc = SceneDesc {
             meshes: vec![mesh.clone()],

@@ -219,6 +219,7 @@ fn desc_of(scene: &Scene) -> SceneDesc {
             face_indices: h.triangles.iter().flatten().map(|&i| i as i32).collect(),
             hole_indices: Vec::new(),
             double_sided: h.double_sided,
+            categories: Vec::new(),
         });
     }
     let s = &scene.settings;
