@@ -117,7 +117,15 @@ fn print_stage(d: &StageDescription) {
             ),
             None => println!("  emission: no emissionField"),
         }
-        if v.temperature_field.is_some() || v.emission_field.is_some() {
+        if v.emission_kind == "source" {
+            if v.emission_field.is_none() {
+                println!(
+                    "  emission: constant field 1 (emissionKind source): S = {:?}",
+                    v.emission_color.map(|c| c * v.emission_scale)
+                );
+            }
+            println!("  emission source term (emissionKind source): S itself, per unit length, independent of density (nothing where absorption * density is 0)");
+        } else if v.temperature_field.is_some() || v.emission_field.is_some() {
             println!("  emission source term: absorption * density * Le (nothing emits where density is 0)");
         }
         match &v.albedo_field {

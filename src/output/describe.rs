@@ -231,6 +231,8 @@ pub struct VolumeDescription {
     pub emission_field: Option<String>,
     pub emission_color: [f64; 3],
     pub emission_scale: f64,
+    /// `nimbus:emissionKind`: "radiance" or "source".
+    pub emission_kind: &'static str,
     pub albedo_field: Option<String>,
     /// The bound material's volume shader the parameters come from, if any.
     pub material_shader: Option<String>,
@@ -555,6 +557,7 @@ fn volume(v: &crate::scene::Volume, depth: u32) -> VolumeDescription {
         emission_field: name(&e.emission),
         emission_color: e.emission_color,
         emission_scale: e.emission_scale,
+        emission_kind: e.kind.token(),
         albedo_field: albedo.clone(),
         material_shader: v.material_shader.clone(),
         fields: v

@@ -19,6 +19,7 @@ use crate::track::collision_select::{ratio_select, SegmentEstimate};
 use crate::track::free_path::{FreePath, FreePathSampler, Query, TransmittanceEstimator};
 use crate::track::race::MAX_MEDIA;
 use crate::volume::counters::{Counters, NoCounts, Tally};
+use crate::volume::emission::EmissionKind;
 use crate::volume::medium::{IndexRay, Medium, Sigma};
 use glam::DVec3;
 use rand::Rng;
@@ -569,8 +570,20 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         radiance: &mut Radiance,
         counters: &mut C,
     ) {
-        if let Some(emission) = &self.media[id].emission {
-            let le = emission.radiance(p, counters);
+        let medium = &self.media[id];
+        if let Some(emission) = &medium.emission {
+            let mut le = emission.radiance(p, counters);
+            if emission.params.kind == EmissionKind::Source {
+                // The model gives the source term S itself; the event's weight estimates
+                // ∫T·μa·(·), so S/μa(λ, x) makes it an estimate of ∫T·S. One more density
+                // lookup (the trackers do not hand the event's density over). Where
+                // μa(λ, x) = 0 the event cannot happen in that channel: nothing emits.
+                let d = medium.density_at_world(p, counters) as f64;
+                for (l, a) in le.iter_mut().zip(medium.sigma.a) {
+                    let mu_a = d * a as f64;
+                    *l = if mu_a > 0.0 { *l / mu_a } else { 0.0 };
+                }
+            }
             let source = self.extras.splits.map_or(0, |m| m.emission_source(id));
             radiance.add(source, depth, scaled(weight, le, 1.0));
         }

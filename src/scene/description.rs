@@ -5,7 +5,7 @@
 
 use super::diagnostics::Diagnostics;
 use crate::volume::asset::AssetLocation;
-use crate::volume::emission::EmissionParams;
+use crate::volume::emission::{EmissionKind, EmissionParams};
 use glam::DMat4;
 use std::path::PathBuf;
 
@@ -428,6 +428,9 @@ pub struct VolumeEmission {
     pub emission_color: [f64; 3],
     /// `nimbus:emissionScale`.
     pub emission_scale: f64,
+    /// `nimbus:emissionKind`: whether the model's value is radiance (source μa·Le) or
+    /// the source term itself.
+    pub kind: EmissionKind,
 }
 
 impl Default for VolumeEmission {
@@ -441,6 +444,7 @@ impl Default for VolumeEmission {
             emission: None,
             emission_color: p.emission_color,
             emission_scale: p.emission_scale,
+            kind: p.kind,
         }
     }
 }
@@ -453,12 +457,14 @@ impl VolumeEmission {
             blackbody_intensity: self.blackbody_intensity,
             emission_color: self.emission_color,
             emission_scale: self.emission_scale,
+            kind: self.kind,
         }
     }
 
-    /// Whether any emission field is configured.
+    /// Whether any emission field is configured (a source-kind emission without a
+    /// field has the constant field 1).
     pub fn is_emissive(&self) -> bool {
-        self.temperature.is_some() || self.emission.is_some()
+        self.temperature.is_some() || self.emission.is_some() || self.kind == EmissionKind::Source
     }
 }
 

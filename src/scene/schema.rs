@@ -50,6 +50,7 @@ pub mod tokens {
     pub const EMISSION_FIELD: &str = "nimbus:emissionField";
     pub const EMISSION_COLOR: &str = "nimbus:emissionColor";
     pub const EMISSION_SCALE: &str = "nimbus:emissionScale";
+    pub const EMISSION_KIND: &str = "nimbus:emissionKind";
     pub const ALBEDO_FIELD: &str = "nimbus:albedoField";
     pub const SAMPLES: &str = "nimbus:samples";
     pub const MAX_DEPTH: &str = "nimbus:maxDepth";

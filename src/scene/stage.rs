@@ -18,6 +18,7 @@ use super::motion;
 use super::schema::{self, tokens};
 use super::shading;
 use super::unsupported;
+use crate::volume::emission::EmissionKind;
 use glam::DMat4;
 use openusd::sdf;
 use openusd::usd::{Prim, PrimPredicate, Stage, TimeCode};
@@ -549,6 +550,18 @@ impl Loader<'_> {
             emission: self.named_field(prim, tokens::EMISSION_FIELD, fields)?,
             emission_color: read_vec3(prim, tokens::EMISSION_COLOR, t)?.unwrap_or(d.emission_color),
             emission_scale: read_f64(prim, tokens::EMISSION_SCALE, t)?.unwrap_or(d.emission_scale),
+            kind: match read_string(prim, tokens::EMISSION_KIND, t)? {
+                None => d.kind,
+                Some(k) => EmissionKind::from_token(&k).ok_or_else(|| {
+                    prim_error(
+                        prim.path(),
+                        format!(
+                            "{} = \"{k}\" is not one of \"radiance\", \"source\"",
+                            tokens::EMISSION_KIND
+                        ),
+                    )
+                })?,
+            },
         })
     }
 

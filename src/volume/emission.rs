@@ -54,6 +54,42 @@ impl EmissionGrid {
     }
 }
 
+/// What the emission model's value E(x) means (`nimbus:emissionKind`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum EmissionKind {
+    /// `"radiance"`: E is emitted radiance Le; the source term is μa(x)·Le(x)
+    /// (pbrt-v4), so nothing emits where the density is 0.
+    #[default]
+    Radiance,
+    /// `"source"`: E is the source term S(x) itself, radiance per unit length, as
+    /// Cycles' Principled Volume means its Emission Strength·Color and blackbody
+    /// (independent of density). Collected at absorption events as S/μa(λ, x), which is
+    /// unbiased for ∫T·S where μa > 0; nothing is collected where μa = 0 (Cycles emits
+    /// only inside its volume mesh, the active voxels above 0.001, so the two differ
+    /// where the density is ~0). An empty `nimbus:emissionField` is the constant field
+    /// 1 (Cycles' plain Emission Strength input).
+    Source,
+}
+
+impl EmissionKind {
+    /// The schema token's value.
+    pub fn token(self) -> &'static str {
+        match self {
+            EmissionKind::Radiance => "radiance",
+            EmissionKind::Source => "source",
+        }
+    }
+
+    /// Parses the schema token; `None` for anything else.
+    pub fn from_token(s: &str) -> Option<EmissionKind> {
+        match s {
+            "radiance" => Some(EmissionKind::Radiance),
+            "source" => Some(EmissionKind::Source),
+            _ => None,
+        }
+    }
+}
+
 /// The parameters of [`Emission`] (the schema's `nimbus:*` emission attributes).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EmissionParams {
@@ -63,6 +99,8 @@ pub struct EmissionParams {
     pub blackbody_intensity: f64,
     pub emission_color: [f64; 3],
     pub emission_scale: f64,
+    /// What the model's value means: radiance (the default) or a source term.
+    pub kind: EmissionKind,
 }
 
 impl Default for EmissionParams {
@@ -72,6 +110,7 @@ impl Default for EmissionParams {
             blackbody_intensity: 1.0,
             emission_color: [1.0; 3],
             emission_scale: 1.0,
+            kind: EmissionKind::Radiance,
         }
     }
 }
@@ -100,18 +139,22 @@ impl EmissionParams {
     }
 }
 
-/// The emission of a medium: at least one of the two grids.
+/// The emission of a medium: at least one of the two grids, or a source-kind emission
+/// whose field is the constant 1.
 pub struct Emission {
     pub temperature: Option<EmissionGrid>,
     pub field: Option<EmissionGrid>,
     pub params: EmissionParams,
     /// emissionScale · emissionColor.
     field_rgb: [f64; 3],
+    /// No emission grid and [`EmissionKind::Source`]: the field is the constant 1.
+    constant_field: bool,
 }
 
 impl Emission {
     /// Checks the parameters ([`EmissionParams::check`]) and builds the emission;
-    /// `None` when neither grid is given.
+    /// `None` when neither grid is given, unless the kind is
+    /// [`EmissionKind::Source`] (whose missing field is the constant 1).
     pub fn new(
         prim: &str,
         temperature: Option<EmissionGrid>,
@@ -119,18 +162,21 @@ impl Emission {
         params: EmissionParams,
     ) -> Result<Option<Emission>, MediumError> {
         params.check(prim)?;
-        if temperature.is_none() && field.is_none() {
+        let source = params.kind == EmissionKind::Source;
+        if temperature.is_none() && field.is_none() && !source {
             return Ok(None);
         }
         Ok(Some(Emission {
             temperature,
+            constant_field: field.is_none() && source,
             field,
             params,
             field_rgb: params.emission_color.map(|c| c * params.emission_scale),
         }))
     }
 
-    /// Emitted radiance Le at world point `p` (one lookup per grid).
+    /// The emission model's value at world point `p` (one lookup per grid): emitted
+    /// radiance Le, or for [`EmissionKind::Source`] the source term S.
     #[inline]
     pub fn radiance<C: Tally>(&self, p: DVec3, c: &mut C) -> [f64; 3] {
         let mut le = [0.0; 3];
@@ -144,6 +190,10 @@ impl Emission {
                 for (l, f) in le.iter_mut().zip(self.field_rgb) {
                     *l += f * e;
                 }
+            }
+        } else if self.constant_field {
+            for (l, f) in le.iter_mut().zip(self.field_rgb) {
+                *l += f;
             }
         }
         le

@@ -327,6 +327,12 @@ impl Medium {
         lookup(counters, || self.density.sample_stochastic(p.to_array(), u))
     }
 
+    /// [`density`](Self::density) at a world-space point (one density lookup).
+    #[inline]
+    pub fn density_at_world<C: Tally>(&self, p: DVec3, counters: &mut C) -> f32 {
+        self.density(self.world_to_index.transform_point3(p).as_vec3(), counters)
+    }
+
     /// Density (already scaled into extinction units by σ) at an index-space point.
     /// Every call is one density lookup.
     #[inline(always)]
