@@ -109,8 +109,8 @@ class _Medium:
         self.sigma_a = [0.0, 0.0, 0.0]
         self.anisotropy = []  # (weight, g)
         self.density_attribute = None
-        self.emission = None  # (color, strength)
-        self.blackbody = None  # (intensity, temperature, attribute)
+        self.emission = None  # (color, strength, attribute or None = constant)
+        self.blackbody = None  # (intensity, temperature, attribute, tint)
 
     def add(self, sigma_s, sigma_a, g=0.0):
         self.sigma_s = [a + b for a, b in zip(self.sigma_s, sigma_s)]
@@ -176,15 +176,22 @@ def _closure(node, material, medium, warnings, weight=1.0):
                 warnings.append(
                     f"material '{material.name}': node '{n.name}' drives '{node.name}'."
                     f"{linked}: not translated; Nimbus uses the socket's value")
-        strength = float(node.inputs["Emission Strength"].default_value)
+        # Emission Strength is a plain input (not times the density): a number is a
+        # constant source, an Attribute node (optionally times a number) its grid.
+        strength, field = _density(node, "Emission Strength", material, warnings, medium, None)
         if strength > 0:
-            medium.emission = (_socket_value(node.inputs["Emission Color"]), weight * strength)
+            medium.emission = (_socket_value(node.inputs["Emission Color"]),
+                               weight * strength, field)
         bb = float(node.inputs["Blackbody Intensity"].default_value)
         if bb > 0:
+            tint = [1.0, 1.0, 1.0]
+            if "Blackbody Tint" in node.inputs:
+                tint = list(_socket_value(node.inputs["Blackbody Tint"]))[:3]
             medium.blackbody = (
                 weight * bb,
                 float(node.inputs["Temperature"].default_value),
                 node.inputs["Temperature Attribute"].default_value or "temperature",
+                tint,
             )
         return
     if kind == "ShaderNodeVolumeScatter":
@@ -207,7 +214,7 @@ def _closure(node, material, medium, warnings, weight=1.0):
         return
     if kind == "ShaderNodeEmission":
         medium.emission = (_socket_value(node.inputs["Color"]),
-                           weight * float(node.inputs["Strength"].default_value))
+                           weight * float(node.inputs["Strength"].default_value), None)
         return
     warnings.append(
         f"material '{material.name}': node '{node.name}' ({kind}) is not a volume shader "
@@ -259,41 +266,38 @@ def volume_medium(obj, warnings):
         "color3f nimbus:absorption": _c([x / scale for x in medium.sigma_a]),
         "float nimbus:anisotropy": _f(g),
     }
-    mean_a = sum(medium.sigma_a) / 3.0
-    if medium.emission is not None:
-        color, strength = medium.emission
-        # Cycles (svm_node_principled_volume, the Emission closure): the emission
-        # coefficient is Strength x Color wherever the shader runs, whatever the
-        # density. Nimbus' source is mu_a(x) Le(x) (docs/usd.md, Emission) with
-        # mu_a(x) = sigma_a d(x): Le = Strength x Color / sigma_a per channel, times the
-        # emission field d(x), equals Cycles' where the density grid d is 1.
-        radiance = [strength * c / a if a > 0 else 0.0 for c, a in zip(color, medium.sigma_a)]
-        if any(c > 0 and a <= 0 for c, a in zip(color, medium.sigma_a)):
+    # Cycles (svm_node_principled_volume, the Emission closure) emits Strength x Color
+    # (and the blackbody) per unit length wherever the shader runs, whatever the
+    # density: Nimbus' emissionKind "source" means exactly that (docs/usd.md), S/mu_a
+    # collected at absorption events. Without an emission field the source is constant.
+    if medium.emission is not None or medium.blackbody is not None:
+        attrs["uniform token nimbus:emissionKind"] = '"source"'
+        color, strength, field = medium.emission or ((0.0, 0.0, 0.0), 0.0, None)
+        source = [strength * max(c, 0.0) for c in list(color)[:3]]
+        if any(c > 0 and a <= 0 for c, a in zip(source, medium.sigma_a)):
             warnings.append(
                 f"object '{obj.name}': emission in a channel without absorption: Nimbus "
-                "emits where the medium absorbs (docs/usd.md, Emission), so that channel "
-                "emits nothing")
-        if max(radiance) > 0:
-            warnings.append(
-                f"object '{obj.name}': emission mapped onto Nimbus' absorption-weighted "
-                "emission: Cycles' emission does not depend on the density; equal where the "
-                "density grid is 1, d(x)^2 times Cycles' elsewhere (docs/blender.md)")
-            k = max(radiance)
-            attrs["token nimbus:emissionField"] = f'"{medium.density_attribute}"'
-            attrs["color3f nimbus:emissionColor"] = _c([r / k for r in radiance])
-            attrs["float nimbus:emissionScale"] = _f(k)
+                "collects emission where the medium absorbs (docs/usd.md, Emission), so "
+                "that channel emits nothing")
+        k = max(source)
+        if field is not None:
+            attrs["token nimbus:emissionField"] = f'"{field}"'
+        attrs["color3f nimbus:emissionColor"] = _c(
+            [c / k for c in source] if k > 0 else [1.0, 1.0, 1.0])
+        # 0 turns the constant field off (blackbody only).
+        attrs["float nimbus:emissionScale"] = _f(k)
     if medium.blackbody is not None:
-        intensity, temperature, attribute = medium.blackbody
-        if mean_a > 0:
+        intensity, temperature, attribute, tint = medium.blackbody
+        if max(tint) != min(tint):
             warnings.append(
-                f"object '{obj.name}': blackbody mapped as Nimbus' absorption-weighted "
-                "blackbody (exact where the density grid is 1; tint ignored)")
-            # Cycles: sigma_SB 1e-6 / pi T^4; Nimbus: intensity (T / 1000 K)^4.
-            cycles_1000k = 5.670373e-8 * 1e-6 / math.pi * 1e12
-            attrs["token nimbus:temperatureField"] = f'"{attribute}"'
-            attrs["float nimbus:temperatureScale"] = _f(temperature)
-            attrs["float nimbus:blackbodyIntensity"] = _f(
-                intensity * cycles_1000k / mean_a)
+                f"object '{obj.name}': Blackbody Tint {tuple(tint)} is not grey: Nimbus' "
+                "blackbody has no tint; it uses the mean")
+        intensity *= sum(tint) / 3.0
+        # Cycles: sigma_SB 1e-6 / pi T^4; Nimbus: intensity (T / 1000 K)^4.
+        cycles_1000k = 5.670373e-8 * 1e-6 / math.pi * 1e12
+        attrs["token nimbus:temperatureField"] = f'"{attribute}"'
+        attrs["float nimbus:temperatureScale"] = _f(temperature)
+        attrs["float nimbus:blackbodyIntensity"] = _f(intensity * cycles_1000k)
     st = [a + b for a, b in zip(medium.sigma_s, medium.sigma_a)]
     albedo = tuple(s / t if t > 0 else 0.0 for s, t in zip(medium.sigma_s, st))
     return attrs, albedo
