@@ -15,6 +15,7 @@ use nimbus::scene::{
     VolumeEmission,
 };
 use nimbus::volume::asset::AssetLocation;
+use nimbus::volume::emission::EmissionKind;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
@@ -461,6 +462,14 @@ fn volume(v: &VolumeDesc, warnings: &mut Vec<String>) -> Result<Volume> {
             .unwrap_or(defaults.emission_color),
         emission_scale: scalar(path, pv, "nimbus:emissionScale")?
             .unwrap_or(defaults.emission_scale),
+        kind: match text(pv, "nimbus:emissionKind") {
+            None => defaults.kind,
+            Some(t) => EmissionKind::from_token(t).ok_or_else(|| {
+                anyhow!(
+                    "volume {path}: primvars:nimbus:emissionKind `{t}` is neither \"radiance\" nor \"source\""
+                )
+            })?,
+        },
     };
     let density = named(density_name)?;
     let albedo = optional("nimbus:albedoField")?;
