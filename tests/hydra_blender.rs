@@ -158,17 +158,7 @@ fn blender(i: &Inputs, out: &Path, extra: &[&str]) -> Output {
 
 /// RGBA of an EXR: `[channel][y * RES + x]`.
 fn read_rgba(path: &Path) -> [Vec<f32>; 4] {
-    let (w, h, chans) =
-        nimbus::output::exr::read_channels(path).unwrap_or_else(|e| panic!("read {e}"));
-    assert_eq!((w, h), (RES, RES), "{}: size", path.display());
-    ["R", "G", "B", "A"].map(|name| {
-        chans
-            .iter()
-            .find(|c| c.0 == name)
-            .unwrap_or_else(|| panic!("{}: no channel {name}", path.display()))
-            .1
-            .clone()
-    })
+    common::cli::rgba(path, (RES, RES))
 }
 
 /// The number before `what` in the line of `text` that starts with `prefix`.

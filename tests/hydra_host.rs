@@ -51,17 +51,7 @@ fn host() -> Option<PathBuf> {
 }
 
 fn rgba(path: &Path) -> [Vec<f32>; 4] {
-    let (w, h, chans) =
-        nimbus::output::exr::read_channels(path).unwrap_or_else(|e| panic!("read {e}"));
-    assert_eq!((w, h), RES, "{}: size", path.display());
-    ["R", "G", "B", "A"].map(|name| {
-        chans
-            .iter()
-            .find(|c| c.0 == name)
-            .unwrap_or_else(|| panic!("{}: no channel {name}", path.display()))
-            .1
-            .clone()
-    })
+    common::cli::rgba(path, RES)
 }
 
 /// The shot test stages (tests/shot.rs: a slab volume, a sun, a sphere light in a

@@ -45,6 +45,21 @@ pub fn channel<'a>(chans: &'a [(String, Vec<f32>)], name: &str) -> &'a [f32] {
         .1
 }
 
+/// R, G, B and A of the EXR at `path`, asserting its size is `(width, height)`.
+pub fn rgba(path: &Path, size: (usize, usize)) -> [Vec<f32>; 4] {
+    let (w, h, chans) =
+        nimbus::output::exr::read_channels(path).unwrap_or_else(|e| panic!("read {e}"));
+    assert_eq!((w, h), size, "{}: size", path.display());
+    ["R", "G", "B", "A"].map(|name| {
+        chans
+            .iter()
+            .find(|c| c.0 == name)
+            .unwrap_or_else(|| panic!("{}: no channel {name}", path.display()))
+            .1
+            .clone()
+    })
+}
+
 /// Runs `python3 -c script args...` and asserts success.
 pub fn python(script: &str, args: &[&str]) {
     let o = Command::new("python3")
