@@ -166,6 +166,20 @@ fn trackers_agree_with_delta_reference() {
                     ..settings(Delta, Avg)
                 },
             ),
+            (
+                "decomposition, tracking shadows",
+                TrackerSettings {
+                    transmittance: TransmittanceKind::Tracking,
+                    ..settings(Decomposition, Avg)
+                },
+            ),
+            (
+                "spectral-decomposition, tracking shadows",
+                TrackerSettings {
+                    transmittance: TransmittanceKind::Tracking,
+                    ..settings(SpectralDecomposition, HistAvg)
+                },
+            ),
         ];
         // Non-bounding majorants: the weighted tracker stays unbiased.
         configs.push((

@@ -4,7 +4,7 @@
 //! plain renders with each tracker and depth, timed or not.
 
 use nimbus::bench::cumulus::{self, cumulus_grid, CumulusSpec};
-use nimbus::bench::octree_tables::{self, tracker_settings, TablesConfig, TRACKERS};
+use nimbus::bench::octree_tables::{self, tracker_settings, Shadows, TablesConfig, TRACKERS};
 use nimbus::render::analysis::CodePaths;
 use nimbus::render::session::{Overrides, Session};
 use nimbus::volume::asset::AssetLocation;
@@ -110,7 +110,12 @@ fn tables_count_what_plain_renders_count() {
         ..CumulusSpec::default()
     };
     let f = cumulus::write(dir.path(), &spec).unwrap();
-    for prune in [0.0, 1.0] {
+    // Pruned and not; each tracker's ratio-type shadow rays, and its own free paths.
+    for (prune, shadows) in [
+        (0.0, Shadows::Ratio),
+        (1.0, Shadows::Ratio),
+        (0.0, Shadows::Tracking),
+    ] {
         let o = Overrides {
             res: Some((12, 9)),
             spp: Some(2),
@@ -125,6 +130,7 @@ fn tables_count_what_plain_renders_count() {
             depths: vec![1, 4, 6],
             rounds: 2,
             timed: true,
+            shadows,
         };
         let tables = octree_tables::measure(&mut session, &pool, &config, |_| {}).unwrap();
         assert_eq!(tables.rows.len(), 6);
@@ -136,7 +142,7 @@ fn tables_count_what_plain_renders_count() {
         for &depth in &config.depths {
             for tracker in TRACKERS {
                 let row = tables.row(depth, tracker).unwrap();
-                let settings = tracker_settings(tracker);
+                let settings = tracker_settings(tracker, shadows);
                 let plain = Session::open(
                     &f.thick,
                     &Overrides {
@@ -163,7 +169,7 @@ fn tables_count_what_plain_renders_count() {
                         r.residual_lookups,
                         r.real_collisions
                     ),
-                    "prune {prune}, depth {depth}, {}",
+                    "prune {prune}, {shadows:?} shadows, depth {depth}, {}",
                     tracker.name()
                 );
                 let runs: Vec<_> = tables

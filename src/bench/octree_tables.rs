@@ -28,15 +28,37 @@ use std::time::Instant;
 /// The two trackers of the tables, in the supplement's order.
 pub const TRACKERS: [TrackerKind; 2] = [TrackerKind::Delta, TrackerKind::Decomposition];
 
-/// The tracker settings of a table column: delta tracking with ratio-tracked shadow
-/// rays, decomposition tracking (control = cell minimum) with residual ratio tracking,
-/// so each tracker's shadow rays save what its free paths save.
-pub fn tracker_settings(tracker: TrackerKind) -> TrackerSettings {
+/// How the tables' shadow rays estimate transmittance.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Shadows {
+    /// Each tracker's ratio-tracking estimator: ratio tracking for delta, residual ratio
+    /// tracking (control = cell minimum) for decomposition, so each tracker's shadow
+    /// rays save what its free paths save.
+    Ratio,
+    /// Each tracker's own free-path sampler (the track-length estimator,
+    /// `--transmittance tracking`): both columns render the same estimator in
+    /// distribution and differ only in cost.
+    Tracking,
+}
+
+impl Shadows {
+    pub fn name(self) -> &'static str {
+        match self {
+            Shadows::Ratio => "ratio",
+            Shadows::Tracking => "tracking",
+        }
+    }
+}
+
+/// The tracker settings of a table column: delta or decomposition tracking (control =
+/// cell minimum), with the shadow rays `shadows` gives that tracker.
+pub fn tracker_settings(tracker: TrackerKind, shadows: Shadows) -> TrackerSettings {
     TrackerSettings {
         tracker,
-        transmittance: match tracker {
-            TrackerKind::Decomposition => TransmittanceKind::ResidualRatio,
-            _ => TransmittanceKind::Ratio,
+        transmittance: match (shadows, tracker) {
+            (Shadows::Tracking, _) => TransmittanceKind::Tracking,
+            (Shadows::Ratio, TrackerKind::Decomposition) => TransmittanceKind::ResidualRatio,
+            (Shadows::Ratio, _) => TransmittanceKind::Ratio,
         },
         ..TrackerSettings::default()
     }
@@ -52,6 +74,7 @@ pub struct TablesConfig {
     /// Also render each (depth, tracker) with the timers on; without, the split
     /// columns are absent and only the totals are measured.
     pub timed: bool,
+    pub shadows: Shadows,
 }
 
 impl TablesConfig {
@@ -207,6 +230,7 @@ pub struct Tables {
     pub threads: usize,
     pub rounds: u32,
     pub prune: f32,
+    pub shadows: Shadows,
     pub calibration: Calibration,
     pub rows: Vec<Row>,
     pub runs: Vec<Run>,
@@ -344,9 +368,9 @@ pub fn measure(
     let mut trees: Vec<[Option<Vec<MajorantTree>>; 2]> = Vec::new();
     for &depth in &config.depths {
         session.spec = MajorantSpec::Octree { depth };
-        trees.push(
-            TRACKERS.map(|t| Some(pool.install(|| session.majorants_for(&tracker_settings(t))))),
-        );
+        trees.push(TRACKERS.map(|t| {
+            Some(pool.install(|| session.majorants_for(&tracker_settings(t, config.shadows))))
+        }));
     }
     let mut current: Option<(usize, usize)> = None;
     let mut runs = Vec::new();
@@ -365,7 +389,8 @@ pub fn measure(
                     if current != Some((d, i)) {
                         let mine = trees[d][i].take().expect("each row's octree");
                         session.spec = MajorantSpec::Octree { depth };
-                        let old = session.switch_tracking(tracker_settings(TRACKERS[i]), mine);
+                        let old = session
+                            .switch_tracking(tracker_settings(TRACKERS[i], config.shadows), mine);
                         if let Some((cd, ci)) = current {
                             trees[cd][ci] = Some(old);
                         }
@@ -401,6 +426,7 @@ pub fn measure(
         threads: pool.current_num_threads(),
         rounds: config.rounds,
         prune: session.octree_prune(),
+        shadows: config.shadows,
         calibration,
         rows,
         runs,

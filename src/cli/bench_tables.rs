@@ -3,7 +3,7 @@
 //! the machinery is [`crate::bench::cumulus`] and [`crate::bench::octree_tables`].
 
 use crate::bench::cumulus::{self, CumulusSpec};
-use crate::bench::octree_tables::{self, Row, Run, Tables, TablesConfig, TRACKERS};
+use crate::bench::octree_tables::{self, Row, Run, Shadows, Tables, TablesConfig, TRACKERS};
 use crate::output::{check_writable, write_atomically};
 use crate::render::session::Session;
 use crate::track::select::TrackerKind;
@@ -75,6 +75,11 @@ pub struct TablesArgs {
     /// level, the supplement's plain octree.
     #[arg(long, default_value_t = 0.0, value_name = "LOOKUPS")]
     pub prune: f32,
+    /// Shadow rays: `ratio` (delta's ratio tracking, decomposition's residual ratio
+    /// tracking) or `tracking` (each tracker's own free-path sampler, the track-length
+    /// estimator: the same estimator in distribution for both).
+    #[arg(long, value_enum, default_value_t = Shadows::Ratio)]
+    pub shadows: Shadows,
     /// Only the untimed renders: totals and counts, no time split.
     #[arg(long)]
     pub no_timers: bool,
@@ -106,6 +111,7 @@ pub fn run(a: TablesArgs) -> Result<()> {
         depths: a.depths.clone(),
         rounds: a.rounds,
         timed: !a.no_timers,
+        shadows: a.shadows,
     };
     let tables = octree_tables::measure(&mut session, &pool, &config, print_run)?;
     print_tables(&a.stage, &tables);
@@ -144,7 +150,7 @@ fn print_run(r: &Run) {
 /// and their ratio.
 fn print_tables(stage: &Path, t: &Tables) {
     println!(
-        "{}: {}x{} {} spp, seed {}, {} thread(s), {} interleaved rounds, octree {}",
+        "{}: {}x{} {} spp, seed {}, {} thread(s), {} interleaved rounds, {} shadow rays, octree {}",
         stage.display(),
         t.width,
         t.height,
@@ -152,6 +158,7 @@ fn print_tables(stage: &Path, t: &Tables) {
         t.seed,
         t.threads,
         t.rounds,
+        t.shadows.name(),
         if t.prune > 0.0 {
             format!("pruned (cost {})", t.prune)
         } else {

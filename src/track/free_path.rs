@@ -36,7 +36,9 @@ pub struct Query<'a> {
 }
 
 /// Samples the first real collision, multiplying `throughput` by collision weights.
-pub trait FreePathSampler: Sync {
+/// Samplers are small copyable parameter sets (the track-length estimator of
+/// [`track_length`](super::track_length) holds one).
+pub trait FreePathSampler: Sync + Copy {
     fn sample<R: Rng, C: Tally>(
         &self,
         q: &Query,

@@ -20,3 +20,4 @@ pub mod scheme;
 pub mod select;
 pub mod spectral;
 pub mod spectral_mis;
+pub mod track_length;

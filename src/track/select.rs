@@ -4,7 +4,7 @@
 //! the integrator is instantiated once per render, the collision loops see no enum).
 
 use super::free_path::{FreePathSampler, TransmittanceEstimator};
-use super::{decomposition, delta, grey, ratio, scheme, spectral, spectral_mis};
+use super::{decomposition, delta, grey, ratio, scheme, spectral, spectral_mis, track_length};
 
 /// A closed set of named options (a tracker, a scheme, a shadow-ray estimator, a clock):
 /// the names the CLI, the schema's tokens and the stats share, with a line of help each.
@@ -167,15 +167,21 @@ impl SchemeKind {
 pub enum TransmittanceKind {
     Ratio,
     ResidualRatio,
+    Tracking,
 }
 
 impl Choice for TransmittanceKind {
-    const ALL: &'static [Self] = &[TransmittanceKind::Ratio, TransmittanceKind::ResidualRatio];
+    const ALL: &'static [Self] = &[
+        TransmittanceKind::Ratio,
+        TransmittanceKind::ResidualRatio,
+        TransmittanceKind::Tracking,
+    ];
 
     fn help(self) -> &'static str {
         match self {
             TransmittanceKind::Ratio => "Ratio tracking: the product of null-collision probabilities",
             TransmittanceKind::ResidualRatio => "Residual ratio tracking: a control's closed form times ratio tracking of the residual",
+            TransmittanceKind::Tracking => "The tracker's own free-path sampler: its throughput if the shadow ray escapes, 0 at a real collision (the track-length estimator)",
         }
     }
 
@@ -190,6 +196,7 @@ impl TransmittanceKind {
         match self {
             TransmittanceKind::Ratio => "ratio",
             TransmittanceKind::ResidualRatio => "residual-ratio",
+            TransmittanceKind::Tracking => "tracking",
         }
     }
 }
@@ -246,6 +253,18 @@ pub fn dispatch<T>(s: &TrackerSettings, f: impl Dispatch<T>) -> T {
     match s.transmittance {
         TransmittanceKind::Ratio => dispatch_free_path(s, o, ratio::Ratio, f),
         TransmittanceKind::ResidualRatio => dispatch_free_path(s, o, ratio::ResidualRatio, f),
+        TransmittanceKind::Tracking => dispatch_free_path(s, o, ratio::Ratio, TrackShadows(f)),
+    }
+}
+
+/// Hands `f` the free-path sampler it is given twice: as the free-path sampler and, in
+/// [`Tracking`](track_length::Tracking), as the shadow rays' estimator (the placeholder
+/// estimator is dropped).
+struct TrackShadows<D>(D);
+
+impl<T, D: Dispatch<T>> Dispatch<T> for TrackShadows<D> {
+    fn run<F: FreePathSampler, E: TransmittanceEstimator>(self, free_path: F, _: E) -> T {
+        self.0.run(free_path, track_length::Tracking(free_path))
     }
 }
 
@@ -258,6 +277,7 @@ pub fn dispatch_specialised<T>(s: &TrackerSettings, grey: bool, f: impl Dispatch
         return dispatch(s, f);
     }
     use grey::{GreyDecomposition, GreyDelta, GreyRatio, GreyResidualRatio, GreyStochasticRatio};
+    use track_length::Tracking;
     use TransmittanceKind::{Ratio, ResidualRatio};
     // ratio-select: the integrator walks segments single-channel; its fallback free
     // path is analog decomposition, its shadow rays read one voxel per collision.
@@ -265,13 +285,18 @@ pub fn dispatch_specialised<T>(s: &TrackerSettings, grey: bool, f: impl Dispatch
         return match s.transmittance {
             Ratio => f.run(GreyDecomposition, GreyStochasticRatio),
             ResidualRatio => f.run(GreyDecomposition, GreyResidualRatio),
+            TransmittanceKind::Tracking => f.run(GreyDecomposition, Tracking(GreyDecomposition)),
         };
     }
     match (s.tracker == TrackerKind::Delta, s.transmittance) {
         (true, Ratio) => f.run(GreyDelta, GreyRatio),
         (true, ResidualRatio) => f.run(GreyDelta, GreyResidualRatio),
+        (true, TransmittanceKind::Tracking) => f.run(GreyDelta, Tracking(GreyDelta)),
         (false, Ratio) => f.run(GreyDecomposition, GreyRatio),
         (false, ResidualRatio) => f.run(GreyDecomposition, GreyResidualRatio),
+        (false, TransmittanceKind::Tracking) => {
+            f.run(GreyDecomposition, Tracking(GreyDecomposition))
+        }
     }
 }
 
