@@ -4,14 +4,26 @@
 //!
 //! `NIMBUS_OPENVDB` and `NIMBUS_OPENEXR` each select the behaviour for their library:
 //! - `auto` (default): use the library when its header and library are found, else build
-//!   without the bridge (for OpenVDB the pure-Rust vdb-rs reader is then the only one;
-//!   for OpenEXR, writing or reading a deep EXR is an error);
+//!   without the bridge (for OpenVDB the pure-Rust reader is then the only one; for
+//!   OpenEXR, writing or reading a deep EXR is an error);
 //! - `require`: fail the build with a clear message when the library is missing (CI);
 //! - `off`: never build the bridge.
 //!
 //! When a bridge is built, the cfg `nimbus_openvdb` / `nimbus_openexr` is set for the
 //! Rust code. `OPENVDB_INCLUDE_DIR` / `OPENVDB_LIB_DIR` and `OPENEXR_INCLUDE_DIR` /
-//! `OPENEXR_LIB_DIR` point the searches at a non-system install.
+//! `OPENEXR_LIB_DIR` point the searches at a non-system install; `NIMBUS_SYSROOT`
+//! (default `/`) is prefixed to the system folders searched (a cross-compilation sysroot,
+//! and how tests/build_detection.rs gives the script a system of its own).
+//!
+//! The search is redone whenever a searched folder changes: the header folders, the
+//! multiarch library folder and the folders the environment names, where they exist, are
+//! handed to cargo with `rerun-if-changed` (cargo compares the newest modification time
+//! in and below each), so installing or removing `libopenvdb-dev` after a first build
+//! makes the next `cargo build` / `cargo t` run this script again and build with (or
+//! without) the bridge, with no `touch build.rs` ([`watch_searched_folders`] says which
+//! folders and why). Folders that do not exist are not watched (cargo would rerun the
+//! script, and rebuild the library, on every build). The script says which VDB reader and
+//! which deep-EXR support the build got, in one `warning:` line each.
 
 use std::env;
 use std::path::{Path, PathBuf};
@@ -26,64 +38,137 @@ fn main() {
         "NIMBUS_OPENEXR",
         "OPENEXR_INCLUDE_DIR",
         "OPENEXR_LIB_DIR",
+        "NIMBUS_SYSROOT",
     ] {
         println!("cargo:rerun-if-env-changed={var}");
     }
     println!("cargo:rerun-if-changed=build.rs");
+    watch_searched_folders();
 
-    if let Some(required) = mode("NIMBUS_OPENVDB", "the OpenVDB bridge (vdb-rs only)") {
-        match find_openvdb() {
-            Ok(found) => build_bridge(&found),
+    let vdb = match mode("NIMBUS_OPENVDB") {
+        None => "the pure-Rust reader (NIMBUS_OPENVDB=off)".to_string(),
+        Some(required) => match find_openvdb() {
+            Ok(found) => {
+                build_bridge(&found);
+                format!(
+                    "OpenVDB through the C++ bridge ({}, {})",
+                    found.include_dirs[0].display(),
+                    found.lib_dir.display()
+                )
+            }
             Err(why) => missing(
                 required,
                 "NIMBUS_OPENVDB",
                 "OpenVDB",
                 &why,
-                "`apt-get install libopenvdb-dev libboost-dev` or set OPENVDB_INCLUDE_DIR / OPENVDB_LIB_DIR",
-                "the OpenVDB bridge (vdb-rs only)",
+                "`bash .ci/setup`, or `apt-get install libopenvdb-dev libboost-dev`, or set OPENVDB_INCLUDE_DIR / OPENVDB_LIB_DIR",
+                "the pure-Rust reader",
             ),
-        }
+        },
+    };
+    println!("cargo:warning=VDB files are read by {vdb}");
+
+    let exr = match mode("NIMBUS_OPENEXR") {
+        None => "deep EXR: not built in (NIMBUS_OPENEXR=off)".to_string(),
+        Some(required) => match find_openexr() {
+            Ok(found) => {
+                build_exr_bridge(&found);
+                "deep EXR: OpenEXR's C++ library through the C++ bridge".to_string()
+            }
+            Err(why) => format!(
+                "deep EXR: {}",
+                missing(
+                    required,
+                    "NIMBUS_OPENEXR",
+                    "OpenEXR's C++ library",
+                    &why,
+                    "`bash .ci/setup`, or `apt-get install libopenexr-dev`, or set OPENEXR_INCLUDE_DIR / OPENEXR_LIB_DIR",
+                    "not built in",
+                )
+            ),
+        },
+    };
+    println!("cargo:warning={exr}");
+}
+
+/// `NIMBUS_SYSROOT` (default `/`) joined with the system folder `dir`.
+fn system_dir(dir: &str) -> PathBuf {
+    let root = env::var_os("NIMBUS_SYSROOT")
+        .filter(|r| !r.is_empty())
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from("/"));
+    root.join(dir.trim_start_matches('/'))
+}
+
+/// Hands the searched folders that exist to cargo, so that this script runs again when a
+/// library appears in one or leaves it: the header folders (a library is found by its
+/// header first, and installs its header with it), the folders named by the environment
+/// and the multiarch library folder, where Debian installs these libraries. Left out,
+/// because cargo would walk them on every build and rebuild Nimbus whenever anything in
+/// them changes: `/usr/lib` (some 70,000 files: Python, Perl…), `/usr/lib64` and
+/// `/usr/local/lib` (pip's `dist-packages`). A library found in one of those is watched
+/// as a file ([`watch_library`]), so removing it is noticed too.
+fn watch_searched_folders() {
+    let mut dirs: Vec<PathBuf> = Vec::new();
+    for var in ["OPENVDB_INCLUDE_DIR", "OPENEXR_INCLUDE_DIR"] {
+        dirs.extend(candidates(var, &["/usr/include", "/usr/local/include"]));
     }
-    if let Some(required) = mode("NIMBUS_OPENEXR", "the OpenEXR bridge (no deep EXR)") {
-        match find_openexr() {
-            Ok(found) => build_exr_bridge(&found),
-            Err(why) => missing(
-                required,
-                "NIMBUS_OPENEXR",
-                "OpenEXR's C++ library",
-                &why,
-                "`apt-get install libopenexr-dev` or set OPENEXR_INCLUDE_DIR / OPENEXR_LIB_DIR",
-                "the OpenEXR bridge (no deep EXR)",
-            ),
+    let arch = env::var("CARGO_CFG_TARGET_ARCH").unwrap_or_default();
+    let os = env::var("CARGO_CFG_TARGET_OS").unwrap_or_default();
+    for var in ["OPENVDB_LIB_DIR", "OPENEXR_LIB_DIR"] {
+        dirs.extend(candidates(var, &[&format!("/usr/lib/{arch}-{os}-gnu")]));
+    }
+    let mut watched: Vec<PathBuf> = Vec::new();
+    for dir in dirs {
+        if dir.is_dir() && !watched.contains(&dir) {
+            println!("cargo:rerun-if-changed={}", dir.display());
+            watched.push(dir);
         }
     }
 }
 
-/// The mode `var` asks for: `None` for off, `Some(required)` otherwise. `without` says
-/// what an `off` build lacks.
-fn mode(var: &str, without: &str) -> Option<bool> {
+/// Watches the file of library `name` found in `dir` (its removal reruns this script),
+/// for the folders [`watch_searched_folders`] leaves out.
+fn watch_library(dir: &Path, name: &str) {
+    for ext in ["so", "a", "dylib"] {
+        let file = dir.join(format!("lib{name}.{ext}"));
+        if file.exists() {
+            println!("cargo:rerun-if-changed={}", file.display());
+        }
+    }
+}
+
+/// The mode `var` asks for: `None` for off, `Some(required)` otherwise.
+fn mode(var: &str) -> Option<bool> {
     let mode = env::var(var).unwrap_or_else(|_| "auto".to_string());
     let mode = mode.trim().to_ascii_lowercase();
     match mode.as_str() {
-        "off" | "0" | "no" | "false" => {
-            println!("cargo:warning={var}=off: building without {without}");
-            None
-        }
+        "off" | "0" | "no" | "false" => None,
         "auto" | "" => Some(false),
         "require" | "on" | "1" | "yes" | "true" => Some(true),
         other => panic!("{var} must be auto, require or off (got {other:?})"),
     }
 }
 
-/// A library that was not found: a build failure when `required`, else a warning.
-fn missing(required: bool, var: &str, library: &str, why: &str, install: &str, without: &str) {
+/// A library that was not found: a build failure when `required`, else what the build
+/// does without it (`without`), with why and how to install it.
+fn missing(
+    required: bool,
+    var: &str,
+    library: &str,
+    why: &str,
+    install: &str,
+    without: &str,
+) -> String {
     if required {
         panic!(
             "{var}=require but {library} was not found: {why}.\n\
              Install it ({install}), or build with {var}=auto|off."
         );
     }
-    println!("cargo:warning={library} not found ({why}); building without {without}");
+    format!(
+        "{without}: {library} was not found ({why}); install it ({install}) and the next build uses it"
+    )
 }
 
 struct OpenVdb {
@@ -123,7 +208,7 @@ fn find_openvdb() -> Result<OpenVdb, String> {
 /// The directory named by the environment variable `var` (if set), then `defaults`.
 fn candidates(var: &str, defaults: &[&str]) -> Vec<PathBuf> {
     let mut dirs: Vec<PathBuf> = env::var(var).ok().map(PathBuf::from).into_iter().collect();
-    dirs.extend(defaults.iter().map(PathBuf::from));
+    dirs.extend(defaults.iter().map(|d| system_dir(d)));
     dirs
 }
 
@@ -132,7 +217,7 @@ fn lib_candidates(var: &str) -> Vec<PathBuf> {
     let arch = env::var("CARGO_CFG_TARGET_ARCH").unwrap_or_default();
     let os = env::var("CARGO_CFG_TARGET_OS").unwrap_or_default();
     let mut dirs = candidates(var, &[]);
-    dirs.push(format!("/usr/lib/{arch}-{os}-gnu").into());
+    dirs.push(system_dir(&format!("/usr/lib/{arch}-{os}-gnu")));
     dirs.extend(
         [
             "/usr/lib",
@@ -140,7 +225,7 @@ fn lib_candidates(var: &str) -> Vec<PathBuf> {
             "/usr/local/lib",
             "/usr/local/lib64",
         ]
-        .map(PathBuf::from),
+        .map(system_dir),
     );
     dirs
 }
@@ -203,6 +288,7 @@ fn build_bridge(found: &OpenVdb) {
     println!("cargo:rerun-if-changed=cpp/vdb_bridge.cc");
     println!("cargo:rerun-if-changed=cpp/guarded.h");
     println!("cargo:rustc-link-search=native={}", found.lib_dir.display());
+    watch_library(&found.lib_dir, "openvdb");
     for lib in ["openvdb", "tbb", "Imath-3_1"] {
         println!("cargo:rustc-link-lib={lib}");
     }
@@ -276,6 +362,7 @@ fn build_exr_bridge(found: &OpenExr) {
             println!("cargo:rustc-link-search=native={}", dir.display());
             searched.push(dir);
         }
+        watch_library(dir, lib);
         println!("cargo:rustc-link-lib={lib}");
     }
     println!("cargo:rustc-cfg=nimbus_openexr");

@@ -13,32 +13,9 @@ use nimbus::output::deep::{
 use nimbus::render::film::Region;
 use std::path::Path;
 
-/// Whether deep EXRs can be written: probes with a one-pixel image. Without the bridge
-/// the write must fail with the documented message; the test then skips, unless the
-/// bridge was required.
-fn bridge(dir: &Path) -> bool {
-    let probe = DeepImage {
-        full: (1, 1),
-        region: Region::full(1, 1),
-        counts: vec![0],
-        samples: vec![],
-        attributes: vec![],
-    };
-    let Err(e) = write_deep_exr(&dir.join("probe.exr"), &probe) else {
-        return true;
-    };
-    let e = e.to_string();
-    assert!(
-        e.contains(
-            "deep EXR output needs OpenEXR's C++ library; this build has none (NIMBUS_OPENEXR)"
-        ),
-        "{e}"
-    );
-    if std::env::var("NIMBUS_OPENEXR").is_ok_and(|v| v == "require") {
-        panic!("NIMBUS_OPENEXR=require but {e}");
-    }
-    common::missing::<()>(&format!("no deep EXR support in this build: {e}"));
-    false
+/// Whether deep EXRs can be written (see `common::data::deep_exr_support`).
+fn bridge(_dir: &Path) -> bool {
+    common::data::deep_exr_support("the test")
 }
 
 fn sample(z: f32, depth: f32, rgba: [f32; 4]) -> DeepSample {

@@ -18,7 +18,7 @@ fn generate_fixtures() -> Option<(tempfile::TempDir, Value)> {
     common::pxr_fixtures(
         "make_holdout_stages.py",
         &["pxr"],
-        "install usd-core to run the holdout loading tests",
+        common::data::SETUP_PYTHON,
         true,
     )
 }

@@ -259,7 +259,14 @@ fn exr_headers_claiming_huge_images_are_refused_before_allocating() {
     let d = dir.path();
     let stage = cloud_stage(d, "cloud.usda", &[]);
     let deep = d.join("deep.exr");
-    let (o, good) = render(d, &stage, &["--deep", deep.to_str().unwrap()]);
+    // Without the OpenEXR bridge only the flat image is tried (one SKIPPED line).
+    let deep_support = common::data::deep_exr_support("the deep EXR half (the flat half runs)");
+    let deep_flag: &[&str] = if deep_support {
+        &["--deep", deep.to_str().unwrap()]
+    } else {
+        &[]
+    };
+    let (o, good) = render(d, &stage, deep_flag);
     assert!(o.status.success(), "{}", stderr(&o));
     // The flat image is tiled (64 x 64): both claims need more chunks than its bytes
     // hold. The deep one has a chunk per line: the long line fits in one chunk, and
@@ -279,6 +286,9 @@ fn exr_headers_claiming_huge_images_are_refused_before_allocating() {
         let o = nimbus(&["compare", bad.to_str().unwrap(), good.to_str().unwrap()]);
         assert_clean_error(&o, name);
         assert_clean_error(&o, needle);
+        if !deep_support {
+            continue;
+        }
         let bad_deep = d.join(format!("deep_{name}"));
         std::fs::copy(&deep, &bad_deep).unwrap();
         claim_data_window(&bad_deep, window);

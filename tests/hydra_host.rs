@@ -58,8 +58,12 @@ fn rgba(path: &Path) -> [Vec<f32>; 4] {
 /// closed box, holdout cubes and quads; `shot_no_box.usda` without the box) with their
 /// slab VDB, in a temporary folder.
 fn shot_stages() -> Option<tempfile::TempDir> {
-    let (shot_dir, _) =
-        common::data::pxr_fixtures("make_shot_stage.py", &["pxr"], "pip install usd-core", true)?;
+    let (shot_dir, _) = common::data::pxr_fixtures(
+        "make_shot_stage.py",
+        &["pxr"],
+        common::data::SETUP_PYTHON,
+        true,
+    )?;
     // As tests/shot.rs writes it: a 32³ grid of density 1 over [-1, 1]³.
     let vs = 2.0 / 32.0;
     let grid = nimbus::volume::procedural::grid_from_fn(

@@ -29,7 +29,7 @@ fn generate_fixtures() -> Option<(tempfile::TempDir, Value)> {
     common::pxr_fixtures(
         "make_light_stages.py",
         &["pxr", "OpenEXR", "numpy"],
-        "install usd-core, OpenEXR and numpy to run the pxr light tests",
+        common::data::SETUP_PYTHON,
         false,
     )
 }

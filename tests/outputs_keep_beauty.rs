@@ -58,6 +58,8 @@ fn every_output_option_leaves_the_beauty_bit_identical() {
     assert!(stages.len() >= 4, "example stages: {stages:?}");
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
+    // Without the OpenEXR bridge `--deep` is left out (one SKIPPED line).
+    let deep_support = common::data::deep_exr_support("`--deep` (the other outputs are checked)");
     let file = |name: &str| d.join(name).display().to_string();
     for stage in &stages {
         let plain = d.join("plain.exr");
@@ -73,6 +75,9 @@ fn every_output_option_leaves_the_beauty_bit_identical() {
             &["--stats", &stats],
         ];
         for extra in options {
+            if extra[0] == "--deep" && !deep_support {
+                continue;
+            }
             let out = d.join("with.exr");
             render(stage, &out, extra);
             assert!(

@@ -15,7 +15,12 @@ use common::data::pxr_fixtures;
 
 /// The stage's fixtures and the slab VDB: a 32³ grid of density 1 over [-1, 1]³.
 fn shot() -> Option<tempfile::TempDir> {
-    let (dir, _) = pxr_fixtures("make_shot_stage.py", &["pxr"], "pip install usd-core", true)?;
+    let (dir, _) = pxr_fixtures(
+        "make_shot_stage.py",
+        &["pxr"],
+        common::data::SETUP_PYTHON,
+        true,
+    )?;
     let vs = 2.0 / 32.0;
     let grid = nimbus::volume::procedural::grid_from_fn(
         "density",

@@ -16,12 +16,7 @@ const REL_TOL: f64 = 1e-9;
 /// Runs the fixture generator into a fresh temp dir; `None` (with a message)
 /// when Pixar's USD is not installed.
 fn generate_fixtures() -> Option<(tempfile::TempDir, Value)> {
-    common::pxr_fixtures(
-        "make_stages.py",
-        &["pxr"],
-        "install usd-core to run the pxr comparison tests",
-        true,
-    )
+    common::pxr_fixtures("make_stages.py", &["pxr"], common::data::SETUP_PYTHON, true)
 }
 
 // ----- comparison helpers -----------------------------------------------------------------

@@ -53,6 +53,14 @@ fn main() {
     }
     println!("cargo:rerun-if-changed=build.rs");
     println!("cargo:rerun-if-changed=plugInfo.json");
+    // The SDK's folders, as the root build.rs watches OpenVDB's: a USD or TBB installed
+    // into (or removed from) a named folder after a first build reruns this search.
+    // A folder that does not exist is not watched (cargo would rerun on every build).
+    for var in ["NIMBUS_USD_INCLUDE", "NIMBUS_USD_LIB", "NIMBUS_TBB_INCLUDE"] {
+        if let Some(dir) = env::var_os(var).map(PathBuf::from).filter(|d| d.is_dir()) {
+            println!("cargo:rerun-if-changed={}", dir.display());
+        }
+    }
 
     let mode = env::var("NIMBUS_HYDRA").unwrap_or_else(|_| "auto".to_string());
     let required = match mode.trim().to_ascii_lowercase().as_str() {

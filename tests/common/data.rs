@@ -18,12 +18,22 @@ pub fn data_required() -> bool {
 }
 
 /// Reports a missing input `what`: panics under `NIMBUS_REQUIRE_DATA=1`, otherwise prints
-/// `SKIPPED: …` and returns `None` so the caller returns early.
+/// one `SKIPPED: …` line and returns `None` so the caller returns early.
+///
+/// The line goes to the process' standard error itself, not through `eprintln!`, which
+/// the test harness captures and throws away for a test that passes: a user running
+/// `cargo t` sees every skip, with what to install (`bash .ci/setup` for what it
+/// installs).
 pub fn missing<T>(what: &str) -> Option<T> {
     if data_required() {
         panic!("NIMBUS_REQUIRE_DATA=1 but {what}");
     }
-    eprintln!("SKIPPED: {what}");
+    use std::io::Write;
+    let test = std::thread::current()
+        .name()
+        .unwrap_or("a test")
+        .to_string();
+    let _ = writeln!(std::io::stderr().lock(), "SKIPPED {test}: {what}");
     None
 }
 
@@ -102,9 +112,13 @@ pub fn python_imports(modules: &[&str], install: &str) -> bool {
     false
 }
 
+/// What installs the Python modules the fixture scripts import.
+pub const SETUP_PYTHON: &str =
+    "`bash .ci/setup` installs them (or `python3 -m pip install usd-core OpenEXR numpy`)";
+
 /// Whether `python3` imports Pixar's USD (`pxr`); see [`python_imports`].
 pub fn pxr_python() -> bool {
-    python_imports(&["pxr"], "pip install usd-core")
+    python_imports(&["pxr"], SETUP_PYTHON)
 }
 
 /// Runs the fixture generator `tests/fixtures/SCRIPT` (a Python script authoring stages
@@ -139,4 +153,39 @@ pub fn pxr_fixtures(
     let text = std::fs::read_to_string(dir.path().join("expected.json")).expect("expected.json");
     let expected = serde_json::from_str(&text).expect("expected.json parses");
     Some((dir, expected))
+}
+
+/// Whether this build writes deep EXR files (the OpenEXR bridge): probes with a one-pixel
+/// image. Without the bridge the write must fail with the documented message; the caller
+/// then skips `part` ("the test", or the part of it that needs deep EXRs) with one
+/// `SKIPPED` line, unless `NIMBUS_OPENEXR=require` or `NIMBUS_REQUIRE_DATA=1`, where it
+/// fails.
+pub fn deep_exr_support(part: &str) -> bool {
+    use nimbus::output::deep::{write_deep_exr, DeepImage};
+    use nimbus::render::film::Region;
+    let dir = tempfile::tempdir().expect("temp dir");
+    let probe = DeepImage {
+        full: (1, 1),
+        region: Region::full(1, 1),
+        counts: vec![0],
+        samples: vec![],
+        attributes: vec![],
+    };
+    let Err(e) = write_deep_exr(&dir.path().join("probe.exr"), &probe) else {
+        return true;
+    };
+    let e = e.to_string();
+    assert!(
+        e.contains(
+            "deep EXR output needs OpenEXR's C++ library; this build has none (NIMBUS_OPENEXR)"
+        ),
+        "{e}"
+    );
+    if std::env::var("NIMBUS_OPENEXR").is_ok_and(|v| v == "require") {
+        panic!("NIMBUS_OPENEXR=require but {e}");
+    }
+    missing::<()>(&format!(
+        "{part}: no deep EXR support in this build ({e}); `bash .ci/setup` installs libopenexr-dev"
+    ));
+    false
 }
