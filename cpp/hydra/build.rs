@@ -31,10 +31,11 @@ const SOURCES: [&str; 6] = [
     "prims.cc",
     "convert.cc",
 ];
-const HEADERS: [&str; 6] = [
+const HEADERS: [&str; 7] = [
     "rendererPlugin.h",
     "renderDelegate.h",
     "renderPass.h",
+    "renderParam.h",
     "renderBuffer.h",
     "prims.h",
     "convert.h",

@@ -158,4 +158,24 @@ nimbus_hydra::SceneDesc HdNimbusSceneStore::Snapshot() const {
     return s;
 }
 
+rust::Vec<nimbus_hydra::SettingDesc> HdNimbusSettings(HdRenderSettingsMap const &settings) {
+    rust::Vec<nimbus_hydra::SettingDesc> out;
+    for (auto const &kv : settings) {
+        std::string const &key = kv.first.GetString();
+        if (key.rfind("nimbus:", 0) != 0) continue;
+        nimbus_hydra::SettingDesc s;
+        s.key = key;
+        std::vector<double> n = HdNimbusNumbers(kv.second);
+        if (!n.empty()) {
+            s.is_text = false;
+            s.number = n[0];
+        } else {
+            s.is_text = true;
+            s.text = HdNimbusText(kv.second);
+        }
+        out.push_back(std::move(s));
+    }
+    return out;
+}
+
 PXR_NAMESPACE_CLOSE_SCOPE

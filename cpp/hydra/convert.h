@@ -82,15 +82,8 @@ private:
     std::map<SdfPath, HdNimbusMaterialRecord> _materials;
 };
 
-// The render param every prim's Sync receives: the store.
-class HdNimbusRenderParam final : public HdRenderParam {
-public:
-    HdNimbusSceneStore store;
-};
-
-inline HdNimbusSceneStore &HdNimbusStore(HdRenderParam *p) {
-    return static_cast<HdNimbusRenderParam *>(p)->store;
-}
+// The host's render settings named `nimbus:*` as plain data (the rest are the host's own).
+rust::Vec<nimbus_hydra::SettingDesc> HdNimbusSettings(HdRenderSettingsMap const &settings);
 
 PXR_NAMESPACE_CLOSE_SCOPE
 

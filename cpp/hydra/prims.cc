@@ -1,5 +1,6 @@
 #include "prims.h"
 #include "convert.h"
+#include "renderParam.h"
 
 #include "pxr/base/gf/vec3f.h"
 #include "pxr/base/tf/diagnostic.h"

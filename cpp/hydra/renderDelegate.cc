@@ -77,39 +77,14 @@ HdRenderSettingDescriptorList HdNimbusRenderDelegate::GetRenderSettingDescriptor
     return out;
 }
 
-rust::Vec<nimbus_hydra::SettingDesc> HdNimbusRenderDelegate::SettingsForRust() const {
-    rust::Vec<nimbus_hydra::SettingDesc> out;
-    for (auto const &kv : _settingsMap) {
-        std::string const &key = kv.first.GetString();
-        if (key.rfind("nimbus:", 0) != 0) continue;
-        nimbus_hydra::SettingDesc s;
-        s.key = key;
-        std::vector<double> n = HdNimbusNumbers(kv.second);
-        if (!n.empty()) {
-            s.is_text = false;
-            s.number = n[0];
-        } else {
-            s.is_text = true;
-            s.text = HdNimbusText(kv.second);
-        }
-        out.push_back(std::move(s));
-    }
-    return out;
-}
-
-void HdNimbusRenderDelegate::SetProgress(nimbus_hydra::PassInfo const &info) {
-    std::lock_guard<std::mutex> lock(_statsMutex);
-    _progress = info;
-}
-
 VtDictionary HdNimbusRenderDelegate::GetRenderStats() const {
-    std::lock_guard<std::mutex> lock(_statsMutex);
+    nimbus_hydra::PassInfo const progress = _param->progress.Get();
     VtDictionary d;
-    double done = _progress.target_spp ? 100.0 * _progress.spp / _progress.target_spp : 0.0;
+    double done = progress.target_spp ? 100.0 * progress.spp / progress.target_spp : 0.0;
     d["percentDone"] = VtValue(done);
-    d["totalClockTime"] = VtValue(_progress.seconds);
-    d["nimbus:spp"] = VtValue(int(_progress.spp));
-    d["nimbus:lookupsPerSample"] = VtValue(_progress.lookups_per_sample);
+    d["totalClockTime"] = VtValue(progress.seconds);
+    d["nimbus:spp"] = VtValue(int(progress.spp));
+    d["nimbus:lookupsPerSample"] = VtValue(progress.lookups_per_sample);
     return d;
 }
 
@@ -133,7 +108,12 @@ HdAovDescriptor HdNimbusRenderDelegate::GetDefaultAovDescriptor(TfToken const &n
 HdRenderPassSharedPtr
 HdNimbusRenderDelegate::CreateRenderPass(HdRenderIndex *index,
                                          HdRprimCollection const &collection) {
-    return std::make_shared<HdNimbusRenderPass>(index, collection, this);
+    // The pass gets what it uses, not the delegate (as hdEmbree's): its own Rust
+    // renderer, the store it snapshots, the settings it hands over, where it reports
+    // progress, and the set it joins so DestroyBprim can take a buffer from it.
+    return std::make_shared<HdNimbusRenderPass>(index, collection, nimbus_hydra::new_renderer(),
+                                                &_param->store, &_settingsMap,
+                                                &_param->progress, &_param->passes);
 }
 
 HdInstancer *HdNimbusRenderDelegate::CreateInstancer(HdSceneDelegate *delegate,
@@ -184,20 +164,9 @@ HdBprim *HdNimbusRenderDelegate::CreateFallbackBprim(TfToken const &typeId) {
     return CreateBprim(typeId, SdfPath::EmptyPath());
 }
 
-void HdNimbusRenderDelegate::AddRenderPass(HdNimbusRenderPass *pass) {
-    std::lock_guard<std::mutex> lock(_passesMutex);
-    _passes.insert(pass);
-}
-
-void HdNimbusRenderDelegate::RemoveRenderPass(HdNimbusRenderPass *pass) {
-    std::lock_guard<std::mutex> lock(_passesMutex);
-    _passes.erase(pass);
-}
-
 void HdNimbusRenderDelegate::DestroyBprim(HdBprim *bprim) {
     if (auto *rb = dynamic_cast<HdNimbusRenderBuffer *>(bprim)) {
-        std::lock_guard<std::mutex> lock(_passesMutex);
-        for (HdNimbusRenderPass *pass : _passes) pass->Release(rb);
+        _param->passes.ForEach([rb](HdNimbusRenderPass *pass) { pass->Release(rb); });
     }
     if (bprim) Store().Remove(bprim->GetId());
     delete bprim;

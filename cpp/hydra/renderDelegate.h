@@ -7,10 +7,7 @@
 #include "pxr/imaging/hd/renderDelegate.h"
 #include "pxr/imaging/hd/resourceRegistry.h"
 
-#include "convert.h"
-
-#include <mutex>
-#include <set>
+#include "renderParam.h"
 
 PXR_NAMESPACE_OPEN_SCOPE
 
@@ -44,23 +41,12 @@ public:
     HdAovDescriptor GetDefaultAovDescriptor(TfToken const &name) const override;
 
     HdNimbusSceneStore &Store() { return _param->store; }
-    // The render settings as plain data.
-    rust::Vec<nimbus_hydra::SettingDesc> SettingsForRust() const;
-    void SetProgress(nimbus_hydra::PassInfo const &info);
-    // The render passes alive, so a render buffer about to be destroyed is first let
-    // go by any render thread writing it.
-    void AddRenderPass(class HdNimbusRenderPass *pass);
-    void RemoveRenderPass(class HdNimbusRenderPass *pass);
 
 private:
     void _Init();
 
     std::unique_ptr<HdNimbusRenderParam> _param;
     HdResourceRegistrySharedPtr _registry;
-    mutable std::mutex _statsMutex;
-    nimbus_hydra::PassInfo _progress;
-    std::mutex _passesMutex;
-    std::set<class HdNimbusRenderPass *> _passes;
 };
 
 PXR_NAMESPACE_CLOSE_SCOPE

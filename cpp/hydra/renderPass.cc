@@ -1,6 +1,7 @@
 #include "renderPass.h"
+#include "convert.h"
 #include "renderBuffer.h"
-#include "renderDelegate.h"
+#include "renderParam.h"
 
 #include "pxr/base/tf/diagnostic.h"
 #include "pxr/imaging/hd/camera.h"
@@ -14,10 +15,13 @@ PXR_NAMESPACE_OPEN_SCOPE
 
 HdNimbusRenderPass::HdNimbusRenderPass(HdRenderIndex *index,
                                        HdRprimCollection const &collection,
-                                       HdNimbusRenderDelegate *delegate)
-    : HdRenderPass(index, collection), _delegate(delegate),
-      _renderer(nimbus_hydra::new_renderer()) {
-    _delegate->AddRenderPass(this);
+                                       rust::Box<nimbus_hydra::Renderer> renderer,
+                                       HdNimbusSceneStore const *store,
+                                       HdRenderSettingsMap const *settings,
+                                       HdNimbusProgress *progress, HdNimbusRenderPasses *passes)
+    : HdRenderPass(index, collection), _renderer(std::move(renderer)), _store(store),
+      _settings(settings), _progress(progress), _passes(passes) {
+    _passes->Add(this);
 }
 
 // The camera as plain data (Hydra's world units).
@@ -50,7 +54,7 @@ static std::vector<double> _CameraKey(nimbus_hydra::CameraDesc const &c, bool ha
 }
 
 HdNimbusRenderPass::~HdNimbusRenderPass() {
-    _delegate->RemoveRenderPass(this);
+    _passes->Remove(this);
     _Stop();
 }
 
@@ -95,8 +99,8 @@ void HdNimbusRenderPass::_Execute(HdRenderPassStateSharedPtr const &state,
     nimbus_hydra::CameraDesc camera;
     if (cam) camera = _Camera(cam);
     std::vector<double> key = _CameraKey(camera, cam != nullptr, w, h);
-    uint64_t version = _delegate->Store().Version();
-    unsigned settings = _delegate->GetRenderSettingsVersion();
+    uint64_t version = _store->Version();
+    unsigned settings = GetRenderIndex()->GetRenderDelegate()->GetRenderSettingsVersion();
     if (_started && version == _sceneVersion && settings == _settingsVersion &&
         key == _cameraKey && buffers == _buffers) {
         return;  // the render thread goes on (or has finished)
@@ -109,12 +113,12 @@ void HdNimbusRenderPass::_Execute(HdRenderPassStateSharedPtr const &state,
     _buffers = buffers;
     _converged.store(false);
     for (auto &b : _buffers) b.second->SetConverged(false);
-    nimbus_hydra::SceneDesc scene = _delegate->Store().Snapshot();
+    nimbus_hydra::SceneDesc scene = _store->Snapshot();
     scene.camera = camera;
     scene.has_camera = cam != nullptr;
     scene.width = w;
     scene.height = h;
-    scene.settings = _delegate->SettingsForRust();
+    scene.settings = HdNimbusSettings(*_settings);
     for (auto const &b : _buffers) scene.aovs.push_back(b.first.GetString());
     try {
         for (rust::String const &warning : _renderer->reset(scene)) {
@@ -139,7 +143,7 @@ void HdNimbusRenderPass::_Run() {
             info.converged = true;
         }
         converged = info.converged;
-        _delegate->SetProgress(info);
+        _progress->Set(info);
         _WriteBuffers();
     }
     if (converged) {

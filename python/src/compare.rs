@@ -2,7 +2,7 @@
 //! prints) and `nimbus.read_exr`.
 
 use crate::errors::{Error, SettingsError};
-use crate::json_to_py;
+use crate::json::json_to_py;
 use nimbus::output::compare::{compare as compare_images, Image};
 use nimbus::output::exr::read_all_channels;
 use numpy::{PyArray1, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};

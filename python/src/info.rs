@@ -3,7 +3,8 @@
 //! `nimbus info --json` prints — the same data by construction.
 
 use crate::errors::guarded;
-use crate::{json_to_py, stage_file};
+use crate::json::json_to_py;
+use crate::stage_input::stage_file;
 use nimbus::output::describe::{describe, DescribeOptions};
 use pyo3::prelude::*;
 use std::path::PathBuf;

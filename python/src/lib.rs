@@ -3,73 +3,43 @@
 //! comparison `nimbus info` and `nimbus compare` print — never the CLI;
 //! `python/nimbus/__init__.py` re-exports it.
 //!
-//! - `errors`: the exceptions (`nimbus.Error` and its subclasses carry the CLI's
-//!   message, `{e:#}` of the anyhow error; a panic becomes `nimbus.Error` too)
-//! - `render`: `render` and `RenderResult`
+//! The modules, each using only those below it (this file registers what the top ones
+//! define):
 //! - `info`: `info`, the description `nimbus info --json` prints
 //! - `compare`: `compare`, the comparison `nimbus compare --json` prints; `read_exr`
-//!
-//! Library results reach Python as the JSON the CLI prints (`json_to_py`), so a
-//! dict from Python and the CLI's `--json` are the same data.
+//! - `render`: `render`, the entry that runs the steps below in order
+//!   - `settings`: the keyword arguments as the library's settings (`Overrides`, the
+//!     region, the AOVs and split layers asked for)
+//!   - `loading`: the stage read into a session on a worker thread; its warnings
+//!   - `passes`: the progressive render on a worker thread; `progress`, `on_pass`
+//!   - `wait`: waiting for a worker with the GIL released; Ctrl-C and `cancel()`
+//!   - `result`: `RenderResult` (`write` writes what `nimbus render` writes)
+//!   - `arrays`: the film's channels and split layers as numpy arrays
+//! - `stage_input`: the stage argument, a path or usda text (`render`, `info`)
+//! - `json`: library results as Python objects through the JSON the CLI prints
+//!   (`json_to_py`), so a dict from Python and the CLI's `--json` are the same data
+//! - `errors`: the exceptions (`nimbus.Error` and its subclasses carry the CLI's
+//!   message, `{e:#}` of the anyhow error; a panic becomes `nimbus.Error` too)
 
+mod arrays;
 mod compare;
 mod errors;
 mod info;
+mod json;
+mod loading;
+mod passes;
 mod render;
+mod result;
+mod settings;
+mod stage_input;
+mod wait;
 
-use errors::{OutputError, SettingsError};
 use nimbus::render::film::Aov;
 use nimbus::scene::schema::tokens;
 use nimbus::track::select::{Choice, SchemeKind, TrackerKind, TransmittanceKind};
 use nimbus::volume::vdb;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use std::path::PathBuf;
-
-/// A serialisable library value as Python objects (dicts, lists, floats, …) through
-/// its JSON text: exactly what the CLI's `--json` prints (non-finite floats are
-/// `None` in both).
-fn json_to_py<'py>(py: Python<'py>, v: &impl serde::Serialize) -> PyResult<Bound<'py, PyAny>> {
-    let text = serde_json::to_string(v).map_err(|e| errors::Error::new_err(e.to_string()))?;
-    py.import("json")?.call_method1("loads", (text,))
-}
-
-/// A stage given as usda text: written to a hidden temporary `.usda` in `base_dir`
-/// (default: the working directory) so relative asset paths resolve against it; the
-/// file is removed when this is dropped (right after the stage is read).
-fn stage_file(
-    stage: Option<PathBuf>,
-    stage_text: Option<String>,
-    base_dir: Option<PathBuf>,
-) -> PyResult<(PathBuf, Option<tempfile::NamedTempFile>)> {
-    match (stage, stage_text) {
-        (Some(p), None) => Ok((p, None)),
-        (None, Some(text)) => {
-            let dir = base_dir.unwrap_or_else(|| PathBuf::from("."));
-            let mut f = tempfile::Builder::new()
-                .prefix(".nimbus-stage-")
-                .suffix(".usda")
-                .tempfile_in(&dir)
-                .map_err(|e| {
-                    OutputError::new_err(format!(
-                        "cannot write the stage text to a temporary file in {}: {e}",
-                        dir.display()
-                    ))
-                })?;
-            use std::io::Write;
-            f.write_all(text.as_bytes())
-                .and_then(|_| f.flush())
-                .map_err(|e| OutputError::new_err(format!("{}: {e}", f.path().display())))?;
-            Ok((f.path().to_path_buf(), Some(f)))
-        }
-        (Some(_), Some(_)) => Err(SettingsError::new_err(
-            "give either a stage path or stage_text, not both",
-        )),
-        (None, None) => Err(SettingsError::new_err(
-            "no stage: give a path or stage_text",
-        )),
-    }
-}
 
 /// The tracker names `render(tracker=...)` accepts besides "auto".
 #[pyfunction]
@@ -102,7 +72,7 @@ fn vdb_reader() -> &'static str {
 fn _nimbus(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
     errors::register(m)?;
-    m.add_class::<render::RenderResult>()?;
+    m.add_class::<result::RenderResult>()?;
     m.add_function(wrap_pyfunction!(info::info, m)?)?;
     m.add_function(wrap_pyfunction!(render::render, m)?)?;
     m.add_function(wrap_pyfunction!(compare::compare, m)?)?;

@@ -1,13 +1,22 @@
 //! The boundary between the delegate's C++ half and its Rust half: plain structs the
-//! C++ fills from what Hydra hands over (no USD types cross), and the renderer the C++
-//! drives. Every Rust function here catches panics (see `renderer`), and its errors
-//! become C++ exceptions the C++ catches and reports through TF_RUNTIME_ERROR.
+//! C++ fills from what Hydra hands over (no USD types cross), and the entry points the
+//! C++ calls. The entry points are thin: they convert the structs ([`crate::scene`]
+//! builds the scene; [`PassState`] becomes [`bridge::PassInfo`] here) and call down
+//! into [`crate::renderer`], which knows nothing of the bridge. Every entry point
+//! catches panics ([`guarded`]): nothing may unwind into C++. Errors become C++
+//! exceptions the C++ catches and reports through TF_RUNTIME_ERROR.
 //!
 //! Matrices are GfMatrix4d's 16 numbers in its memory order (row vectors, translation
 //! in elements 12..15), which is column-major for column vectors: glam's
 //! `DMat4::from_cols_array` reads them as they are.
 
-use crate::renderer::{is_aov, is_split_aov, new_renderer, setting_descriptors, Renderer};
+// Down: the entry points convert and call these. (`scene` uses `bridge`'s structs in
+// turn, the one edge back up that cxx forces: see scene.rs.)
+use crate::renderer::{self, PassState};
+use crate::scene::{self, scene_of, STAGE_NAME};
+use anyhow::{anyhow, Result};
+use bridge::{PassInfo, SceneDesc, SettingDescriptor};
+use std::panic::{catch_unwind, AssertUnwindSafe};
 
 #[cxx::bridge(namespace = "nimbus_hydra")]
 pub mod bridge {
@@ -194,5 +203,191 @@ pub mod bridge {
         /// Whether `name` is a split AOV (a light group, `direct`, `indirect`,
         /// `emission`, or `lpe:` and a light path expression): an RGB image.
         fn is_split_aov(name: &str) -> bool;
+    }
+}
+
+/// The renderer as the C++ render pass holds it (`rust::Box<nimbus_hydra::Renderer>`):
+/// [`renderer::Renderer`] behind the bridge's structs and panic guard.
+pub struct Renderer {
+    inner: renderer::Renderer,
+}
+
+/// The extern "Rust" entry points below are the bridge's: cxx looks them up in this
+/// module (the bridge's parent), so they live here and call down.
+pub fn new_renderer() -> Box<Renderer> {
+    Box::new(Renderer {
+        inner: renderer::Renderer::default(),
+    })
+}
+
+impl Renderer {
+    pub fn reset(&mut self, desc: &SceneDesc) -> Result<Vec<String>> {
+        self.inner
+            .clear((desc.width, desc.height), desc.sync_threads);
+        guarded("reset", || {
+            let (scene, warnings) = scene_of(desc)?;
+            self.inner.start(scene, &desc.aovs, warnings)
+        })
+    }
+
+    pub fn render_pass(&mut self) -> Result<PassInfo> {
+        let result = guarded("render_pass", || Ok(pass_info(self.inner.render_pass())));
+        if result.is_err() {
+            self.inner.stop();
+        }
+        result
+    }
+
+    pub fn read_aov(&self, name: &str, components: usize, out: &mut [f32]) -> bool {
+        guarded("read_aov", || {
+            Ok(self.inner.read_aov(name, components, out))
+        })
+        .unwrap_or(false)
+    }
+
+    pub fn stats_line(&self) -> String {
+        self.inner.stats_line()
+    }
+}
+
+pub fn setting_descriptors() -> Vec<SettingDescriptor> {
+    scene::setting_descriptors()
+}
+
+pub fn is_aov(name: &str) -> bool {
+    renderer::is_aov(name)
+}
+
+pub fn is_split_aov(name: &str) -> bool {
+    renderer::is_split_aov(name)
+}
+
+fn pass_info(p: PassState) -> PassInfo {
+    PassInfo {
+        spp: p.spp,
+        target_spp: p.target_spp,
+        converged: p.converged,
+        lookups_per_sample: p.lookups_per_sample,
+        seconds: p.seconds,
+    }
+}
+
+/// Runs `f`, turning a panic into an error.
+fn guarded<T>(what: &str, f: impl FnOnce() -> Result<T>) -> Result<T> {
+    match catch_unwind(AssertUnwindSafe(f)) {
+        Ok(r) => r,
+        Err(payload) => {
+            let msg = payload
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| payload.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "unknown panic".to_string());
+            Err(anyhow!("{STAGE_NAME}: internal error in {what}: {msg}"))
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::bridge::{CameraDesc, LightDesc};
+    use super::*;
+    use crate::scene::tests::{identity, light, smoke_volume};
+    use glam::DVec3;
+
+    /// A slab of density 1 over [-1, 1]³ lit by a sun of group `key` and a sphere
+    /// light of none, seen from z = 5: the bound split AOVs are filled, the groups sum
+    /// to the beauty within the f32 rounding of each mean, and an AOV whose group
+    /// matches nothing (or an expression Nimbus cannot split) is a warning naming it and
+    /// a black buffer, not a lost render.
+    #[test]
+    fn split_aovs_are_filled_and_a_bad_one_is_a_warning() {
+        let dir = std::env::temp_dir().join(format!("hdnimbus-aovs-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let vdb = dir.join("slab.vdb");
+        let vs = 2.0 / 16.0;
+        let grid = nimbus::volume::procedural::grid_from_fn(
+            "density",
+            [16; 3],
+            DVec3::splat(-1.0 + 0.5 * vs),
+            vs,
+            |_| 1.0,
+        );
+        nimbus::volume::vdb::write_float_grid(&vdb, &grid).unwrap();
+        let mut volume = smoke_volume();
+        volume.fields[0].file = vdb.to_str().unwrap().into();
+        let sun = LightDesc {
+            light_group: "key".into(),
+            ..light("distantLight")
+        };
+        let mut bulb = light("sphereLight");
+        bulb.xform[13] = 3.0;
+        bulb.radius = 0.1;
+        bulb.intensity = 50.0;
+        let mut cam = identity();
+        cam[14] = 5.0;
+        let (w, h) = (8u32, 6u32);
+        let desc = SceneDesc {
+            camera: CameraDesc {
+                path: "/cam".into(),
+                xform: cam,
+                focal_length: 5.0,
+                horizontal_aperture: 3.6,
+                vertical_aperture: 2.7,
+                near: 0.1,
+                far: 100.0,
+                ..CameraDesc::default()
+            },
+            has_camera: true,
+            lights: vec![sun, bulb],
+            volumes: vec![volume],
+            width: w,
+            height: h,
+            aovs: [
+                "color",
+                "lightgroup:key",
+                "lightgroup:/sphereLight",
+                "lightgroup:nothing",
+                "lpe:CX",
+                "lookups",
+            ]
+            .map(String::from)
+            .to_vec(),
+            ..SceneDesc::default()
+        };
+        let mut r = new_renderer();
+        let warnings = r.reset(&desc).unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+        for bad in ["AOV lightgroup:nothing", "AOV lpe:CX"] {
+            assert!(
+                warnings.iter().any(|w| w.contains(bad)),
+                "no warning naming {bad}: {warnings:?}"
+            );
+        }
+        while !r.render_pass().unwrap().converged {}
+        let n = (w * h) as usize;
+        let read = |name: &str, k: usize| {
+            let mut v = vec![f32::NAN; n * k];
+            assert!(r.read_aov(name, k, &mut v), "{name}");
+            v
+        };
+        let color = read("color", 4);
+        let key = read("lightgroup:key", 3);
+        let bulb = read("lightgroup:/sphereLight", 3);
+        assert!(read("lightgroup:nothing", 3).iter().all(|&v| v == 0.0));
+        let total = |v: &[f32]| v.iter().map(|&x| x as f64).sum::<f64>();
+        assert!(total(&key) > 0.0 && total(&bulb) > 0.0);
+        for p in 0..n {
+            for c in 0..3 {
+                let (b, s) = (
+                    color[p * 4 + c] as f64,
+                    key[p * 3 + c] as f64 + bulb[p * 3 + c] as f64,
+                );
+                let bound = (b.abs() + s.abs()) * 2f64.powi(-24) + 1e-30;
+                assert!(
+                    (s - b).abs() <= bound,
+                    "pixel {p} channel {c}: key + bulb {s}, beauty {b}"
+                );
+            }
+        }
     }
 }

@@ -1,22 +1,21 @@
-//! The Rust half of the render pass: a [`Session`] of the scene Hydra describes, its
-//! film, and the pass schedule `nimbus render` uses. Each `render_pass` adds one pass of
-//! samples; since each pixel's random stream lives in the film, the image after the
-//! last pass is the one `nimbus render` gives for the same scene, settings and seed.
+//! The renderer behind the render pass: a [`Session`] of the scene Hydra describes
+//! (already converted by [`crate::scene`]), its film, and the pass schedule `nimbus
+//! render` uses. Each `render_pass` adds one pass of samples; since each pixel's random
+//! stream lives in the film, the image after the last pass is the one `nimbus render`
+//! gives for the same scene, settings and seed.
 //!
-//! Nothing here may unwind into C++: every entry point runs under `catch_unwind` and
-//! turns a panic into an error (cxx makes errors C++ exceptions, which the C++ half
-//! catches and reports).
+//! It knows nothing of the bridge: `crate::ffi` turns the bridge's structs into a
+//! [`Scene`] and this module's results back into structs, and guards every call
+//! against panics.
 
-use crate::ffi::bridge::{PassInfo, SceneDesc, SettingDescriptor};
-use crate::scene::{scene_of, STAGE_NAME};
+use crate::scene::STAGE_NAME;
 use anyhow::{anyhow, Result};
 use nimbus::render::film::{Aov, Film};
 use nimbus::render::progressive::Clock;
 use nimbus::render::progressive::{PassSchedule, Stopwatch};
 use nimbus::render::session::{ExtraOutputs, Overrides, Session};
 use nimbus::render::splits::SplitLayer;
-use nimbus::scene::RenderSettings;
-use std::panic::{catch_unwind, AssertUnwindSafe};
+use nimbus::scene::Scene;
 use std::path::Path;
 
 /// A render in progress.
@@ -34,6 +33,9 @@ struct Running {
     seconds: f64,
 }
 
+/// What the render pass renders: nothing (after `clear`, or when the scene had no
+/// volume or failed), or a render in progress.
+#[derive(Default)]
 pub struct Renderer {
     running: Option<Running>,
     /// The film size when there is nothing to render (no volume, or an error).
@@ -42,105 +44,100 @@ pub struct Renderer {
     sync_threads: u32,
 }
 
-pub fn new_renderer() -> Box<Renderer> {
-    Box::new(Renderer {
-        running: None,
-        size: (0, 0),
-        sync_threads: 0,
-    })
-}
-
-/// Runs `f`, turning a panic into an error.
-fn guarded<T>(what: &str, f: impl FnOnce() -> Result<T>) -> Result<T> {
-    match catch_unwind(AssertUnwindSafe(f)) {
-        Ok(r) => r,
-        Err(payload) => {
-            let msg = payload
-                .downcast_ref::<&str>()
-                .map(|s| s.to_string())
-                .or_else(|| payload.downcast_ref::<String>().cloned())
-                .unwrap_or_else(|| "unknown panic".to_string());
-            Err(anyhow!("{STAGE_NAME}: internal error in {what}: {msg}"))
-        }
-    }
+/// Where a render stands after a pass.
+#[derive(Clone, Debug, Default)]
+pub struct PassState {
+    pub spp: u32,
+    pub target_spp: u32,
+    pub converged: bool,
+    /// Mean density lookups per sample so far.
+    pub lookups_per_sample: f64,
+    pub seconds: f64,
 }
 
 impl Renderer {
-    pub fn reset(&mut self, desc: &SceneDesc) -> Result<Vec<String>> {
+    /// Forgets the render in progress: until [`Renderer::start`] succeeds there is
+    /// nothing to render, and the buffers are black at `size`.
+    pub fn clear(&mut self, size: (u32, u32), sync_threads: u32) {
         self.running = None;
-        self.size = (desc.width, desc.height);
-        self.sync_threads = desc.sync_threads;
-        guarded("reset", || {
-            let (scene, mut warnings) = scene_of(desc)?;
-            if scene.volumes.is_empty() {
-                warnings.push(format!(
-                    "{STAGE_NAME}: the scene has no volume; the image is empty"
-                ));
-                return Ok(warnings);
-            }
-            let session = Session::from_scene(Path::new(STAGE_NAME), scene, &Overrides::default())
-                .map_err(|e| anyhow!("{e:#}"))?;
-            warnings.extend(session.scene.warnings.lines());
-            warnings.extend(session.warnings.iter().cloned());
-            if let Some(line) = session.auto_summary() {
-                warnings.push(line);
-            }
-            let (extras, layers) = split_layers(&session, &desc.aovs, &mut warnings)?;
-            let film = {
-                let mut job = session.job(true);
-                extras.apply(&mut job);
-                job.new_film(None)
-            };
-            let pool = session.pool(0)?;
-            let schedule = PassSchedule::new(session.spp, None, None);
-            self.running = Some(Running {
-                session,
-                extras,
-                layers,
-                film,
-                schedule,
-                pool,
-                spp: 0,
-                passes: 0,
-                seconds: 0.0,
-            });
-            Ok(warnings)
-        })
+        self.size = size;
+        self.sync_threads = sync_threads;
     }
 
-    pub fn render_pass(&mut self) -> Result<PassInfo> {
-        let result = guarded("render_pass", || {
-            let Some(r) = self.running.as_mut() else {
-                return Ok(PassInfo {
-                    converged: true,
-                    ..PassInfo::default()
-                });
-            };
-            if let Some(n) = r.schedule.next(r.seconds, 0.0) {
-                let clock = Stopwatch::start(Clock::Wall);
-                let mut job = r.session.job(true);
-                r.extras.apply(&mut job);
-                let film = &mut r.film;
-                r.pool.install(|| job.render_pass(film, n, &|| {}));
-                let dt = clock.elapsed();
-                r.schedule.finished(n, dt);
-                r.spp += n;
-                r.passes += 1;
-                r.seconds += dt;
-            }
-            Ok(info(r))
-        });
-        if result.is_err() {
-            self.running = None;
+    /// Starts rendering `scene` (whose conversion warned `warnings`) with the split
+    /// layers the bound AOVs `aovs` ask for; returns the warnings to show.
+    pub fn start(
+        &mut self,
+        scene: Scene,
+        aovs: &[String],
+        mut warnings: Vec<String>,
+    ) -> Result<Vec<String>> {
+        if scene.volumes.is_empty() {
+            warnings.push(format!(
+                "{STAGE_NAME}: the scene has no volume; the image is empty"
+            ));
+            return Ok(warnings);
         }
-        result
+        let session = Session::from_scene(Path::new(STAGE_NAME), scene, &Overrides::default())
+            .map_err(|e| anyhow!("{e:#}"))?;
+        warnings.extend(session.scene.warnings.lines());
+        warnings.extend(session.warnings.iter().cloned());
+        if let Some(line) = session.auto_summary() {
+            warnings.push(line);
+        }
+        let (extras, layers) = split_layers(&session, aovs, &mut warnings)?;
+        let film = {
+            let mut job = session.job(true);
+            extras.apply(&mut job);
+            job.new_film(None)
+        };
+        let pool = session.pool(0)?;
+        let schedule = PassSchedule::new(session.spp, None, None);
+        self.running = Some(Running {
+            session,
+            extras,
+            layers,
+            film,
+            schedule,
+            pool,
+            spp: 0,
+            passes: 0,
+            seconds: 0.0,
+        });
+        Ok(warnings)
     }
 
+    /// Drops the render in progress after an error, keeping the size.
+    pub fn stop(&mut self) {
+        self.running = None;
+    }
+
+    /// Renders one more pass (nothing once converged, or with nothing to render).
+    pub fn render_pass(&mut self) -> PassState {
+        let Some(r) = self.running.as_mut() else {
+            return PassState {
+                converged: true,
+                ..PassState::default()
+            };
+        };
+        if let Some(n) = r.schedule.next(r.seconds, 0.0) {
+            let clock = Stopwatch::start(Clock::Wall);
+            let mut job = r.session.job(true);
+            r.extras.apply(&mut job);
+            let film = &mut r.film;
+            r.pool.install(|| job.render_pass(film, n, &|| {}));
+            let dt = clock.elapsed();
+            r.schedule.finished(n, dt);
+            r.spp += n;
+            r.passes += 1;
+            r.seconds += dt;
+        }
+        info(r)
+    }
+
+    /// Copies AOV `name` into `out` (`components` floats per pixel, row 0 at the
+    /// bottom as Hydra's buffers hold it); false when `name` is no AOV Nimbus has.
     pub fn read_aov(&self, name: &str, components: usize, out: &mut [f32]) -> bool {
-        guarded("read_aov", || Ok(self.copy_aov(name, components, out))).unwrap_or(false)
-    }
-
-    fn copy_aov(&self, name: &str, components: usize, out: &mut [f32]) -> bool {
         if is_split_aov(name) {
             return self.copy_layer(name, components, out);
         }
@@ -230,9 +227,9 @@ impl Renderer {
     }
 }
 
-fn info(r: &Running) -> PassInfo {
+fn info(r: &Running) -> PassState {
     let (totals, samples, _) = r.film.totals();
-    PassInfo {
+    PassState {
         spp: r.spp,
         target_spp: r.session.spp,
         converged: r.spp >= r.session.spp,
@@ -242,58 +239,6 @@ fn info(r: &Running) -> PassInfo {
         },
         seconds: r.seconds,
     }
-}
-
-/// The settings hdNimbus reads (the render-settings schema's names), with the defaults
-/// a stage without them gets.
-pub fn setting_descriptors() -> Vec<SettingDescriptor> {
-    let d = RenderSettings::default();
-    let number = |key: &str, name: &str, v: f64, is_int: bool| SettingDescriptor {
-        key: key.to_string(),
-        name: name.to_string(),
-        is_text: false,
-        is_int,
-        number: v,
-        text: String::new(),
-    };
-    let token = |key: &str, name: &str, v: &str| SettingDescriptor {
-        key: key.to_string(),
-        name: name.to_string(),
-        is_text: true,
-        is_int: false,
-        number: 0.0,
-        text: v.to_string(),
-    };
-    vec![
-        number(
-            "nimbus:samples",
-            "Samples per pixel",
-            d.samples as f64,
-            true,
-        ),
-        number("nimbus:seed", "Seed", d.seed as f64, true),
-        number(
-            "nimbus:maxDepth",
-            "Maximum scattering depth",
-            d.max_depth as f64,
-            true,
-        ),
-        token("nimbus:tracker", "Tracker", "auto"),
-        token("nimbus:scheme", "Scheme", ""),
-        token("nimbus:transmittance", "Transmittance estimator", ""),
-        number(
-            "nimbus:control",
-            "Decomposition control",
-            nimbus::track::select::TrackerSettings::default().control as f64,
-            false,
-        ),
-        number(
-            "nimbus:octreeDepth",
-            "Majorant octree depth (0: flat grid)",
-            0.0,
-            true,
-        ),
-    ]
 }
 
 /// The split layer AOV `name` asks for: `lpe:` and a light path expression, or a
@@ -359,9 +304,6 @@ pub fn is_aov(name: &str) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::ffi::bridge::{CameraDesc, LightDesc};
-    use crate::scene::tests::{identity, light, smoke_volume};
-    use glam::DVec3;
 
     #[test]
     fn split_aov_names_are_the_shorthands_and_lpes() {
@@ -385,103 +327,6 @@ mod tests {
             "primId",
         ] {
             assert!(!is_split_aov(name), "{name}");
-        }
-    }
-
-    /// A slab of density 1 over [-1, 1]³ lit by a sun of group `key` and a sphere
-    /// light of none, seen from z = 5: the bound split AOVs are filled, the groups sum
-    /// to the beauty within the f32 rounding of each mean, and an AOV whose group
-    /// matches nothing (or an expression Nimbus cannot split) is a warning naming it and
-    /// a black buffer, not a lost render.
-    #[test]
-    fn split_aovs_are_filled_and_a_bad_one_is_a_warning() {
-        let dir = std::env::temp_dir().join(format!("hdnimbus-aovs-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let vdb = dir.join("slab.vdb");
-        let vs = 2.0 / 16.0;
-        let grid = nimbus::volume::procedural::grid_from_fn(
-            "density",
-            [16; 3],
-            DVec3::splat(-1.0 + 0.5 * vs),
-            vs,
-            |_| 1.0,
-        );
-        nimbus::volume::vdb::write_float_grid(&vdb, &grid).unwrap();
-        let mut volume = smoke_volume();
-        volume.fields[0].file = vdb.to_str().unwrap().into();
-        let sun = LightDesc {
-            light_group: "key".into(),
-            ..light("distantLight")
-        };
-        let mut bulb = light("sphereLight");
-        bulb.xform[13] = 3.0;
-        bulb.radius = 0.1;
-        bulb.intensity = 50.0;
-        let mut cam = identity();
-        cam[14] = 5.0;
-        let (w, h) = (8u32, 6u32);
-        let desc = SceneDesc {
-            camera: CameraDesc {
-                path: "/cam".into(),
-                xform: cam,
-                focal_length: 5.0,
-                horizontal_aperture: 3.6,
-                vertical_aperture: 2.7,
-                near: 0.1,
-                far: 100.0,
-                ..CameraDesc::default()
-            },
-            has_camera: true,
-            lights: vec![sun, bulb],
-            volumes: vec![volume],
-            width: w,
-            height: h,
-            aovs: [
-                "color",
-                "lightgroup:key",
-                "lightgroup:/sphereLight",
-                "lightgroup:nothing",
-                "lpe:CX",
-                "lookups",
-            ]
-            .map(String::from)
-            .to_vec(),
-            ..SceneDesc::default()
-        };
-        let mut r = new_renderer();
-        let warnings = r.reset(&desc).unwrap();
-        std::fs::remove_dir_all(&dir).unwrap();
-        for bad in ["AOV lightgroup:nothing", "AOV lpe:CX"] {
-            assert!(
-                warnings.iter().any(|w| w.contains(bad)),
-                "no warning naming {bad}: {warnings:?}"
-            );
-        }
-        while !r.render_pass().unwrap().converged {}
-        let n = (w * h) as usize;
-        let read = |name: &str, k: usize| {
-            let mut v = vec![f32::NAN; n * k];
-            assert!(r.read_aov(name, k, &mut v), "{name}");
-            v
-        };
-        let color = read("color", 4);
-        let key = read("lightgroup:key", 3);
-        let bulb = read("lightgroup:/sphereLight", 3);
-        assert!(read("lightgroup:nothing", 3).iter().all(|&v| v == 0.0));
-        let total = |v: &[f32]| v.iter().map(|&x| x as f64).sum::<f64>();
-        assert!(total(&key) > 0.0 && total(&bulb) > 0.0);
-        for p in 0..n {
-            for c in 0..3 {
-                let (b, s) = (
-                    color[p * 4 + c] as f64,
-                    key[p * 3 + c] as f64 + bulb[p * 3 + c] as f64,
-                );
-                let bound = (b.abs() + s.abs()) * 2f64.powi(-24) + 1e-30;
-                assert!(
-                    (s - b).abs() <= bound,
-                    "pixel {p} channel {c}: key + bulb {s}, beauty {b}"
-                );
-            }
         }
     }
 }

@@ -2,10 +2,16 @@
 //! ([`nimbus::scene::Scene`]): the second reader of the one render pipeline. The
 //! conversions follow the USD reader's (`nimbus::scene::stage`): world transforms, UsdLux
 //! parameters with schema fallbacks, NimbusVolumeAPI's fallback coefficients, holdout
-//! meshes fan-triangulated.
+//! meshes fan-triangulated. Also the render settings the delegate reads (`settings`)
+//! and offers the host with their defaults (`setting_descriptors`), side by side.
 
+// Only the bridge's plain structs. cxx declares shared structs only inside the
+// #[cxx::bridge] module, and that module's parent (`crate::ffi`) must also hold the
+// extern "Rust" entry points, which call down into this module: hence the one cycle of
+// files, ffi -> scene -> ffi::bridge. No code of ffi is used here, only its data.
 use crate::ffi::bridge::{
-    CameraDesc, FieldDesc, LightDesc, MeshDesc, ParamDesc, SceneDesc, SettingDesc, VolumeDesc,
+    CameraDesc, FieldDesc, LightDesc, MeshDesc, ParamDesc, SceneDesc, SettingDesc,
+    SettingDescriptor, VolumeDesc,
 };
 use anyhow::{anyhow, bail, Result};
 use glam::{DMat4, DVec3};
@@ -611,6 +617,58 @@ fn shown(s: &SettingDesc) -> String {
         true => format!("{:?}", s.text),
         false => format!("{}", s.number),
     }
+}
+
+/// The settings hdNimbus reads (the render-settings schema's names), with the defaults
+/// a stage without them gets.
+pub fn setting_descriptors() -> Vec<SettingDescriptor> {
+    let d = RenderSettings::default();
+    let number = |key: &str, name: &str, v: f64, is_int: bool| SettingDescriptor {
+        key: key.to_string(),
+        name: name.to_string(),
+        is_text: false,
+        is_int,
+        number: v,
+        text: String::new(),
+    };
+    let token = |key: &str, name: &str, v: &str| SettingDescriptor {
+        key: key.to_string(),
+        name: name.to_string(),
+        is_text: true,
+        is_int: false,
+        number: 0.0,
+        text: v.to_string(),
+    };
+    vec![
+        number(
+            "nimbus:samples",
+            "Samples per pixel",
+            d.samples as f64,
+            true,
+        ),
+        number("nimbus:seed", "Seed", d.seed as f64, true),
+        number(
+            "nimbus:maxDepth",
+            "Maximum scattering depth",
+            d.max_depth as f64,
+            true,
+        ),
+        token("nimbus:tracker", "Tracker", "auto"),
+        token("nimbus:scheme", "Scheme", ""),
+        token("nimbus:transmittance", "Transmittance estimator", ""),
+        number(
+            "nimbus:control",
+            "Decomposition control",
+            nimbus::track::select::TrackerSettings::default().control as f64,
+            false,
+        ),
+        number(
+            "nimbus:octreeDepth",
+            "Majorant octree depth (0: flat grid)",
+            0.0,
+            true,
+        ),
+    ]
 }
 
 #[cfg(test)]
