@@ -4,7 +4,7 @@
 //!
 //! `NIMBUS_OPENVDB` and `NIMBUS_OPENEXR` each select the behaviour for their library:
 //! - `auto` (default): use the library when its header and library are found, else build
-//!   without the bridge (for OpenVDB the pure-Rust vdb-rs reader is then the only one;
+//!   without the bridge (for OpenVDB, Nimbus' own Rust reader is then the only one;
 //!   for OpenEXR, writing or reading a deep EXR is an error);
 //! - `require`: fail the build with a clear message when the library is missing (CI);
 //! - `off`: never build the bridge.
@@ -31,7 +31,7 @@ fn main() {
     }
     println!("cargo:rerun-if-changed=build.rs");
 
-    if let Some(required) = mode("NIMBUS_OPENVDB", "the OpenVDB bridge (vdb-rs only)") {
+    if let Some(required) = mode("NIMBUS_OPENVDB", "the OpenVDB bridge (Rust reader only)") {
         match find_openvdb() {
             Ok(found) => build_bridge(&found),
             Err(why) => missing(
@@ -40,7 +40,7 @@ fn main() {
                 "OpenVDB",
                 &why,
                 "`apt-get install libopenvdb-dev libboost-dev` or set OPENVDB_INCLUDE_DIR / OPENVDB_LIB_DIR",
-                "the OpenVDB bridge (vdb-rs only)",
+                "the OpenVDB bridge (Rust reader only)",
             ),
         }
     }

@@ -10,7 +10,7 @@
 use nimbus::scene::{load_stage, LoadOptions};
 
 use nimbus::volume::asset::AssetLocation;
-use nimbus::volume::vdb::{list_grids, read_float_grid_with, Reader};
+use nimbus::volume::vdb::{list_grids, read_float_grid_with, read_vec3s_grid_with, Reader};
 use std::path::PathBuf;
 use std::sync::Arc;
 
