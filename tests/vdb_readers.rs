@@ -929,3 +929,145 @@ fn corrupted_real_file_never_crashes() {
     }
     println!("corrupted real files: {ok} read, {err} rejected");
 }
+
+/// Load time of the largest shared file with each reader: validation + reader →
+/// `RawGrid`, medians of 5 rounds, the readers interleaved within each round.
+/// A measurement, not a check: `cargo t --test vdb_readers -- --ignored --nocapture load_time`.
+#[test]
+#[ignore]
+fn load_time_of_the_largest_shared_file() {
+    let Some(dir) = common::shared_data() else {
+        return;
+    };
+    let mut files = Vec::new();
+    vdb_files(&dir, &mut files);
+    let path = files
+        .iter()
+        .max_by_key(|p| std::fs::metadata(p).map(|m| m.len()).unwrap_or(0))
+        .expect("a .vdb file");
+    let loc = AssetLocation::File(path.clone());
+    let grid = list_grids(&loc).unwrap()[0].name.clone();
+    let mut times: Vec<(Reader, Vec<f64>)> = readers().into_iter().map(|r| (r, vec![])).collect();
+    for _ in 0..5 {
+        for (reader, t) in &mut times {
+            let start = std::time::Instant::now();
+            let g = read_float_grid_with(*reader, &loc, &grid, None).unwrap();
+            t.push(start.elapsed().as_secs_f64());
+            assert!(g.active_voxel_count() > 0);
+        }
+    }
+    let bytes = std::fs::metadata(path).unwrap().len();
+    for (reader, mut t) in times {
+        t.sort_by(f64::total_cmp);
+        println!(
+            "{} grid {grid:?} ({:.2} MB): {} reader median {:.1} ms (min {:.1}, max {:.1}) of 5",
+            path.display(),
+            bytes as f64 / 1e6,
+            reader.name(),
+            t[2] * 1e3,
+            t[0] * 1e3,
+            t[4] * 1e3
+        );
+    }
+}
+
+/// The value `tests/fixtures/make_inactive_vdb.cc` gives voxel `off` of leaf `leaf`
+/// (component `c` of a Vec3s grid, whose values are (v, −v, 2v)), and whether it is
+/// active.
+fn inactive_fixture_value(leaf: usize, off: usize, c: usize, bg: f32) -> (f32, bool) {
+    let vec = |v: f32| [v, -v, 2.0 * v][c];
+    if off == 0 || leaf == 7 {
+        return (vec(0.01 * off as f32 + leaf as f32), true);
+    }
+    let (three, seven) = (vec(3.0), vec(7.0));
+    let v = match leaf {
+        0 => bg,
+        1 => -bg,
+        2 => three,
+        3 if off % 3 == 0 => -bg,
+        3 => bg,
+        4 if off % 5 == 0 => three,
+        4 => bg,
+        5 if off % 2 == 0 => three,
+        5 => seven,
+        _ => [bg, three, seven][off % 3],
+    };
+    (v, false)
+}
+
+/// Files OpenVDB itself wrote (`tests/fixtures/make_inactive_vdb.cc`) whose nodes need
+/// every kind of value record (metadata 0 to 6), with non-zero backgrounds, float and
+/// Vec3s, full and half precision, under active-mask-only, zlib and blosc compression,
+/// with an affine transform: the Rust reader restores every inactive value the
+/// generator wrote, and returns OpenVDB's grids bit for bit.
+#[test]
+fn openvdb_written_inactive_values_both_readers() {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures");
+    for file in [
+        "inactive_mask.vdb",
+        "inactive_zip.vdb",
+        "inactive_blosc.vdb",
+    ] {
+        let loc = AssetLocation::File(dir.join(file));
+        for name in ["f", "f_half", "v", "v_half"] {
+            let who = format!("{file} {name}");
+            let read = |reader: Reader| -> Vec<RawGrid> {
+                if name.starts_with('f') {
+                    read_float_grid_with(reader, &loc, name, None).map(|g| vec![g])
+                } else {
+                    read_vec3s_grid_with(reader, &loc, name, None).map(|g| g.to_vec())
+                }
+                .unwrap_or_else(|e| panic!("{who} via {}: {e}", reader.name()))
+            };
+            let rs = read(Reader::Rust);
+            // Half floats keep 11 significant bits: relative error at most 2^-11.
+            let tol = if name.ends_with("half") { 1.0 / 2048.0 } else { 0.0 };
+            for (c, g) in rs.iter().enumerate() {
+                let bg = [0.5f32, -0.25, 2.0][c];
+                assert_eq!(g.background, bg, "{who}");
+                assert_eq!(g.class, "fog volume");
+                assert!(g.index_to_world.x_axis.y.abs() > 0.01, "{who}: not rotated");
+                assert_eq!(g.leaves.len(), 8, "{who}");
+                for leaf in &g.leaves {
+                    let l = (leaf.origin[0] / 8) as usize;
+                    assert_eq!(leaf.origin, [8 * l as i32, 0, 0]);
+                    for off in 0..512 {
+                        let (want, active) = inactive_fixture_value(l, off, c, bg);
+                        assert_eq!(leaf.active[off / 64] >> (off % 64) & 1 == 1, active);
+                        let got = leaf.values[off];
+                        assert!(
+                            (got - want).abs() <= tol * want.abs(),
+                            "{who}[{c}] leaf {l} voxel {off}: {got} vs {want}"
+                        );
+                    }
+                }
+                let vec = |v: f32| [v, -v, 2.0 * v][c];
+                let mut tiles = g.tiles.clone();
+                tiles.sort_by_key(|t| (t.dim, t.origin));
+                let want = [
+                    ([0, 64, 0], 8, vec(0.75), true),
+                    ([8, 64, 0], 8, vec(3.0), false),
+                    ([0, 1024, 0], 128, vec(0.125), true),
+                    ([8192, 0, 0], 4096, vec(2.0), true),
+                ]
+                .map(|(origin, dim, value, active)| RawTile {
+                    origin,
+                    dim,
+                    value,
+                    active,
+                });
+                assert_eq!(tiles, want, "{who}[{c}]");
+            }
+            if Reader::OpenVdb.available() {
+                let ov = read(Reader::OpenVdb);
+                for (k, (o, r)) in ov.iter().zip(&rs).enumerate() {
+                    assert_same_grid(o, r, &format!("{who} component {k}"));
+                    assert_eq!(o.tiles, r.tiles, "{who}: tile order");
+                }
+            }
+        }
+    }
+    if !Reader::OpenVdb.available() {
+        println!("SKIP (comparison with OpenVDB): built without it");
+    }
+}

@@ -263,7 +263,8 @@ fn child_origin(origin: [i32; 3], i: usize, log2: u32, child_dim: i32) -> [i32; 
 }
 
 /// One internal node's topology: child mask, value mask, all slot values; returns
-/// the masks and the tiles (slots without a child).
+/// the child mask and the tiles (slots without a child) that are active or hold
+/// something other than the background.
 #[allow(clippy::type_complexity)]
 fn read_internal<const N: usize>(
     s: &mut Stream,
@@ -281,6 +282,8 @@ fn read_internal<const N: usize>(
     let value_mask = s.mask(slots / 64, what)?;
     let mut values = vec![0.0f32; slots * N];
     read_values::<N>(s, storage, background, &value_mask, &mut values)?;
+    // Only tiles that carry something are kept (see `read_tree`'s `tile`): a node
+    // mostly holds inactive background.
     let tiles = (0..slots)
         .filter(|&i| !bit(&child_mask, i))
         .map(|i| {
@@ -288,6 +291,7 @@ fn read_internal<const N: usize>(
             v.copy_from_slice(&values[i * N..(i + 1) * N]);
             (i, v, bit(&value_mask, i))
         })
+        .filter(|&(_, v, active)| active || v != background)
         .collect();
     Ok((child_mask, tiles))
 }
