@@ -1021,7 +1021,11 @@ fn openvdb_written_inactive_values_both_readers() {
             };
             let rs = read(Reader::Rust);
             // Half floats keep 11 significant bits: relative error at most 2^-11.
-            let tol = if name.ends_with("half") { 1.0 / 2048.0 } else { 0.0 };
+            let tol = if name.ends_with("half") {
+                1.0 / 2048.0
+            } else {
+                0.0
+            };
             for (c, g) in rs.iter().enumerate() {
                 let bg = [0.5f32, -0.25, 2.0][c];
                 assert_eq!(g.background, bg, "{who}");
