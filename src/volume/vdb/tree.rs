@@ -64,8 +64,12 @@ pub(crate) fn read_grid<const N: usize>(
     if let Some(why) = unsupported_reason(info, desc) {
         return Err(why);
     }
-    let Some(index_to_world) = desc.index_to_world else {
-        return Err(format!("grid {:?}: no linear transform", desc.name));
+    // Validation walks the tree of every grid it sets `root` for; read only those.
+    let (Some(index_to_world), Some(_)) = (desc.index_to_world, &desc.root) else {
+        return Err(format!(
+            "grid {:?}: its transform or tree was not validated",
+            desc.name
+        ));
     };
     let storage = Storage {
         compression: desc.compression.unwrap_or(info.archive_compression),
