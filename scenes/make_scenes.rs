@@ -3,7 +3,7 @@
 //!     cargo run --release --ignore-rust-version --example make_scenes
 //!
 //! Writes scenes/cloud/cloud.vdb, scenes/chromatic/chromatic.vdb and scenes/fire/fire.vdb
-//! (uncompressed float grids that both OpenVDB and vdb-rs read). The .usda files beside
+//! (uncompressed float grids that both OpenVDB and Nimbus' own reader read). The .usda files beside
 //! them are hand-written.
 
 use glam::DVec3;

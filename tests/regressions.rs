@@ -2,7 +2,7 @@
 //! code the fuzz targets exercise (fuzz/fuzz_targets): each must end in a result or an
 //! error, never a panic, an abort, a stack overflow or a hang.
 //!
-//! tests/regressions/vdb/*: bytes for VDB header validation and the vdb-rs reader, as
+//! tests/regressions/vdb/*: bytes for VDB header validation and Nimbus' own Rust reader, as
 //! a .usdz member in memory and as a file. tests/regressions/usda/*: stage text, loaded
 //! as `stage.usda` in a scratch folder (as the fuzz target does, so a file that names
 //! `./stage.usda` refers to itself).
@@ -10,7 +10,7 @@
 use nimbus::scene::{load_stage, LoadOptions};
 
 use nimbus::volume::asset::AssetLocation;
-use nimbus::volume::vdb::{list_grids, read_float_grid_with, Reader};
+use nimbus::volume::vdb::{list_grids, read_float_grid_with, read_vec3s_grid_with, Reader};
 use std::path::PathBuf;
 use std::sync::Arc;
 
@@ -45,7 +45,11 @@ fn vdb_regressions_fail_cleanly() {
             match list_grids(&loc) {
                 Ok(grids) => {
                     for g in grids.iter().take(2) {
-                        let _ = read_float_grid_with(Reader::VdbRs, &loc, &g.name, None);
+                        if g.value_type == "Tree_vec3s_5_4_3" {
+                            let _ = read_vec3s_grid_with(Reader::Rust, &loc, &g.name, None);
+                        } else {
+                            let _ = read_float_grid_with(Reader::Rust, &loc, &g.name, None);
+                        }
                     }
                 }
                 Err(e) => {

@@ -166,6 +166,6 @@ def aov_names() -> list[str]:
     """Every AOV (EXR channel) name ``render(aovs=...)`` accepts."""
 
 def vdb_reader() -> str:
-    """The VDB reader compiled in: "openvdb" (the C++ bridge) or "vdb-rs"."""
+    """The VDB reader in use: "openvdb" (the C++ bridge) or "rust" (NIMBUS_VDB_READER picks one)."""
 
 _schema_tokens: dict[str, str]

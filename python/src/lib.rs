@@ -62,7 +62,8 @@ fn aov_names() -> Vec<&'static str> {
     Aov::ALL.iter().map(|a| a.channel_name()).collect()
 }
 
-/// The VDB reader compiled in: "openvdb" (the C++ bridge) or "vdb-rs".
+/// The VDB reader in use: "openvdb" (the C++ bridge) or "rust" (Nimbus' own reader;
+/// `NIMBUS_VDB_READER` picks one).
 #[pyfunction]
 fn vdb_reader() -> &'static str {
     vdb::active_reader().name()

@@ -20,7 +20,7 @@ def test_vdb_reader_is_openvdb_when_required():
     if os.environ.get("NIMBUS_OPENVDB", "").lower() == "require":
         assert nimbus.vdb_reader() == "openvdb"
     else:
-        assert nimbus.vdb_reader() in ("openvdb", "vdb-rs")
+        assert nimbus.vdb_reader() in ("openvdb", "rust")
 
 
 def test_info(stage):

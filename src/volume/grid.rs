@@ -1,6 +1,6 @@
 //! Sparse voxel grids owned by Rust.
 //!
-//! Readers (the OpenVDB bridge, vdb-rs) hand over a [`RawGrid`]: OpenVDB's leaf nodes
+//! Readers (the OpenVDB bridge, Nimbus' own Rust reader) hand over a [`RawGrid`]: OpenVDB's leaf nodes
 //! (8³ bricks) and active tiles as plain data. [`Grid`] turns that into the layout the
 //! hot loop wants: a dense top-level index over brick coordinates pointing into a
 //! contiguous brick pool, so a lookup is index → brick → 8 loads → lerp.

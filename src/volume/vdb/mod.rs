@@ -1,16 +1,19 @@
-//! OpenVDB file reading: validation first, then either the C++ OpenVDB bridge
-//! (preferred) or the pure-Rust `vdb-rs` fallback. Both produce a [`RawGrid`].
+//! OpenVDB file reading: validation first, then either the C++ OpenVDB bridge or
+//! Nimbus' own pure-Rust tree reader ([`tree`]). Both produce the same [`RawGrid`]s,
+//! bit for bit (`tests/vdb_readers.rs` checks every shared production file).
 //!
-//! Every file is first parsed by [`validate`] in Rust: OpenVDB and vdb-rs both trust
-//! the lengths and offsets they find, so a corrupt header must never reach them.
-//! Grid selection (name, duplicate index) and type checks also happen here, so both
-//! readers report the same errors.
+//! Every file is first parsed by [`validate`] in Rust: OpenVDB trusts the lengths and
+//! offsets it finds, so a corrupt header must never reach it. Grid selection (name,
+//! duplicate index) and type checks also happen here, so both readers report the
+//! same errors.
 
 #[cfg(nimbus_openvdb)]
 mod bridge;
 mod error;
+mod stream;
+mod tree;
 mod validate;
-mod vdbrs;
+mod values;
 mod writer;
 
 pub use error::VdbError;
@@ -29,15 +32,15 @@ use validate::{FileInfo, GridDesc};
 pub enum Reader {
     /// OpenVDB through the C++ bridge in `cpp/`.
     OpenVdb,
-    /// The pure-Rust `vdb-rs` crate.
-    VdbRs,
+    /// Nimbus' own pure-Rust reader (`tree.rs`), in every build.
+    Rust,
 }
 
 impl Reader {
     pub fn name(self) -> &'static str {
         match self {
             Reader::OpenVdb => "openvdb",
-            Reader::VdbRs => "vdb-rs",
+            Reader::Rust => "rust",
         }
     }
 
@@ -45,7 +48,7 @@ impl Reader {
     pub fn available(self) -> bool {
         match self {
             Reader::OpenVdb => cfg!(nimbus_openvdb),
-            Reader::VdbRs => true,
+            Reader::Rust => true,
         }
     }
 }
@@ -59,12 +62,35 @@ pub struct GridInfo {
     pub active_voxels: Option<u64>,
 }
 
-/// The reader this build uses by default.
+/// Environment variable that picks the reader: `rust` or `openvdb` (default: OpenVDB
+/// when this build has it, else Rust). Both read the same grids bit for bit; the
+/// switch exists to show that (and to time them).
+pub const READER_ENV: &str = "NIMBUS_VDB_READER";
+
+/// The reader VDB files are read with: [`READER_ENV`] if set, else OpenVDB when this
+/// build has it, else the Rust reader. An unknown value is reported once on stderr
+/// and ignored.
 pub fn active_reader() -> Reader {
-    if cfg!(nimbus_openvdb) {
+    let default = if cfg!(nimbus_openvdb) {
         Reader::OpenVdb
     } else {
-        Reader::VdbRs
+        Reader::Rust
+    };
+    match std::env::var(READER_ENV) {
+        Ok(v) if v == "rust" => Reader::Rust,
+        Ok(v) if v == "openvdb" => Reader::OpenVdb,
+        Ok(v) if !v.is_empty() => {
+            static WARNED: std::sync::Once = std::sync::Once::new();
+            WARNED.call_once(|| {
+                eprintln!(
+                    "nimbus: warning: {READER_ENV}={v:?} is neither \"rust\" nor \"openvdb\"; \
+                     using {}",
+                    default.name()
+                )
+            });
+            default
+        }
+        _ => default,
     }
 }
 
@@ -86,7 +112,7 @@ pub fn list_grids(loc: &AssetLocation) -> Result<Vec<GridInfo>, VdbError> {
 /// [`Reader::OpenVdb`]; for cross-checks.
 pub fn list_grids_with(reader: Reader, loc: &AssetLocation) -> Result<Vec<GridInfo>, VdbError> {
     match reader {
-        Reader::VdbRs => list_grids(loc),
+        Reader::Rust => list_grids(loc),
         Reader::OpenVdb => {
             validate_location(loc)?;
             openvdb_list(loc)
@@ -152,30 +178,29 @@ fn float_from(
     let file = loc.to_string();
     check_float(info, desc, &file)?;
     match reader {
-        Reader::VdbRs => {
-            if let Some(message) = vdbrs::unsupported_reason(info, desc) {
-                return Err(VdbError::Unsupported { file, message });
-            }
-            let result = match loc {
-                AssetLocation::File(path) => {
-                    let f = std::fs::File::open(path).map_err(|e| VdbError::Io {
-                        file: file.clone(),
-                        message: e.to_string(),
-                    })?;
-                    vdbrs::read_float_grid(std::io::BufReader::new(f), info, desc)
-                }
-                AssetLocation::Packaged { bytes, .. } => {
-                    vdbrs::read_float_grid(Cursor::new(bytes.as_slice()), info, desc)
-                }
-            };
-            result.map_err(|message| VdbError::Reader {
-                file,
-                reader: "vdb-rs",
-                message,
-            })
+        Reader::Rust => {
+            let [grid] = rust_read::<1>(loc, info, desc)?;
+            Ok(grid)
         }
         Reader::OpenVdb => openvdb_read(loc, desc),
     }
+}
+
+/// Reads `desc` with the Rust reader, after its refusals ([`tree::unsupported_reason`]).
+fn rust_read<const N: usize>(
+    loc: &AssetLocation,
+    info: &FileInfo,
+    desc: &GridDesc,
+) -> Result<[RawGrid; N], VdbError> {
+    let file = loc.to_string();
+    if let Some(message) = tree::unsupported_reason(info, desc) {
+        return Err(VdbError::Unsupported { file, message });
+    }
+    tree::read_grid::<N>(loc, info, desc).map_err(|message| VdbError::Reader {
+        file,
+        reader: Reader::Rust.name(),
+        message,
+    })
 }
 
 /// OpenVDB's own in-memory size in bytes (`GridBase::memUsage`) of the float grid
@@ -213,8 +238,6 @@ fn openvdb_mem(loc: &AssetLocation, _desc: &GridDesc) -> Result<u64, VdbError> {
 
 /// Reads one Vec3s grid (selected as in [`read_float_grid`]) as three float grids of
 /// one topology: component x, y, z (for a colour grid such as Houdini's `Cd`: r, g, b).
-/// Needs the OpenVDB bridge: vdb-rs 0.6 returns empty trees for Vec3s grids, so the
-/// pure-Rust reader refuses them rather than returning wrong data.
 pub fn read_vec3s_grid(
     loc: &AssetLocation,
     name: &str,
@@ -301,14 +324,7 @@ fn vec3s_from(
         });
     }
     match reader {
-        Reader::VdbRs => Err(VdbError::Unsupported {
-            file,
-            message: format!(
-                "grid {:?}: Vec3s grids need the OpenVDB bridge (the vdb-rs reader returns empty \
-                 trees for them); install OpenVDB (libopenvdb-dev) and rebuild Nimbus to read this file",
-                desc.name
-            ),
-        }),
+        Reader::Rust => rust_read::<3>(loc, info, desc),
         Reader::OpenVdb => openvdb_read_vec3s(loc, desc),
     }
 }

@@ -1,15 +1,13 @@
 //! Header validation in Rust, before any reader sees a file.
 //!
 //! OpenVDB trusts the lengths and offsets in a file: a corrupt header once made it
-//! allocate 6 GB and return a 1.5 GB error message, and vdb-rs panics or aborts on
-//! several malformed inputs. So every length, count and offset of the archive header,
-//! the file metadata, each grid descriptor and each grid's preamble (compression,
-//! metadata, transform, root node) is read here with bounds checks against the file
-//! length before anything is allocated. The parsed facts (grid types, half-float
-//! storage, transform kind, background, root tiles) also tell the vdb-rs path which
-//! files it must refuse.
+//! allocate 6 GB and return a 1.5 GB error message. So every length, count and offset
+//! of the archive header, the file metadata, each grid descriptor and each grid's
+//! preamble (compression, metadata, transform, root node) and tree is read here with
+//! bounds checks against the file length before anything is allocated. The parsed
+//! facts (grid types, half-float storage, compression, transform, where the tree
+//! starts) are what Nimbus' own tree reader (`tree.rs`) starts from.
 
-use crate::volume::grid::RawTile;
 use glam::{DMat4, DVec3, DVec4};
 use std::io::{Read, Seek, SeekFrom};
 
@@ -42,6 +40,9 @@ const HALF_FLOAT_SUFFIX: &str = "_HalfFloat";
 #[derive(Clone, Debug)]
 pub(crate) struct FileInfo {
     pub file_version: u32,
+    /// Archive-wide compression flags, which files before 222 use for every grid
+    /// (from 222 on each grid has its own, [`GridDesc::compression`]).
+    pub archive_compression: u32,
     pub grids: Vec<GridDesc>,
 }
 
@@ -69,6 +70,12 @@ pub(crate) struct GridDesc {
     pub index_to_world: Option<DMat4>,
     /// Root-node facts, parsed for float and Vec3s grids with a known, linear transform.
     pub root: Option<RootInfo>,
+    /// File offset of the tree (its buffer count), right after the transform.
+    pub tree_pos: u64,
+    /// File offset of the leaf buffers (the end of the topology).
+    pub block_pos: u64,
+    /// File offset of the end of the grid's data.
+    pub end_pos: u64,
     /// Why a Vec3s grid's tree failed validation. Unlike a float tree's, this does not
     /// fail the whole file: only reading this grid as Vec3s is refused (so the float
     /// grids of a file with an odd colour grid stay readable).
@@ -77,11 +84,6 @@ pub(crate) struct GridDesc {
 
 #[derive(Clone, Debug)]
 pub(crate) struct RootInfo {
-    /// The background (of a Vec3s grid: its first component).
-    pub background: f32,
-    /// Root tiles (dim 4096), active or holding a non-background value (float grids
-    /// only; empty for Vec3s grids, whose values only the OpenVDB bridge reads).
-    pub tiles: Vec<RawTile>,
     pub child_count: u32,
 }
 
@@ -190,9 +192,6 @@ impl<'a, R: Read + Seek> Src<'a, R> {
     fn i64(&mut self, what: &str) -> Result<i64, String> {
         Ok(i64::from_le_bytes(self.array(what)?))
     }
-    fn f32(&mut self, what: &str) -> Result<f32, String> {
-        Ok(f32::from_le_bytes(self.array(what)?))
-    }
     fn f64(&mut self, what: &str) -> Result<f64, String> {
         Ok(f64::from_le_bytes(self.array(what)?))
     }
@@ -250,8 +249,9 @@ fn read_meta<R: Read + Seek>(s: &mut Src<R>, what: &str) -> Result<Meta, String>
         if size > MAX_METADATA_VALUE_LEN {
             return Err(format!("corrupt: metadata {name:?} claims {size} bytes"));
         }
-        // Fixed-size types must have their size: vdb-rs reads them without looking at
-        // the stored size and would lose its place in the file otherwise.
+        // Fixed-size types must have their size: OpenVDB's TypedMetadata::readValue
+        // reads them without looking at the stored size and would lose its place in
+        // the file otherwise.
         let fixed = match ty.as_str() {
             "bool" => Some(1),
             "int32" | "float" => Some(4),
@@ -353,8 +353,15 @@ pub(crate) fn validate<R: Read + Seek>(r: &mut R, len: u64) -> Result<FileInfo, 
     if has_grid_offsets != 1 {
         return Err("file has no grid offsets (written as a stream); not supported".into());
     }
+    // As OpenVDB's Archive::readHeader: before 220 every file is zlib-compressed with
+    // active masks; 220 and 221 store an on/off flag.
+    let mut archive_compression = COMPRESS_ZIP | COMPRESS_ACTIVE_MASK;
     if (V_SELECTIVE_COMPRESSION..V_NODE_MASK_COMPRESSION).contains(&file_version) {
-        s.u8("compression flag")?;
+        archive_compression = if s.u8("compression flag")? != 0 {
+            COMPRESS_ZIP
+        } else {
+            0
+        };
     }
     let uuid_len = if file_version >= V_BOOST_UUID { 36 } else { 16 };
     s.skip(uuid_len, "file UUID")?;
@@ -438,6 +445,9 @@ pub(crate) fn validate<R: Read + Seek>(r: &mut R, len: u64) -> Result<FileInfo, 
             map_type,
             index_to_world,
             root: None,
+            tree_pos: g.pos,
+            block_pos,
+            end_pos,
             tree_error: None,
         };
         let parse_tree = desc.instance_parent.is_empty() && desc.index_to_world.is_some();
@@ -465,19 +475,20 @@ pub(crate) fn validate<R: Read + Seek>(r: &mut R, len: u64) -> Result<FileInfo, 
     }
     Ok(FileInfo {
         file_version,
+        archive_compression,
         grids,
     })
 }
 
 /// The root node's topology header: background, tiles, child count, for values of
-/// `words` 32-bit floats (1: float trees, 3: Vec3s trees, whose tiles are skipped).
+/// `words` 32-bit floats (1: float trees, 3: Vec3s trees); checks that the tiles and
+/// children can fit.
 fn read_root<R: Read + Seek>(g: &mut Src<R>, words: u64) -> Result<RootInfo, String> {
     let buffers = g.i32("tree buffer count")?;
     if buffers != 1 {
         return Err(format!("corrupt: tree buffer count {buffers}, expected 1"));
     }
-    let background = g.f32("background")?;
-    g.skip(4 * (words - 1), "background")?;
+    g.skip(4 * words, "background")?;
     let tile_count = g.u32("root tile count")? as u64;
     let child_count = g.u32("root child count")?;
     // A tile is 12 + 4·words + 1 bytes; a child is at least its origin and two 4 KB masks.
@@ -489,57 +500,24 @@ fn read_root<R: Read + Seek>(g: &mut Src<R>, words: u64) -> Result<RootInfo, Str
         17,
         "root child",
     )?;
-    if words != 1 {
-        g.skip(tile_count * tile_bytes, "root tiles")?;
-        if (child_count as u64).saturating_mul(12 + 2 * 4096) > g.remaining() {
-            return Err(format!(
-                "corrupt: root child count {child_count} does not fit in the grid's data"
-            ));
-        }
-        return Ok(RootInfo {
-            background,
-            tiles: Vec::new(),
-            child_count,
-        });
-    }
+    g.skip(tile_count * tile_bytes, "root tiles")?;
     if (child_count as u64).saturating_mul(12 + 2 * 4096) > g.remaining() {
         return Err(format!(
             "corrupt: root child count {child_count} does not fit in the grid's data"
         ));
     }
-    let mut tiles = Vec::new();
-    for _ in 0..tile_count {
-        let origin = [
-            g.i32("root tile")?,
-            g.i32("root tile")?,
-            g.i32("root tile")?,
-        ];
-        let value = g.f32("root tile")?;
-        let active = g.u8("root tile")? != 0;
-        if active || value.to_bits() != background.to_bits() {
-            tiles.push(RawTile {
-                origin,
-                dim: 4096,
-                value,
-                active,
-            });
-        }
-    }
-    Ok(RootInfo {
-        background,
-        tiles,
-        child_count,
-    })
+    Ok(RootInfo { child_count })
 }
 
-const COMPRESS_ZIP: u32 = 0x1;
-const COMPRESS_ACTIVE_MASK: u32 = 0x2;
-const COMPRESS_BLOSC: u32 = 0x4;
+/// OpenVDB's compression flags (io/Compression.h).
+pub(crate) const COMPRESS_ZIP: u32 = 0x1;
+pub(crate) const COMPRESS_ACTIVE_MASK: u32 = 0x2;
+pub(crate) const COMPRESS_BLOSC: u32 = 0x4;
 
 /// Walks a float tree's topology and buffers (file version >= 222) without
 /// decompressing anything, checking that every mask, value array and compressed
-/// chunk lies inside the grid's data. Compressed chunk sizes are what OpenVDB and
-/// vdb-rs allocate from, so a corrupt one must be caught here.
+/// chunk lies inside the grid's data. Compressed chunk sizes are what OpenVDB
+/// allocates from, so a corrupt one must be caught here.
 fn walk_tree<R: Read + Seek>(
     g: &mut Src<R>,
     flags: u32,
@@ -619,8 +597,7 @@ fn skip_values<R: Read + Seek>(
         num
     };
     // OpenVDB's HalfReader/HalfWriter skip empty arrays entirely (no size field);
-    // full-precision arrays always get one. vdb-rs misses this, one reason it fails
-    // on half-float files.
+    // full-precision arrays always get one.
     if half && count == 0 {
         return Ok(());
     }
@@ -638,8 +615,8 @@ fn skip_values<R: Read + Seek>(
             }
             g.skip(bytes, "values")?;
         } else if flags & COMPRESS_BLOSC != 0 {
-            // Readers size their output from the blosc header (vdb-rs allocates
-            // whatever it claims), so it must describe exactly this chunk.
+            // c-blosc trusts the sizes in its header, so it must describe exactly
+            // this chunk.
             let stored = stored as u64;
             let header = g.bytes(16.min(stored), "blosc header")?;
             let field = |i: usize| {

@@ -2,14 +2,14 @@
 //!
 //! Nimbus generates its example scenes' volumes with this so they can be read
 //! without OpenVDB installed. The layout is what OpenVDB 10's `io::File` writes with
-//! compression off, restricted to what vdb-rs 0.6 also reads: a `Tree_float_5_4_3`,
-//! full 32-bit values, every node value written (`NO_MASK_AND_ALL_VALS`), and a
-//! (Uniform)ScaleTranslateMap transform (vdb-rs panics on affine maps, so a matrix
-//! that is not scale + translation is an error).
+//! compression off: a `Tree_float_5_4_3`, full 32-bit values, every node value
+//! written (`NO_MASK_AND_ALL_VALS`), and a (Uniform)ScaleTranslateMap transform (a
+//! matrix that is not scale + translation is an error: Nimbus' generators never need
+//! one, and the writer stays small).
 //!
 //! Vec3s grids (`Tree_vec3s_5_4_3`, e.g. a colour `Cd`) are written the same way with
-//! three floats per value, from three float grids of one topology ([`WriteGrid::Vec3s`]);
-//! only OpenVDB reads them back (vdb-rs does not read Vec3s trees).
+//! three floats per value, from three float grids of one topology ([`WriteGrid::Vec3s`]).
+//! Both readers (OpenVDB and Nimbus' own) read everything written here.
 
 use super::error::VdbError;
 use crate::volume::grid::{RawGrid, BRICK_VOXELS};
@@ -226,8 +226,8 @@ fn scale_translate(m: &DMat4) -> Result<(DVec3, DVec3), String> {
             let off_diagonal = r != c && !(c == 3 && r < 3);
             if !v.is_finite() || (off_diagonal && *v != 0.0) {
                 return Err(format!(
-                    "index_to_world is not a scale + translation ({m:?}); vdb-rs cannot read \
-                     affine maps, so the writer does not produce them"
+                    "index_to_world is not a scale + translation ({m:?}); the VDB writer \
+                     writes only scale-translate maps"
                 ));
             }
         }
