@@ -105,7 +105,7 @@ fn vec3s_round_trip_both_readers() {
 
     for reader in [Reader::OpenVdb, Reader::Rust] {
         if !reader.available() {
-            println!("SKIP: {} reader not built", reader.name());
+            common::data::openvdb_bridge("the OpenVDB round trip (the Rust reader's runs)");
             continue;
         }
         let who = reader.name();
@@ -165,7 +165,7 @@ fn openvdb_written_vec3s_grids_read_back() {
             }
         }
     } else {
-        println!("SKIP: OpenVDB bridge not built; Rust reader checked alone");
+        common::data::openvdb_bridge("the comparison with OpenVDB (the Rust reader checked alone)");
     }
     // The generator's values (equal to OpenVDB's, checked above when it is built in).
     for (name, tol) in [("Cd", 0.0f32), ("Cd_half", 1e-3)] {

@@ -369,9 +369,9 @@ fn real_files_cross_check() {
     }
     println!("{compared} grids compared with OpenVDB, {rust_only} read by the Rust reader only");
     assert!(compared + rust_only > 0);
-    if !Reader::OpenVdb.available() {
-        println!("SKIP (comparison): built without OpenVDB");
-    }
+    common::data::openvdb_bridge(
+        "the comparison with OpenVDB (every grid read by the Rust reader)",
+    );
 }
 
 /// Renders `vdb` (its first float grid) at 32x24, 4 spp, with the reader forced
@@ -421,6 +421,9 @@ fn real_files_render_identically_with_both_readers() {
     vdb_files(&dir, &mut files);
     assert!(!files.is_empty(), "no .vdb files under {}", dir.display());
     let tmp = tempfile::tempdir().unwrap();
+    let compare = common::data::openvdb_bridge(
+        "the comparison with OpenVDB (every file rendered with the Rust reader)",
+    );
     for path in &files {
         let (rust, used) = render_with(Reader::Rust, path, tmp.path());
         assert_eq!(
@@ -434,11 +437,7 @@ fn real_files_render_identically_with_both_readers() {
             .find(|c| c.0 == "A")
             .is_some_and(|a| a.1.iter().any(|&v| v > 0.0));
         assert!(lit, "{}: the render shows no volume", path.display());
-        if !Reader::OpenVdb.available() {
-            println!(
-                "SKIP (comparison): built without OpenVDB; {} rendered",
-                path.display()
-            );
+        if !compare {
             continue;
         }
         let (ov, used) = render_with(Reader::OpenVdb, path, tmp.path());
@@ -1071,9 +1070,7 @@ fn openvdb_written_inactive_values_both_readers() {
             }
         }
     }
-    if !Reader::OpenVdb.available() {
-        println!("SKIP (comparison with OpenVDB): built without it");
-    }
+    common::data::openvdb_bridge("the comparison with OpenVDB (the generator's values checked)");
 }
 
 /// Byte flips in the OpenVDB-written fixtures (every value-record kind; mask-only, zlib

@@ -191,3 +191,17 @@ pub fn deep_exr_support(part: &str) -> bool {
     ));
     false
 }
+
+/// Whether this build has the OpenVDB bridge, for tests that compare the two VDB readers:
+/// without it the comparison `part` is skipped with one `SKIPPED` line (the Rust reader's
+/// own checks still run), or fails under `NIMBUS_REQUIRE_DATA=1`.
+pub fn openvdb_bridge(part: &str) -> bool {
+    if nimbus::volume::vdb::Reader::OpenVdb.available() {
+        return true;
+    }
+    missing::<()>(&format!(
+        "{part}: built without OpenVDB; `bash .ci/setup` installs libopenvdb-dev and the next \
+         build uses it"
+    ));
+    false
+}
