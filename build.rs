@@ -91,6 +91,16 @@ fn main() {
     println!("cargo:warning={exr}");
 }
 
+/// The system header folders searched (under `NIMBUS_SYSROOT`).
+const INCLUDE_DIRS: [&str; 2] = ["/usr/include", "/usr/local/include"];
+
+/// Debian's multiarch library folder, e.g. `/usr/lib/x86_64-linux-gnu`.
+fn multiarch_dir() -> PathBuf {
+    let arch = env::var("CARGO_CFG_TARGET_ARCH").unwrap_or_default();
+    let os = env::var("CARGO_CFG_TARGET_OS").unwrap_or_default();
+    system_dir(&format!("/usr/lib/{arch}-{os}-gnu"))
+}
+
 /// `NIMBUS_SYSROOT` (default `/`) joined with the system folder `dir`.
 fn system_dir(dir: &str) -> PathBuf {
     let root = env::var_os("NIMBUS_SYSROOT")
@@ -111,13 +121,12 @@ fn system_dir(dir: &str) -> PathBuf {
 fn watch_searched_folders() {
     let mut dirs: Vec<PathBuf> = Vec::new();
     for var in ["OPENVDB_INCLUDE_DIR", "OPENEXR_INCLUDE_DIR"] {
-        dirs.extend(candidates(var, &["/usr/include", "/usr/local/include"]));
+        dirs.extend(candidates(var, &INCLUDE_DIRS));
     }
-    let arch = env::var("CARGO_CFG_TARGET_ARCH").unwrap_or_default();
-    let os = env::var("CARGO_CFG_TARGET_OS").unwrap_or_default();
     for var in ["OPENVDB_LIB_DIR", "OPENEXR_LIB_DIR"] {
-        dirs.extend(candidates(var, &[&format!("/usr/lib/{arch}-{os}-gnu")]));
+        dirs.extend(candidates(var, &[]));
     }
+    dirs.push(multiarch_dir());
     let mut watched: Vec<PathBuf> = Vec::new();
     for dir in dirs {
         if dir.is_dir() && !watched.contains(&dir) {
@@ -177,10 +186,7 @@ struct OpenVdb {
 }
 
 fn find_openvdb() -> Result<OpenVdb, String> {
-    let includes = candidates(
-        "OPENVDB_INCLUDE_DIR",
-        &["/usr/include", "/usr/local/include"],
-    );
+    let includes = candidates("OPENVDB_INCLUDE_DIR", &INCLUDE_DIRS);
     let include = includes
         .iter()
         .find(|d| d.join("openvdb/openvdb.h").is_file())
@@ -214,10 +220,8 @@ fn candidates(var: &str, defaults: &[&str]) -> Vec<PathBuf> {
 
 /// Library folders to search: `var`'s, the multiarch folder, then the usual ones.
 fn lib_candidates(var: &str) -> Vec<PathBuf> {
-    let arch = env::var("CARGO_CFG_TARGET_ARCH").unwrap_or_default();
-    let os = env::var("CARGO_CFG_TARGET_OS").unwrap_or_default();
     let mut dirs = candidates(var, &[]);
-    dirs.push(system_dir(&format!("/usr/lib/{arch}-{os}-gnu")));
+    dirs.push(multiarch_dir());
     dirs.extend(
         [
             "/usr/lib",
@@ -304,10 +308,7 @@ struct OpenExr {
 }
 
 fn find_openexr() -> Result<OpenExr, String> {
-    let includes = candidates(
-        "OPENEXR_INCLUDE_DIR",
-        &["/usr/include", "/usr/local/include"],
-    );
+    let includes = candidates("OPENEXR_INCLUDE_DIR", &INCLUDE_DIRS);
     let include = includes
         .iter()
         .find(|d| d.join("OpenEXR/ImfDeepScanLineOutputFile.h").is_file())

@@ -699,26 +699,39 @@ fn real_file_truncated_and_corrupted() {
     }
 }
 
+/// Corrupts copies of a file by flipping random bits (xorshift64, fixed seed: the same
+/// copies every run).
+struct BitFlips(u64);
+
+impl BitFlips {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        self.0
+    }
+
+    /// `good` with `n` bits flipped at random places.
+    fn flipped(&mut self, good: &[u8], n: usize) -> Vec<u8> {
+        let mut b = good.to_vec();
+        for _ in 0..n {
+            let at = (self.next() % b.len() as u64) as usize;
+            b[at] ^= 1 << (self.next() % 8);
+        }
+        b
+    }
+}
+
 /// Byte flips all over a small uncompressed file: every outcome must be an `Ok` or an
 /// `Err`, never a panic or an abort.
 #[test]
 fn corrupted_bytes_never_crash() {
     let good = small_file();
     let dir = tempfile::tempdir().unwrap();
-    let mut state = 0x1234_5678_9abc_def0u64;
-    let mut next = || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        state
-    };
+    let mut flips = BitFlips(0x1234_5678_9abc_def0u64);
     let (mut ok, mut err) = (0, 0);
     for i in 0..150 {
-        let mut b = good.clone();
-        for _ in 0..1 + i % 4 {
-            let at = (next() % b.len() as u64) as usize;
-            b[at] ^= 1 << (next() % 8);
-        }
+        let b = flips.flipped(&good, 1 + i % 4);
         let p = dir.path().join(format!("flip{i}.vdb"));
         std::fs::write(&p, &b).unwrap();
         let loc = AssetLocation::File(p);
@@ -896,20 +909,10 @@ fn corrupted_real_file_never_crashes() {
     };
     let good = std::fs::read(src).unwrap();
     let tmp = tempfile::tempdir().unwrap();
-    let mut state = 0x0dd_ba11_cafe_f00du64;
-    let mut next = || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        state
-    };
+    let mut flips = BitFlips(0x0dd_ba11_cafe_f00du64);
     let (mut ok, mut err) = (0, 0);
     for i in 0..200 {
-        let mut b = good.clone();
-        for _ in 0..1 + i % 3 {
-            let at = (next() % b.len() as u64) as usize;
-            b[at] ^= 1 << (next() % 8);
-        }
+        let b = flips.flipped(&good, 1 + i % 3);
         let p = tmp.path().join(format!("flip{i}.vdb"));
         std::fs::write(&p, &b).unwrap();
         let loc = AssetLocation::File(p);
@@ -927,47 +930,6 @@ fn corrupted_real_file_never_crashes() {
         }
     }
     println!("corrupted real files: {ok} read, {err} rejected");
-}
-
-/// Load time of the largest shared file with each reader: validation + reader →
-/// `RawGrid`, medians of 5 rounds, the readers interleaved within each round.
-/// A measurement, not a check: `cargo t --test vdb_readers -- --ignored --nocapture load_time`.
-#[test]
-#[ignore]
-fn load_time_of_the_largest_shared_file() {
-    let Some(dir) = common::shared_data() else {
-        return;
-    };
-    let mut files = Vec::new();
-    vdb_files(&dir, &mut files);
-    let path = files
-        .iter()
-        .max_by_key(|p| std::fs::metadata(p).map(|m| m.len()).unwrap_or(0))
-        .expect("a .vdb file");
-    let loc = AssetLocation::File(path.clone());
-    let grid = list_grids(&loc).unwrap()[0].name.clone();
-    let mut times: Vec<(Reader, Vec<f64>)> = readers().into_iter().map(|r| (r, vec![])).collect();
-    for _ in 0..5 {
-        for (reader, t) in &mut times {
-            let start = std::time::Instant::now();
-            let g = read_float_grid_with(*reader, &loc, &grid, None).unwrap();
-            t.push(start.elapsed().as_secs_f64());
-            assert!(g.active_voxel_count() > 0);
-        }
-    }
-    let bytes = std::fs::metadata(path).unwrap().len();
-    for (reader, mut t) in times {
-        t.sort_by(f64::total_cmp);
-        println!(
-            "{} grid {grid:?} ({:.2} MB): {} reader median {:.1} ms (min {:.1}, max {:.1}) of 5",
-            path.display(),
-            bytes as f64 / 1e6,
-            reader.name(),
-            t[2] * 1e3,
-            t[0] * 1e3,
-            t[4] * 1e3
-        );
-    }
 }
 
 /// The value `tests/fixtures/make_inactive_vdb.cc` gives voxel `off` of leaf `leaf`
@@ -1081,13 +1043,7 @@ fn openvdb_written_inactive_values_both_readers() {
 fn corrupted_fixtures_never_crash_the_rust_reader() {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures");
     let tmp = tempfile::tempdir().unwrap();
-    let mut state = 0x5eed_0f_f1a5_u64;
-    let mut next = || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        state
-    };
+    let mut flips = BitFlips(0x5eed_0f_f1a5_u64);
     let (mut ok, mut err) = (0, 0);
     for file in [
         "inactive_mask.vdb",
@@ -1096,11 +1052,7 @@ fn corrupted_fixtures_never_crash_the_rust_reader() {
     ] {
         let good = std::fs::read(dir.join(file)).unwrap();
         for i in 0..100 {
-            let mut b = good.clone();
-            for _ in 0..1 + i % 3 {
-                let at = (next() % b.len() as u64) as usize;
-                b[at] ^= 1 << (next() % 8);
-            }
+            let b = flips.flipped(&good, 1 + i % 3);
             let name = format!("flip{i}_{file}");
             let p = tmp.path().join(&name);
             std::fs::write(&p, &b).unwrap();
