@@ -182,7 +182,8 @@ fn chord_transmittance_through_a_cube_and_a_sphere_is_exact() {
 }
 
 /// A gprim bound to a material whose volume output Nimbus reads is a fog box; world fog
-/// is a Volume with `nimbus:fill = "world"` and no fields; `nimbus info` says which.
+/// is a Volume with `nimbus:fill = "world"` and no fields, and has no end; `nimbus
+/// info` says which.
 #[test]
 fn material_fog_boxes_and_world_fog_are_read() {
     let dir = tempfile::tempdir().unwrap();
@@ -252,6 +253,42 @@ def Volume "world" (
         nimbus::render::job::media_for_scene_with(&scene, MajorantSpec::Uniform { cell_voxels: 0 })
             .unwrap();
     assert_eq!(media.len(), 2);
+    // World fog has no end (as Cycles' world volume): a finite stretch of length L
+    // transmits exp(−σt·L) (σt = 0.02 · (0.1 + 0.9); ratio tracking, Bernoulli, N =
+    // 20,000, seed 3, |z| < 4), and a ray to infinity nothing at all.
+    let world = &media[scene
+        .volumes
+        .iter()
+        .position(|v| v.prim_path == "/world")
+        .unwrap()];
+    let mut rng = Pcg32::seed_from_u64(3);
+    let o = DVec3::new(1e3, -2e3, 5.0);
+    let ray = world.index_ray(o, DVec3::new(0.6, 0.8, 0.0));
+    for (tmax, expected) in [(30f32, (-0.02f64 * 30.0).exp()), (f32::INFINITY, 0.0)] {
+        let q = Query {
+            medium: world,
+            sigma: &world.sigma,
+            ray: &ray,
+            tmin: 0.0,
+            tmax,
+            majorant_scale: 1.0,
+        };
+        let mut c = Counters::default();
+        let n = 20_000;
+        let mean = (0..n)
+            .map(|_| Ratio.transmittance(&q, &mut rng, &mut c)[0] as f64)
+            .sum::<f64>()
+            / n as f64;
+        if expected == 0.0 {
+            assert_eq!(mean, 0.0, "a ray to infinity in world fog");
+        } else {
+            let z = (mean - expected) / (expected * (1.0 - expected) / n as f64).sqrt();
+            assert!(
+                z.abs() < 4.0,
+                "world fog over {tmax}: {mean} against {expected}, z {z:.2}"
+            );
+        }
+    }
     let info = nimbus(&["info", path.to_str().unwrap()]);
     let out = String::from_utf8_lossy(&info.stdout);
     assert!(info.status.success(), "{}", common::cli::stderr(&info));
@@ -390,4 +427,65 @@ fn fields_on_fog_and_unknown_fill_tokens_are_errors() {
         ]),
         "nimbus:fill = \"sky\" is not one of",
     );
+}
+
+/// A ray through more volumes than one tracker call races (64) is tracked span by
+/// span: 80 unit fog cubes in a row along x (pure absorbers, σa = 0.01) seen end-on by
+/// an orthographic camera whose rays all pass through every cube, lit by a constant
+/// white dome: each pixel's value estimates T = exp(−0.01·80) = 0.4493. Estimator: the
+/// camera ray's escape weight (delta tracking through homogeneous media: 0 or 1,
+/// variance T(1−T)); 16×16 pixels × 64 spp = 16,384 samples, seed 1 (the stage's
+/// default); |z| < 4 on the image mean with σ = sqrt(T(1−T)/16,384). Dropping the 16
+/// cubes past the 64th would give T = 0.527 (z ≈ 20).
+#[test]
+fn a_ray_through_eighty_volumes_sees_all_of_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut body = String::new();
+    for k in 0..80 {
+        body += &format!(
+            "def Cube \"c{k}\" (\n    prepend apiSchemas = [\"NimbusVolumeAPI\"]\n)\n{{\n    double size = 1\n    color3f nimbus:absorption = (0.01, 0.01, 0.01)\n    color3f nimbus:scattering = (0, 0, 0)\n    double3 xformOp:translate = ({}, 0, 0)\n    uniform token[] xformOpOrder = [\"xformOp:translate\"]\n}}\n",
+            1.5 * k as f64
+        );
+    }
+    body += r#"def Camera "cam"
+{
+    token projection = "orthographic"
+    float horizontalAperture = 5
+    float verticalAperture = 5
+    float2 clippingRange = (0.1, 1000)
+    double3 xformOp:translate = (-5, 0, 0)
+    float3 xformOp:rotateXYZ = (90, 0, -90)
+    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateXYZ"]
+}
+def DomeLight "sky"
+{
+}
+def RenderSettings "settings"
+{
+    int2 resolution = (16, 16)
+    rel camera = </cam>
+    int nimbus:samples = 64
+}
+"#;
+    let stage = write(dir.path(), "row.usda", &body);
+    let exr = dir.path().join("row.exr");
+    let out = nimbus(&[
+        "render",
+        stage.to_str().unwrap(),
+        "-o",
+        exr.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", common::cli::stderr(&out));
+    assert!(
+        !common::cli::stderr(&out).contains("more than 64"),
+        "{}",
+        common::cli::stderr(&out)
+    );
+    let c = common::cli::channels(&exr);
+    let r = common::cli::channel(&c, "R");
+    let mean = r.iter().map(|&v| v as f64).sum::<f64>() / r.len() as f64;
+    let t = (-0.01f64 * 80.0).exp();
+    let se = (t * (1.0 - t) / (r.len() as f64 * 64.0)).sqrt();
+    let z = (mean - t) / se;
+    assert!(z.abs() < 4.0, "mean {mean:.5} against {t:.5}: z {z:.2}");
 }

@@ -365,7 +365,7 @@ pub fn measure(
     // Every (depth, tracker)'s octree, built once up front (pruning depends on the
     // tracker: decomposition pays for `dmax − dmin`); `current` is the one the session
     // holds, the others wait in `trees`.
-    let mut trees: Vec<[Option<Vec<MajorantTree>>; 2]> = Vec::new();
+    let mut trees: Vec<[Option<Vec<std::sync::Arc<MajorantTree>>>; 2]> = Vec::new();
     for &depth in &config.depths {
         session.spec = MajorantSpec::Octree { depth };
         trees.push(TRACKERS.map(|t| {
@@ -412,8 +412,8 @@ pub fn measure(
                 .collect();
             // The structure this row rendered with: in the session or stashed.
             let media_trees: Vec<&MajorantTree> = match &trees[d][i] {
-                Some(t) => t.iter().collect(),
-                None => session.media().iter().map(|m| &m.majorants).collect(),
+                Some(t) => t.iter().map(|t| &**t).collect(),
+                None => session.media().iter().map(|m| &*m.majorants).collect(),
             };
             rows.push(summarise(depth, tracker, &mine, &media_trees)?);
         }

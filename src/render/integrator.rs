@@ -11,7 +11,9 @@ use crate::color::Spectrum;
 use crate::render::camera::CameraRays;
 use crate::render::film::{DepthBins, Film, Pixel};
 use crate::render::holdouts::Holdouts;
+use crate::render::lights::in_mask;
 use crate::render::lights::{HoldoutSet, LightSample, Lights, Link};
+use crate::render::media_index::MediaIndex;
 use crate::render::phase::{hg, sample_hg};
 use crate::render::sampler::{pixel_sampler, Sampler};
 use crate::render::splits::{SplitMap, MAX_LAYERS};
@@ -82,7 +84,15 @@ pub struct Extras<'a> {
     /// Black matte occluders: camera, scattered and shadow rays end at them (`None`
     /// for a stage without geometry: no query at all).
     pub holdouts: Option<&'a Holdouts>,
+    /// Which media a ray may meet, on stages with many ([`MediaIndex::build`]; `None`:
+    /// every medium's box is tested).
+    pub media_index: Option<&'a MediaIndex>,
 }
+
+/// Ray segments that met more than [`MAX_MEDIA`] volumes since the process started:
+/// the volumes past the 64th (in stage order) were left out of them. Counted off the
+/// hot path (only then); the session reports it after a render.
+pub static MEDIA_OVERFLOW: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 
 /// A sample's radiance: the beauty sum, and the split layers it also feeds.
 struct Radiance<'s> {
@@ -343,7 +353,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             .iter()
             .filter_map(|m| {
                 let r = m.index_ray(origin, dir);
-                m.majorants.entry(r.o, r.d, tmin, tmax)
+                m.entry(&r, tmin, tmax)
             })
             .fold(f32::INFINITY, f32::min);
         // Distance from the camera to `origin`, for the depth of the first collision.
@@ -384,10 +394,17 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             // The outputs asked for (deep bins among them) never change which walk
             // runs: the samples, and so the beauty, are the same with or without them.
             let selecting = self.select_segments != SelectSegments::Off;
-            let step =
-                self.with_queries(origin, dir, tmin, tmax, path.tracked, |qs, ids| match qs {
+            let step = self.with_queries(
+                origin,
+                dir,
+                tmin,
+                tmax,
+                path.tracked,
+                |qs, ids, whole| match qs {
                     [] => Step::Tracked(FreePath::Escape, 0),
-                    [q] if selecting => {
+                    // A ratio-select walk estimates what lies past the segment's end:
+                    // only over the whole ray, not over a span of it.
+                    [q] if selecting && whole => {
                         let emissive = self.media[ids[0]].emission.is_some();
                         let beta = path.throughput;
                         let s = match self.select_segments {
@@ -411,7 +428,10 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                                 .sample_race(qs, &mut path.throughput, rng, counters);
                         Step::Tracked(event, ids[lane])
                     }
-                });
+                },
+                // Over a span: no collision yet, on to the next one.
+                |s| matches!(s, Step::Tracked(FreePath::Escape, _)),
+            );
             counters.tracker_stop(t0);
             let (event, id, selected) = match step {
                 Step::Tracked(event, id) => (event, id, false),
@@ -800,13 +820,26 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             }
         }
         let t0 = counters.tracker_start();
-        let tr = self.with_queries_in(p, wi, 0.0, tmax, tracked, link.shadowing, |qs, _| {
-            if let [q] = qs {
-                self.transmittance.transmittance(q, rng, counters)
-            } else {
-                self.transmittance.transmittance_race(qs, rng, counters)
-            }
-        });
+        // Spans of a ray meeting very many volumes multiply (independent estimates).
+        let mut product = [1f32; 3];
+        let tr = self.with_queries_in(
+            p,
+            wi,
+            0.0,
+            tmax,
+            tracked,
+            link.shadowing,
+            |qs, _, _| {
+                let t = if let [q] = qs {
+                    self.transmittance.transmittance(q, rng, counters)
+                } else {
+                    self.transmittance.transmittance_race(qs, rng, counters)
+                };
+                crate::track::free_path::mul(&mut product, t);
+                product
+            },
+            |t| *t != [0.0; 3],
+        );
         counters.tracker_stop(t0);
         tr
     }
@@ -820,17 +853,20 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         tmin: f32,
         tmax: f32,
         tracked: Tracked,
-        f: impl FnOnce(&[Query], &[usize]) -> T,
+        f: impl FnMut(&[Query], &[usize], bool) -> T,
+        go_on: impl Fn(&T) -> bool,
     ) -> T {
-        self.with_queries_in(origin, dir, tmin, tmax, tracked, u64::MAX, f)
+        self.with_queries_in(origin, dir, tmin, tmax, tracked, u64::MAX, f, go_on)
     }
 
-    /// Calls `f` with one tracker query per medium in `mask` (bit i: medium i; shadow
-    /// linking leaves media out) that the world-space ray `origin + t·dir`, `t` in
-    /// [`tmin`, `tmax`], may meet (each medium's index-space ray and cross-sections:
-    /// one channel's, for naive delta), and with each query's index in `self.media`.
-    /// Built on the stack; a stage with one volume skips the culling, which its
-    /// majorant walk does anyway.
+    /// Calls `f(queries, ids, true)` with one tracker query per medium in `mask` (bit
+    /// i: medium i; shadow linking leaves media out) that the world-space ray
+    /// `origin + t·dir`, `t` in [`tmin`, `tmax`], may meet (each medium's index-space
+    /// ray and cross-sections: one channel's, for naive delta), and with each query's
+    /// index in `self.media`. Built on the stack; a stage with one volume skips the
+    /// culling, which its majorant walk does anyway. A ray that meets more than
+    /// [`MAX_MEDIA`] volumes is cut into spans ([`Self::spans`]): `f(queries, ids,
+    /// false)` per span, in order, while `go_on(&result)`; the last result is returned.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn with_queries_in<T>(
@@ -841,25 +877,149 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         tmax: f32,
         tracked: Tracked,
         mask: u64,
-        f: impl FnOnce(&[Query], &[usize]) -> T,
+        mut f: impl FnMut(&[Query], &[usize], bool) -> T,
+        go_on: impl Fn(&T) -> bool,
     ) -> T {
         if self.media.len() == 1 {
             let ids: &[usize] = if mask & 1 == 1 { &[0] } else { &[] };
-            return self.queries::<1, T>(origin, dir, tmin, tmax, tracked, ids, f);
+            return self
+                .queries::<1, T>(origin, dir, tmin, tmax, tracked, ids, |q, i| f(q, i, true));
         }
         let mut ids = [0usize; MAX_MEDIA];
         let mut k = 0;
-        for (i, m) in self.media.iter().enumerate().take(MAX_MEDIA) {
-            if mask >> i & 1 == 1 && m.may_meet(origin, dir, tmin as f64, tmax as f64) {
-                ids[k] = i;
+        let mut overflow = false;
+        let mut take = |i: usize| {
+            let m = &self.media[i];
+            if in_mask(mask, i) && m.may_meet(origin, dir, tmin as f64, tmax as f64) {
+                if k < MAX_MEDIA {
+                    ids[k] = i;
+                    k += 1;
+                } else {
+                    overflow = true;
+                }
+            }
+        };
+        match self.extras.media_index {
+            None => (0..self.media.len()).for_each(&mut take),
+            Some(index) => index.candidates(origin, dir, tmin, tmax, &mut take),
+        }
+        if overflow {
+            return self.spans(origin, dir, tmin, tmax, tracked, mask, &mut f, &go_on);
+        }
+        // Media order, whatever order the index found them in: the race draws each
+        // lane's random numbers in lane order, so the image depends on it.
+        if self.extras.media_index.is_some() {
+            ids[..k].sort_unstable();
+        }
+        self.queries_sized(origin, dir, tmin, tmax, tracked, &ids[..k], |q, i| {
+            f(q, i, true)
+        })
+    }
+
+    /// A ray meeting more than [`MAX_MEDIA`] volumes (a cloudscape seen edge-on), cut
+    /// into consecutive spans each meeting at most that many: a span ends where the
+    /// next volume's box begins. Tracking the spans one after another is the same
+    /// process as tracking the whole ray (the collisions of disjoint stretches are
+    /// independent, and a transmittance is the product of its stretches'), so every
+    /// estimator stays exact. Only where more than [`MAX_MEDIA`] boxes overlap at one
+    /// point are the volumes past that many left out of the stretch (counted in
+    /// [`MEDIA_OVERFLOW`], a warning after the render). Off the hot path: a few KiB of
+    /// stack, no allocation.
+    #[allow(clippy::too_many_arguments)]
+    #[cold]
+    #[inline(never)]
+    fn spans<T>(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        tmin: f32,
+        tmax: f32,
+        tracked: Tracked,
+        mask: u64,
+        f: &mut impl FnMut(&[Query], &[usize], bool) -> T,
+        go_on: &impl Fn(&T) -> bool,
+    ) -> T {
+        const CANDIDATES: usize = 2048;
+        // (box entry, box exit, medium) of every volume the ray meets.
+        let mut c = [(0f32, 0f32, 0u32); CANDIDATES];
+        let mut n = 0;
+        let mut dropped = false;
+        let mut take = |i: usize| {
+            if !in_mask(mask, i) {
+                return;
+            }
+            let Some((a, b)) = self.media[i].span(origin, dir, tmin as f64, tmax as f64) else {
+                return;
+            };
+            if n < CANDIDATES {
+                c[n] = (a as f32, b as f32, i as u32);
+                n += 1;
+            } else {
+                dropped = true;
+            }
+        };
+        match self.extras.media_index {
+            None => (0..self.media.len()).for_each(&mut take),
+            Some(index) => index.candidates(origin, dir, tmin, tmax, &mut take),
+        }
+        let c = &mut c[..n];
+        c.sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.2.cmp(&y.2)));
+        let mut s = tmin;
+        loop {
+            // The first MAX_MEDIA volumes (by entry) still ahead at s; the span ends
+            // where the next one enters.
+            let mut ids = [0usize; MAX_MEDIA];
+            let mut k = 0;
+            let mut e = tmax;
+            for &(a, b, i) in c.iter() {
+                if b <= s {
+                    continue;
+                }
+                if k == MAX_MEDIA {
+                    e = a;
+                    break;
+                }
+                ids[k] = i as usize;
                 k += 1;
             }
+            if !(e > s) {
+                // More than MAX_MEDIA boxes overlap at s: up to the next box face.
+                dropped = true;
+                e = c
+                    .iter()
+                    .flat_map(|&(a, b, _)| [a, b])
+                    .filter(|&t| t > s)
+                    .fold(tmax, f32::min);
+            }
+            ids[..k].sort_unstable();
+            let r =
+                self.queries_sized(origin, dir, s, e, tracked, &ids[..k], |q, i| f(q, i, false));
+            if e >= tmax || !go_on(&r) {
+                if dropped {
+                    MEDIA_OVERFLOW.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                }
+                return r;
+            }
+            s = e;
         }
-        let ids = &ids[..k];
-        // Arrays just large enough for the media this ray meets (the unused tail
-        // repeats one of them), so a ray through two volumes of a large stage does not
-        // build sixty-four queries.
-        match k {
+    }
+
+    /// [`Self::queries`] with arrays just large enough for the media `ids` (the unused
+    /// tail repeats one of them), so a ray through two volumes of a large stage does
+    /// not build sixty-four queries.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn queries_sized<T>(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        tmin: f32,
+        tmax: f32,
+        tracked: Tracked,
+        ids: &[usize],
+        f: impl FnOnce(&[Query], &[usize]) -> T,
+    ) -> T {
+        match ids.len() {
             0..=2 => self.queries::<2, T>(origin, dir, tmin, tmax, tracked, ids, f),
             3..=4 => self.queries::<4, T>(origin, dir, tmin, tmax, tracked, ids, f),
             5..=8 => self.queries::<8, T>(origin, dir, tmin, tmax, tracked, ids, f),

@@ -11,10 +11,9 @@ use crate::render::sampler::SamplerKind;
 use crate::scene::schema::tokens;
 use crate::scene::{Field, Scene, Volume, VolumeShape};
 use crate::track::free_path::{FreePathSampler, TransmittanceEstimator};
-use crate::track::race::MAX_MEDIA;
 use crate::track::select::{Dispatch, TrackerKind, TrackerSettings};
 use crate::volume::albedo::AlbedoGrid;
-use crate::volume::boundary::{Boundary, BoxBoundary, InsideRule};
+use crate::volume::boundary::{InsideRule, MediumRegion};
 use crate::volume::emission::{Emission, EmissionGrid};
 use crate::volume::grid::Grid;
 use crate::volume::majorant::MajorantSpec;
@@ -138,88 +137,79 @@ pub fn media_for_scene_with(scene: &Scene, spec: MajorantSpec) -> anyhow::Result
             scene.stage_path.display()
         );
     }
-    if scene.volumes.len() > MAX_MEDIA {
-        bail!(
-            "{}: the stage has {} visible volumes; nimbus renders at most {MAX_MEDIA} per stage (merge volumes or hide some with visibility = invisible)",
-            scene.stage_path.display(),
-            scene.volumes.len()
-        );
-    }
     // World fog is bounded by everything else, so it is built last (in its place).
-    let mut media = scene
-        .volumes
-        .iter()
-        .map(|volume| match volume.shape {
-            VolumeShape::World => Ok(None),
-            _ => medium_for_volume(volume, spec).map(Some),
-        })
-        .collect::<anyhow::Result<Vec<_>>>()?;
-    let extent = scene_extent(scene, media.iter().flatten());
+    // A volume that differs from an earlier one only by its transform (an instance of
+    // a PointInstancer prototype, or the same asset placed twice) shares its grids and
+    // majorant structure: each is loaded once whatever the count.
+    let mut media: Vec<Option<Medium>> = Vec::with_capacity(scene.volumes.len());
+    for (i, volume) in scene.volumes.iter().enumerate() {
+        let prototype = scene.volumes[..i]
+            .iter()
+            .position(|earlier| same_medium(earlier, volume));
+        let medium = match (&volume.shape, prototype) {
+            (VolumeShape::World, _) => None,
+            (VolumeShape::Field(_), Some(j)) => {
+                let Some(p) = &media[j] else {
+                    unreachable!("a field volume's prototype is built")
+                };
+                Some(p.instance(&volume.prim_path, volume.volume_to_world)?)
+            }
+            _ => Some(medium_for_volume(volume, spec)?),
+        };
+        media.push(medium);
+    }
     for (slot, volume) in media.iter_mut().zip(&scene.volumes) {
         if slot.is_none() {
-            let boundary = Arc::new(BoxBoundary {
-                lo: extent.0,
-                hi: extent.1,
-            });
-            *slot = Some(fog_medium(volume, boundary, extent)?);
+            // Everywhere: the box only places the constant brick.
+            let unit = (DVec3::splat(-1.0), DVec3::splat(1.0));
+            *slot = Some(fog_medium(volume, MediumRegion::Everywhere, unit)?);
         }
     }
     Ok(media.into_iter().flatten().collect())
 }
 
-/// The box world fog fills: around every other medium, holdout, local light and the
-/// camera, padded by 1 % of its diagonal (at least 1 unit), so that what the camera
-/// sees and what lights it stands in fog.
-fn scene_extent<'m>(scene: &Scene, media: impl Iterator<Item = &'m Medium>) -> (DVec3, DVec3) {
-    let mut b = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-    let mut add = |p: DVec3| {
-        if p.is_finite() {
-            b = (b.0.min(p), b.1.max(p));
-        }
+/// Whether `b` is `a` but for its name, transform and light group: the same grids,
+/// coefficients and emission (a fog box is never shared: its surface is placed).
+fn same_medium(a: &Volume, b: &Volume) -> bool {
+    let (VolumeShape::Field(fa), VolumeShape::Field(fb)) = (&a.shape, &b.shape) else {
+        return false;
     };
-    add(scene.camera.camera_to_world.transform_point3(DVec3::ZERO));
-    for m in media {
-        if let Some((lo, hi)) = m.world_bounds() {
-            add(lo);
-            add(hi);
-        }
-    }
-    let meshes = scene
-        .holdouts
-        .iter()
-        .chain(scene.volumes.iter().filter_map(|v| match &v.shape {
-            VolumeShape::Mesh(m) => Some(&m.mesh),
-            _ => None,
-        }));
-    for mesh in meshes {
-        for p in &mesh.points {
-            add(DVec3::from_array(*p));
-        }
-    }
-    let origins = scene
-        .sphere_lights
-        .iter()
-        .map(|l| l.light_to_world)
-        .chain(scene.rect_lights.iter().map(|l| l.light_to_world))
-        .chain(scene.disk_lights.iter().map(|l| l.light_to_world))
-        .chain(scene.cylinder_lights.iter().map(|l| l.light_to_world));
-    for m in origins {
-        add(m.transform_point3(DVec3::ZERO));
-    }
-    let pad = DVec3::splat((0.01 * (b.1 - b.0).length()).max(1.0));
-    (b.0 - pad, b.1 + pad)
+    let (ea, eb) = (&a.emission, &b.emission);
+    same_grid(fa, fb)
+        && a.density_scale == b.density_scale
+        && a.absorption == b.absorption
+        && a.scattering == b.scattering
+        && a.anisotropy == b.anisotropy
+        && ea.params() == eb.params()
+        && same_named(&ea.temperature, &eb.temperature)
+        && same_named(&ea.emission, &eb.emission)
+        && same_named(&a.albedo, &b.albedo)
 }
 
-/// The homogeneous medium of fog (a fog box or world fog) inside `boundary`, whose box
-/// is `bounds`.
+/// Whether two fields read the same grid: the same file, grid name and index, whichever
+/// OpenVDBAsset prims name them.
+fn same_grid(a: &Field, b: &Field) -> bool {
+    a.file == b.file && a.field_name == b.field_name && a.field_index == b.field_index
+}
+
+fn same_named(a: &Option<(String, Field)>, b: &Option<(String, Field)>) -> bool {
+    match (a, b) {
+        (None, None) => true,
+        (Some((_, a)), Some((_, b))) => same_grid(a, b),
+        _ => false,
+    }
+}
+
+/// The homogeneous medium of fog (a fog box or world fog) in `region`, whose box is
+/// `bounds`.
 fn fog_medium(
     volume: &Volume,
-    boundary: Arc<dyn Boundary>,
+    region: MediumRegion,
     bounds: (DVec3, DVec3),
 ) -> anyhow::Result<Medium> {
     let mut medium = Medium::homogeneous(
         &volume.prim_path,
-        boundary,
+        region,
         bounds,
         volume.density_scale,
         volume.absorption,
@@ -246,7 +236,7 @@ fn medium_for_volume(volume: &Volume, spec: MajorantSpec) -> anyhow::Result<Medi
                     volume.prim_path
                 );
             };
-            return fog_medium(volume, Arc::new(surface), bounds);
+            return fog_medium(volume, MediumRegion::Inside(Arc::new(surface)), bounds);
         }
         VolumeShape::World => unreachable!("world fog is built after the other media"),
     };

@@ -215,6 +215,17 @@ pub struct Link {
     pub holdouts: HoldoutSet,
 }
 
+/// Whether medium `id` is in a link mask: bit `id`, or past the 64th medium the whole
+/// mask ([`check_link_masks`] allows only masks of every medium there).
+#[inline(always)]
+pub fn in_mask(mask: u64, id: usize) -> bool {
+    if id < 64 {
+        mask >> id & 1 == 1
+    } else {
+        mask == u64::MAX
+    }
+}
+
 /// Which holdouts a shadow ray tests.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum HoldoutSet {
@@ -243,7 +254,7 @@ impl Link {
     /// Whether the light illuminates medium `id`.
     #[inline(always)]
     pub fn lights(&self, id: usize) -> bool {
-        self.lit >> id & 1 == 1
+        in_mask(self.lit, id)
     }
 
     pub fn is_everything(&self) -> bool {
@@ -421,6 +432,45 @@ fn cylinder_area(axis: DVec3, y: DVec3, z: DVec3) -> f64 {
 
 /// Evaluates the linking collections of each light against the scene's volumes (in
 /// media order) and holdouts, and collects the distinct holdout subsets.
+/// Link masks hold one bit per medium, so linking that picks some of more than 64 volumes
+/// is refused, naming the light (linking every volume, the default, always works).
+fn check_link_masks(scene: &Scene) -> Result<(), LightError> {
+    if scene.volumes.len() <= 64 {
+        return Ok(());
+    }
+    let all = |c: &Collection| scene.volumes.iter().all(|v| c.contains(&v.prim_path));
+    let mut lights: Vec<(&str, &LightControls)> = Vec::new();
+    macro_rules! push {
+        ($($list:expr),*) => {
+            $(for l in &$list {
+                lights.push((&l.prim_path, &l.controls));
+            })*
+        };
+    }
+    push!(
+        scene.distant_lights,
+        scene.dome_lights,
+        scene.sphere_lights,
+        scene.rect_lights,
+        scene.disk_lights,
+        scene.cylinder_lights
+    );
+    for (prim, c) in lights {
+        for (name, collection) in [("lightLink", &c.light_link), ("shadowLink", &c.shadow_link)] {
+            if !all(collection) {
+                return Err(LightError {
+                    prim: prim.to_string(),
+                    message: format!(
+                        "collection:{name} picks some of the stage's {} volumes; light and shadow linking works over at most 64 volumes (link all of them, or fewer volumes)",
+                        scene.volumes.len()
+                    ),
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
 struct Linker<'a> {
     volumes: Vec<&'a str>,
     holdouts: Vec<&'a str>,
@@ -500,6 +550,7 @@ impl<'a> Linker<'a> {
 impl Lights {
     /// The scene's lights; reads dome textures (errors name the light and the file).
     pub fn from_scene(scene: &Scene) -> Result<Lights, LightError> {
+        check_link_masks(scene)?;
         let mut lights = Lights::default();
         let mut linker = Linker::new(scene);
         // Scene light indices in `Scene::lights` order: distant, dome, sphere, rect,

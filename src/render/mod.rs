@@ -10,6 +10,7 @@ pub mod holdouts;
 pub mod integrator;
 pub mod job;
 pub mod lights;
+pub mod media_index;
 pub mod phase;
 pub mod progressive;
 pub mod sampler;

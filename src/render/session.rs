@@ -11,9 +11,10 @@ use crate::render::analysis::{Analysis, CodePaths, Given};
 use crate::render::camera::CameraRays;
 use crate::render::film::{DepthBins, Film, Region};
 use crate::render::holdouts::Holdouts;
-use crate::render::integrator::Extras;
+use crate::render::integrator::{Extras, MEDIA_OVERFLOW};
 use crate::render::job::{media_for_scene_with, RenderJob};
 use crate::render::lights::Lights;
+use crate::render::media_index::MediaIndex;
 use crate::render::progressive::{render_progressive, Budget, Clock, Progress};
 use crate::render::sampler::SamplerKind;
 use crate::render::splits::{SplitLayer, SplitMap};
@@ -21,15 +22,18 @@ use crate::scene::defaults::{add_default_lights, frame_box, wants_default_lights
 use crate::scene::{
     load_stage, Emitter, Field, LoadOptions, RenderSettings, Scene, Volume, VolumeEmission,
 };
+use crate::track::race::MAX_MEDIA;
 use crate::track::scheme::SchemeOptions;
 use crate::track::select::{Choice, SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
 use crate::volume::asset::AssetLocation;
+use crate::volume::grid::Grid;
 use crate::volume::majorant::{MajorantSpec, MajorantTree, MAX_DEPTH};
 use crate::volume::medium::Medium;
 use crate::volume::vdb;
 use anyhow::{anyhow, bail, Context, Result};
 use std::path::{Path, PathBuf};
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::Instant;
 
 /// The edge of a flat majorant grid's cells when no structure is named.
@@ -144,6 +148,8 @@ pub struct Session {
     pub warnings: Vec<String>,
     /// The stage's holdout geometry, in a BVH (empty: none).
     pub holdouts: Holdouts,
+    /// Which media a ray may meet, for stages with many.
+    media_index: Option<MediaIndex>,
 }
 
 impl Session {
@@ -286,8 +292,9 @@ impl Session {
             tracking = t;
             auto_reason = Some(reason);
             if let Some(majorants) = analysis.majorants(request.given) {
-                for medium in &mut media {
-                    medium.set_majorants(majorants);
+                let trees = per_grid(&media, |m| m.build_majorants(majorants, 0.0, false));
+                for (medium, tree) in media.iter_mut().zip(trees) {
+                    medium.replace_majorants(tree);
                 }
                 spec = majorants;
             }
@@ -326,8 +333,10 @@ impl Session {
             threads: o.threads,
             warnings,
             holdouts,
+            media_index: None,
         };
         session.prune();
+        session.media_index = MediaIndex::build(&session.media);
         Ok(session)
     }
 
@@ -376,12 +385,11 @@ impl Session {
     /// The majorant structures (one per medium) a render with `tracking` uses at the
     /// session's `spec`, built and pruned as [`retrack`](Self::retrack) would, without
     /// switching to them: a benchmark that alternates trackers builds each once.
-    pub fn majorants_for(&self, tracking: &TrackerSettings) -> Vec<MajorantTree> {
+    pub fn majorants_for(&self, tracking: &TrackerSettings) -> Vec<Arc<MajorantTree>> {
         let residual = tracking.pays_residual();
-        self.media
-            .iter()
-            .map(|m| m.build_majorants(self.spec, self.octree_prune, residual))
-            .collect()
+        per_grid(&self.media, |m| {
+            m.build_majorants(self.spec, self.octree_prune, residual)
+        })
     }
 
     /// Switches to `tracking` with `trees` from [`majorants_for`](Self::majorants_for)
@@ -391,8 +399,8 @@ impl Session {
     pub fn switch_tracking(
         &mut self,
         tracking: TrackerSettings,
-        trees: Vec<MajorantTree>,
-    ) -> Vec<MajorantTree> {
+        trees: Vec<Arc<MajorantTree>>,
+    ) -> Vec<Arc<MajorantTree>> {
         assert_eq!(
             trees.len(),
             self.media.len(),
@@ -408,10 +416,12 @@ impl Session {
     }
 
     fn rebuild_majorants(&mut self) {
-        for medium in &mut self.media {
-            medium.set_majorants(self.spec);
+        let trees = per_grid(&self.media, |m| m.build_majorants(self.spec, 0.0, false));
+        for (medium, tree) in self.media.iter_mut().zip(trees) {
+            medium.replace_majorants(tree);
         }
         self.prune();
+        self.media_index = MediaIndex::build(&self.media);
     }
 
     /// Prunes an octree where finer cells cost more crossings than they save lookups
@@ -422,10 +432,19 @@ impl Session {
         }
         let residual = self.tracking.pays_residual();
         let cost = self.octree_prune;
-        self.media
-            .iter_mut()
-            .map(|m| m.prune_majorants(cost, residual))
-            .sum()
+        // Once per grid: the instances of a volume share the pruned structure.
+        let mut pruned: Vec<(*const Grid, Arc<MajorantTree>)> = Vec::new();
+        let mut nodes = 0;
+        for m in &mut self.media {
+            let key = Arc::as_ptr(&m.density);
+            if let Some((_, tree)) = pruned.iter().find(|(k, _)| *k == key) {
+                m.replace_majorants(tree.clone());
+                continue;
+            }
+            nodes += m.prune_majorants(cost, residual);
+            pruned.push((key, m.majorants.clone()));
+        }
+        nodes
     }
 
     /// The render job of this session; `count` turns the per-pixel counters on.
@@ -452,6 +471,7 @@ impl Session {
             paths,
             extras: Extras {
                 holdouts: (!self.holdouts.is_empty()).then_some(&self.holdouts),
+                media_index: self.media_index.as_ref(),
                 ..Extras::default()
             },
         }
@@ -532,7 +552,16 @@ impl Session {
             time_limit: self.time_limit,
             checkpoint,
         };
-        render_progressive(job, region, pool, &budget, stop, on_samples, after_pass)
+        let overflow = MEDIA_OVERFLOW.load(Ordering::Relaxed);
+        let result = render_progressive(job, region, pool, &budget, stop, on_samples, after_pass);
+        let more = MEDIA_OVERFLOW.load(Ordering::Relaxed) - overflow;
+        if more > 0 {
+            eprintln!(
+                "nimbus: warning: {}: {more} ray segments met more than {MAX_MEDIA} volumes; the volumes past the {MAX_MEDIA}th (in stage order) were left out of them",
+                self.stage_path.display()
+            );
+        }
+        result
     }
 
     /// A hash of everything that decides the image: the stage file's bytes, the scene
@@ -875,4 +904,26 @@ fn scene_for_vdb(path: &Path, grid: Option<&str>) -> Result<Scene> {
         light_prims: 0,
         warnings: Default::default(),
     })
+}
+
+/// One majorant structure per distinct density grid, built by `build` on the first
+/// medium that has the grid and shared by the others (the instances of a volume): the
+/// structure for each medium, in order.
+fn per_grid(
+    media: &[Medium],
+    build: impl Fn(&Medium) -> Arc<MajorantTree>,
+) -> Vec<Arc<MajorantTree>> {
+    let mut built: Vec<(*const Grid, Arc<MajorantTree>)> = Vec::new();
+    media
+        .iter()
+        .map(|m| {
+            let key = Arc::as_ptr(&m.density);
+            if let Some((_, tree)) = built.iter().find(|(k, _)| *k == key) {
+                return tree.clone();
+            }
+            let tree = build(m);
+            built.push((key, tree.clone()));
+            tree
+        })
+        .collect()
 }

@@ -14,6 +14,7 @@ pub mod description;
 pub mod diagnostics;
 pub mod fog;
 pub mod geometry;
+mod instancer;
 mod lights;
 mod motion;
 pub mod schema;

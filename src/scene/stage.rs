@@ -14,6 +14,7 @@ use super::description::*;
 use super::diagnostics::Diagnostics;
 use super::fog;
 use super::geometry;
+use super::instancer;
 use super::lights;
 use super::motion;
 use super::schema::{self, tokens};
@@ -203,7 +204,21 @@ impl Loader<'_> {
             // No camera named and none on the stage: the session frames the volumes.
             None => defaults::placeholder_camera(),
         };
-        let volumes = self.visible(&inventory.volumes)?;
+        // Volumes beneath a PointInstancer are its prototypes: placed by it, not drawn
+        // where they are.
+        let in_instancer = |p: &Prim| {
+            inventory
+                .point_instancers
+                .iter()
+                .any(|instancer| p.path().has_prefix(instancer.path()))
+        };
+        let plain: Vec<Prim> = inventory
+            .volumes
+            .iter()
+            .filter(|p| !in_instancer(p))
+            .cloned()
+            .collect();
+        let volumes = self.visible(&plain)?;
         let lights = self.lights(&inventory)?;
         for prim in &inventory.unread_lights {
             self.unread_light(prim)?;
@@ -214,6 +229,7 @@ impl Loader<'_> {
             .iter()
             .map(|p| self.volume(p))
             .collect::<Result<_, _>>()?;
+        volumes.extend(self.instanced_volumes(&inventory)?);
         volumes.extend(fog_boxes);
         Ok(Scene {
             stage_path: path.to_path_buf(),
@@ -306,7 +322,15 @@ impl Loader<'_> {
     ) -> Result<(), SceneError> {
         let mut warnings = self.warnings.borrow_mut();
         for prim in self.visible(&inventory.point_instancers)? {
-            unsupported::point_instancer(&prim, &mut warnings);
+            let prototypes = targets(&prim, "prototypes")?;
+            let gprims = inventory
+                .gprims
+                .iter()
+                .filter(|g| prototypes.iter().any(|root| g.path().has_prefix(root)))
+                .count();
+            if gprims > 0 {
+                unsupported::point_instancer(&prim, gprims, &mut warnings);
+            }
         }
         if let Some(settings) = settings {
             unsupported::render_settings_base(settings, false, self.time, &mut warnings)?;
@@ -375,6 +399,54 @@ impl Loader<'_> {
             }
         }
         Ok((holdouts, fog_boxes))
+    }
+
+    /// The volumes every visible PointInstancer places: for each instance, each Volume
+    /// beneath its prototype root, read once per prototype and placed by the
+    /// instance's transform (the prototype root's own transform included, as
+    /// UsdGeomPointInstancer's `IncludeProtoXform`). Instances keep their prototype
+    /// volume's path (light groups and linking name the prototype).
+    fn instanced_volumes(&mut self, inventory: &Inventory) -> Result<Vec<Volume>, SceneError> {
+        let mut out = Vec::new();
+        for instancer in self.visible(&inventory.point_instancers)? {
+            let placed = instancer::instances(&instancer, self.time)?;
+            let instancer_world = self.world_transform(&instancer)?;
+            // Per prototype: its volumes and their transforms relative to the
+            // prototype root's parent (root transform included).
+            let mut prototypes: Vec<Vec<(Volume, DMat4)>> = Vec::new();
+            for root in &placed.prototypes {
+                let parent_world = match root.parent().filter(|p| !p.is_abs_root()) {
+                    Some(parent) => {
+                        let parent = self
+                            .stage
+                            .prim(parent.clone())
+                            .map_err(|e| prim_error(instancer.path(), e))?;
+                        self.world_transform(&parent)?
+                    }
+                    None => DMat4::IDENTITY,
+                };
+                let to_parent = parent_world.inverse();
+                let mut volumes = Vec::new();
+                for prim in inventory
+                    .volumes
+                    .iter()
+                    .filter(|v| v.path().has_prefix(root))
+                {
+                    let volume = self.volume(prim)?;
+                    let relative = to_parent * volume.volume_to_world;
+                    volumes.push((volume, relative));
+                }
+                prototypes.push(volumes);
+            }
+            for (proto, m) in placed.placed {
+                for (volume, relative) in &prototypes[proto] {
+                    let mut v = volume.clone();
+                    v.volume_to_world = instancer_world * m * *relative;
+                    out.push(v);
+                }
+            }
+        }
+        Ok(out)
     }
 
     /// The medium of a fog box or of world fog (`prim` a gprim, or a Volume with

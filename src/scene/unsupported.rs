@@ -50,14 +50,16 @@ pub(super) fn unread_gprim(prim: &Prim, warnings: &mut Diagnostics) -> Result<()
     Ok(())
 }
 
-/// A PointInstancer: its prototypes are not drawn in place and its instances are not
-/// placed.
-pub(super) fn point_instancer(prim: &Prim, warnings: &mut Diagnostics) {
+/// A PointInstancer with gprims among its prototypes: those are not placed (its
+/// volume prototypes are).
+pub(super) fn point_instancer(prim: &Prim, gprims: usize, warnings: &mut Diagnostics) {
     warnings.warn(
         "PointInstancer",
         prim.path().to_string(),
-        Some("protoIndices"),
-        "point instancers are not read: their instances do not occlude the volumes",
+        Some("prototypes"),
+        format!(
+            "{gprims} gprims beneath its prototypes are not placed (only volume prototypes are instanced): their instances do not occlude or fill"
+        ),
     );
 }
 

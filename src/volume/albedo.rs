@@ -25,13 +25,15 @@ use crate::volume::counters::Tally;
 use crate::volume::grid::{world_to_index, MediumError};
 use crate::volume::grid::{Grid, RawGrid};
 use glam::{DMat4, DVec3};
+use std::sync::Arc;
 
 /// An albedo multiplier grid: one float grid per channel (r, g, b) with one world → index
 /// transform.
 pub struct AlbedoGrid {
     /// The field the grid comes from (the `field:<name>` relationship, or a label).
     pub field: String,
-    pub channels: [Grid; 3],
+    /// Shared by the instances of a volume ([`AlbedoGrid::placed`]).
+    pub channels: Arc<[Grid; 3]>,
     world_to_index: DMat4,
     /// Component values (voxels, tiles and backgrounds) that were outside [0,1] or not
     /// finite and were clamped.
@@ -97,9 +99,24 @@ impl AlbedoGrid {
             world_to_index(prim, &format!("{what}: "), volume_to_world, &channels[0])?;
         Ok(AlbedoGrid {
             field: field.to_string(),
-            channels,
+            channels: Arc::new(channels),
             world_to_index,
             clamped_values: clamped,
+        })
+    }
+
+    /// The same grids (shared, not copied) under another volume transform.
+    pub fn placed(&self, prim: &str, volume_to_world: DMat4) -> Result<AlbedoGrid, MediumError> {
+        Ok(AlbedoGrid {
+            field: self.field.clone(),
+            channels: self.channels.clone(),
+            world_to_index: world_to_index(
+                prim,
+                "albedo grid: ",
+                volume_to_world,
+                &self.channels[0],
+            )?,
+            clamped_values: self.clamped_values,
         })
     }
 

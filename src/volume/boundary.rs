@@ -17,12 +17,16 @@
 //!   is the parity of every crossing ahead of it. Still well defined (no NaN, no hang):
 //!   an open mesh is the union of the stretches with an odd number of sheets ahead.
 //!
+//! World fog is everywhere ([`MediumRegion::Everywhere`]): its walk is one segment over the
+//! whole ray.
+//!
 //! The crossings are fetched in batches of [`BATCH`] into a buffer on the stack, the
 //! next batch from the last crossing on, so a query allocates nothing whatever the
 //! mesh.
 
 use crate::volume::majorant::{Segment, TreeWalk};
 use glam::DVec3;
+use std::sync::Arc;
 
 /// Crossings fetched per boundary query.
 pub const BATCH: usize = 16;
@@ -73,65 +77,6 @@ pub fn keep_nearest(out: &mut [Crossing], n: &mut usize, c: Crossing) -> f64 {
         out[cap - 1].t
     } else {
         f64::INFINITY
-    }
-}
-
-/// An axis-aligned box: the boundary of world fog (the scene's extent).
-#[derive(Clone, Copy, Debug)]
-pub struct BoxBoundary {
-    pub lo: DVec3,
-    pub hi: DVec3,
-}
-
-impl Boundary for BoxBoundary {
-    fn crossings(
-        &self,
-        origin: DVec3,
-        dir: DVec3,
-        tmin: f64,
-        out: &mut [Crossing],
-    ) -> (usize, u64) {
-        let (mut t0, mut t1) = (f64::NEG_INFINITY, f64::INFINITY);
-        for a in 0..3 {
-            if dir[a] == 0.0 {
-                if !(origin[a] >= self.lo[a] && origin[a] <= self.hi[a]) {
-                    return (0, 0);
-                }
-                continue;
-            }
-            let inv = 1.0 / dir[a];
-            let (ta, tb) = (
-                (self.lo[a] - origin[a]) * inv,
-                (self.hi[a] - origin[a]) * inv,
-            );
-            t0 = t0.max(ta.min(tb));
-            t1 = t1.min(ta.max(tb));
-        }
-        if !(t0 <= t1) {
-            return (0, 0);
-        }
-        let mut n = 0;
-        let mut total = 0;
-        for c in [
-            Crossing {
-                t: t0,
-                entering: true,
-            },
-            Crossing {
-                t: t1,
-                entering: false,
-            },
-        ] {
-            if c.t > tmin {
-                total += 1;
-                keep_nearest(out, &mut n, c);
-            }
-        }
-        (n, total)
-    }
-
-    fn rule(&self) -> InsideRule {
-        InsideRule::Orientation
     }
 }
 
@@ -259,23 +204,31 @@ impl<'a> Inside<'a> {
     }
 }
 
-/// A medium's walk along a ray: its majorant segments, clipped to the inside of its
-/// boundary when it has one. Segments keep their cell's bounds; only `t0`, `t1` move.
-pub struct MediumWalk<'a> {
-    cells: TreeWalk<'a>,
-    inside: Option<Inside<'a>>,
-    /// The rest of the cell segment being clipped.
-    pending: Option<Segment>,
+/// Where a medium is.
+#[derive(Clone)]
+pub enum MediumRegion {
+    /// Where its grid's majorant region is (a VDB volume).
+    Grid,
+    /// Inside a closed surface (a fog box).
+    Inside(Arc<dyn Boundary>),
+    /// Everywhere, without end (world fog, as Cycles' world volume: a ray that leaves
+    /// every surface runs on through it, so nothing reaches it from infinity).
+    Everywhere,
 }
 
-impl<'a> MediumWalk<'a> {
-    pub fn new(cells: TreeWalk<'a>, inside: Option<Inside<'a>>) -> Self {
-        MediumWalk {
-            cells,
-            inside,
-            pending: None,
-        }
-    }
+/// A medium's walk along a ray: its majorant segments, clipped to the inside of its
+/// boundary when it has one, or one segment over the whole ray for a medium that is
+/// everywhere. Segments keep their cell's bounds; only `t0`, `t1` move.
+pub enum MediumWalk<'a> {
+    Cells(TreeWalk<'a>),
+    Clipped {
+        cells: TreeWalk<'a>,
+        inside: Inside<'a>,
+        /// The rest of the cell segment being clipped.
+        pending: Option<Segment>,
+    },
+    /// The one segment left, if any.
+    Everywhere(Option<Segment>),
 }
 
 impl Iterator for MediumWalk<'_> {
@@ -283,38 +236,53 @@ impl Iterator for MediumWalk<'_> {
 
     #[inline(always)]
     fn next(&mut self) -> Option<Segment> {
-        let Some(inside) = self.inside.as_mut() else {
-            return self.cells.next();
-        };
-        loop {
-            let (a, b) = inside.current()?;
-            let seg = match self.pending {
-                Some(s) => s,
-                None => self.cells.next()?,
-            };
-            self.pending = Some(seg);
-            if b <= seg.t0 {
-                inside.advance();
-                continue;
-            }
-            if seg.t1 <= a {
-                self.pending = None;
-                continue;
-            }
-            // They overlap: a < seg.t1 and seg.t0 < b, so the clip is not empty.
-            let clipped = Segment {
-                t0: seg.t0.max(a),
-                t1: seg.t1.min(b),
-                ..seg
-            };
-            if seg.t1 <= b {
-                self.pending = None;
-            } else {
-                self.pending = Some(Segment { t0: b, ..seg });
-                inside.advance();
-            }
-            return Some(clipped);
+        match self {
+            MediumWalk::Cells(cells) => cells.next(),
+            MediumWalk::Everywhere(seg) => seg.take(),
+            MediumWalk::Clipped {
+                cells,
+                inside,
+                pending,
+            } => clipped_next(cells, inside, pending),
         }
+    }
+}
+
+/// The next cell segment of `cells` clipped to `inside`'s intervals.
+#[inline(always)]
+fn clipped_next(
+    cells: &mut TreeWalk,
+    inside: &mut Inside,
+    pending: &mut Option<Segment>,
+) -> Option<Segment> {
+    loop {
+        let (a, b) = inside.current()?;
+        let seg = match *pending {
+            Some(s) => s,
+            None => cells.next()?,
+        };
+        *pending = Some(seg);
+        if b <= seg.t0 {
+            inside.advance();
+            continue;
+        }
+        if seg.t1 <= a {
+            *pending = None;
+            continue;
+        }
+        // They overlap: a < seg.t1 and seg.t0 < b, so the clip is not empty.
+        let clipped = Segment {
+            t0: seg.t0.max(a),
+            t1: seg.t1.min(b),
+            ..seg
+        };
+        if seg.t1 <= b {
+            *pending = None;
+        } else {
+            *pending = Some(Segment { t0: b, ..seg });
+            inside.advance();
+        }
+        return Some(clipped);
     }
 }
 
@@ -400,17 +368,5 @@ mod tests {
         // Orientation with a lone entering sheet: inside from 3 to the end of the ray.
         let b = Listed(vec![c(3.0, true)], InsideRule::Orientation);
         assert_eq!(intervals(&b, 0.0, 10.0), vec![(3.0, 10.0)]);
-    }
-
-    #[test]
-    fn a_box_clips_to_its_slab_interval() {
-        let b = BoxBoundary {
-            lo: DVec3::new(1.0, -1.0, -1.0),
-            hi: DVec3::new(3.0, 1.0, 1.0),
-        };
-        assert_eq!(intervals(&b, 0.0, 10.0), vec![(1.0, 3.0)]);
-        assert_eq!(intervals(&b, 2.0, 10.0), vec![(2.0, 3.0)]);
-        assert_eq!(intervals(&b, 0.0, 2.5), vec![(1.0, 2.5)]);
-        assert_eq!(intervals(&b, 4.0, 10.0), vec![]);
     }
 }

@@ -21,10 +21,13 @@ use crate::volume::counters::Tally;
 use crate::volume::grid::Grid;
 use crate::volume::grid::{world_to_index, MediumError};
 use glam::{DMat4, DVec3};
+use std::sync::Arc;
 
 /// An emission grid with its world → index transform.
+/// The grid is shared by the instances of a volume (each places it with its own
+/// transform: [`EmissionGrid::placed`]).
 pub struct EmissionGrid {
-    pub grid: Grid,
+    pub grid: Arc<Grid>,
     world_to_index: DMat4,
 }
 
@@ -35,14 +38,20 @@ impl EmissionGrid {
     pub fn new(
         prim: &str,
         what: &str,
-        grid: Grid,
+        grid: impl Into<Arc<Grid>>,
         volume_to_world: DMat4,
     ) -> Result<EmissionGrid, MediumError> {
+        let grid = grid.into();
         let world_to_index = world_to_index(prim, &format!("{what}: "), volume_to_world, &grid)?;
         Ok(EmissionGrid {
             grid,
             world_to_index,
         })
+    }
+
+    /// The same grid (shared, not copied) under another volume transform.
+    pub fn placed(&self, prim: &str, volume_to_world: DMat4) -> Result<EmissionGrid, MediumError> {
+        EmissionGrid::new(prim, "emission grid", self.grid.clone(), volume_to_world)
     }
 
     /// The trilinearly reconstructed value at world point `p` (one emission lookup).
@@ -173,6 +182,22 @@ impl Emission {
             params,
             field_rgb: params.emission_color.map(|c| c * params.emission_scale),
         }))
+    }
+
+    /// The same emission (its grids shared) under another volume transform.
+    pub fn placed(&self, prim: &str, volume_to_world: DMat4) -> Result<Emission, MediumError> {
+        let place = |g: &Option<EmissionGrid>| {
+            g.as_ref()
+                .map(|g| g.placed(prim, volume_to_world))
+                .transpose()
+        };
+        Ok(Emission {
+            temperature: place(&self.temperature)?,
+            field: place(&self.field)?,
+            params: self.params,
+            field_rgb: self.field_rgb,
+            constant_field: self.constant_field,
+        })
     }
 
     /// The emission model's value at world point `p` (one lookup per grid): emitted

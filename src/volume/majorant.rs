@@ -69,6 +69,7 @@ pub const MAX_LEAF_CELLS: u64 = 1 << 25;
 pub const MAX_DEPTH: u32 = 31;
 
 /// One level of the pyramid: a dense grid of cells over the region.
+#[derive(Clone)]
 struct Level {
     /// Cell edge in index units (voxels), per axis.
     edge: Vec3,
@@ -184,6 +185,7 @@ fn cell_of(dims: [i32; 3], s: usize) -> Option<[i32; 3]> {
     (0..3).all(|a| c[a] < dims[a]).then_some(c)
 }
 
+#[derive(Clone)]
 pub struct MajorantTree {
     /// Continuous index-space corner of cell (0,0,0) on every level.
     origin: Vec3,

@@ -13,11 +13,11 @@
 
 use crate::color::Spectrum;
 use crate::volume::albedo::AlbedoGrid;
-use crate::volume::boundary::{Boundary, Inside, MediumWalk};
+use crate::volume::boundary::{Inside, MediumRegion, MediumWalk};
 use crate::volume::counters::Tally;
 use crate::volume::emission::Emission;
 use crate::volume::grid::{world_to_index, Grid, MediumError, RawGrid, RawLeaf};
-use crate::volume::majorant::{MajorantSpec, MajorantTree, PruneCost};
+use crate::volume::majorant::{MajorantSpec, MajorantTree, PruneCost, Segment};
 use crate::volume::ticks;
 use glam::{DMat4, DVec3, Vec3};
 use std::sync::Arc;
@@ -92,16 +92,18 @@ fn world_box(majorants: &MajorantTree, world_to_index: DMat4) -> Option<(DVec3, 
 pub struct Medium {
     /// The prim this medium comes from (for messages).
     pub prim_path: String,
-    pub density: Grid,
+    /// The density grid and its majorant structure (both in index space) are shared
+    /// by the instances of a volume ([`Medium::instance`]): one copy whatever the count.
+    pub density: Arc<Grid>,
     /// World → index, the inverse of volume_to_world · index_to_world.
     world_to_index: DMat4,
     /// σa, σs, σt per unit density (density scale folded in).
     pub sigma: Sigma,
     /// Henyey–Greenstein asymmetry.
     pub g: f32,
-    pub majorants: MajorantTree,
+    pub majorants: Arc<MajorantTree>,
     /// World-space box around the majorant region (padded), for culling the media a
-    /// ray cannot meet; `None` for an empty grid.
+    /// ray cannot meet; `None` for an empty grid, and for a medium that is everywhere.
     world_box: Option<(DVec3, DVec3)>,
     /// Emission (temperature and/or emission grids), collected at absorption events;
     /// `None` for a non-emissive medium. Set with [`Medium::set_emission`].
@@ -109,9 +111,9 @@ pub struct Medium {
     /// Albedo multiplier c(x) (`nimbus:albedoField`), looked up at scatter events;
     /// `None` = constant albedo σs/σt. Set with [`Medium::set_albedo`].
     pub albedo: Option<AlbedoGrid>,
-    /// Where the medium is, when not wherever its grid is: the inside of a closed
-    /// surface (a fog box) or of the scene's box (world fog). Walks are clipped to it.
-    pub boundary: Option<Arc<dyn Boundary>>,
+    /// Where the medium is: where its grid is, inside a closed surface (a fog box;
+    /// walks are clipped to it) or everywhere (world fog).
+    pub region: MediumRegion,
     /// Index → world, for mapping index rays back to the boundary's world space.
     index_to_world: DMat4,
     /// Whether trackers prefetch the next tentative collision's stencil
@@ -164,7 +166,7 @@ impl Medium {
     #[allow(clippy::too_many_arguments)]
     pub fn with_majorants(
         prim_path: &str,
-        density: Grid,
+        density: impl Into<Arc<Grid>>,
         volume_to_world: DMat4,
         density_scale: f64,
         absorption: [f64; 3],
@@ -172,6 +174,7 @@ impl Medium {
         anisotropy: f64,
         spec: MajorantSpec,
     ) -> Result<Medium, MediumError> {
+        let density = density.into();
         let invalid = |message: String| MediumError::Invalid {
             prim: prim_path.to_string(),
             message,
@@ -198,7 +201,7 @@ impl Medium {
                 "nimbus:anisotropy must lie in (-1, 1), got {anisotropy}"
             )));
         }
-        let majorants = MajorantTree::build(&density, spec);
+        let majorants = Arc::new(MajorantTree::build(&density, spec));
         // An infinite majorant would make every free-path step 0: tracking would never
         // advance along the ray. Finite voxels can still overflow once scaled.
         let sigma = Sigma::new(sigma_a, sigma_s);
@@ -219,23 +222,24 @@ impl Medium {
             majorants,
             emission: None,
             albedo: None,
-            boundary: None,
+            region: MediumRegion::Grid,
             index_to_world: world_to_index.inverse(),
             prefetch: density.memory_bytes() > PREFETCH_BYTES,
             density,
         })
     }
 
-    /// A homogeneous medium of density 1 inside `boundary` (a fog box, world fog),
-    /// whose box is `[lo, hi]` (world space): the coefficients are per world unit, times
-    /// `density_scale`. The constant density is stored as one brick of ones over the
-    /// box, so the majorants, trackers, counters and AOVs treat it as they treat any
-    /// grid (one cell, one lookup per collision; every tentative collision is real);
-    /// walks are clipped to the inside of the boundary.
+    /// A homogeneous medium of density 1 in `region`: inside a fog box's surface, whose
+    /// box is `[lo, hi]` (world space), or everywhere (any box). The coefficients are
+    /// per world unit, times `density_scale`. The constant density is stored as one
+    /// brick of ones over the box (everywhere, with a background of one), so the
+    /// majorants, trackers, counters and AOVs treat it as they treat any grid (one
+    /// cell, one lookup per collision; every tentative collision is real); walks are
+    /// clipped to the region.
     #[allow(clippy::too_many_arguments)]
     pub fn homogeneous(
         prim_path: &str,
-        boundary: Arc<dyn Boundary>,
+        region: MediumRegion,
         (lo, hi): (DVec3, DVec3),
         density_scale: f64,
         absorption: [f64; 3],
@@ -254,9 +258,11 @@ impl Medium {
         }
         // Padded, so a lookup rounding just outside the box still reads only ones; a
         // flat box (a plane) gets some thickness, as a zero scale would make the
-        // transform singular. The walk is clipped to the boundary anyway.
+        // transform singular. The walk is clipped to the region anyway.
         let pad = DVec3::splat(1e-4 * size.max_element().max(1e-6));
-        let grid = constant_grid(prim_path, lo - pad, size + 2.0 * pad)
+        let everywhere = matches!(region, MediumRegion::Everywhere);
+        let background = if everywhere { 1.0 } else { 0.0 };
+        let grid = constant_grid(prim_path, lo - pad, size + 2.0 * pad, background)
             .map_err(|e| invalid(format!("constant density: {e}")))?;
         let mut medium = Medium::with_majorants(
             prim_path,
@@ -268,21 +274,48 @@ impl Medium {
             anisotropy,
             MajorantSpec::Uniform { cell_voxels: 0 },
         )?;
-        medium.boundary = Some(boundary);
+        if everywhere {
+            medium.world_box = None;
+        }
+        medium.region = region;
         Ok(medium)
     }
 
     /// The walk of the ray `ray`, `t` in `[tmin, tmax)`, over the majorant segments,
-    /// clipped to the boundary's inside when the medium has one.
+    /// clipped to the medium's region.
     #[inline(always)]
     pub fn walk(&self, ray: &IndexRay, tmin: f32, tmax: f32) -> MediumWalk<'_> {
-        let cells = self.majorants.walk(ray.o, ray.d, tmin, tmax);
-        let inside = self.boundary.as_deref().map(|b| {
-            let origin = self.index_to_world.transform_point3(ray.o.as_dvec3());
-            let dir = self.index_to_world.transform_vector3(ray.d.as_dvec3());
-            Inside::new(b, origin, dir, tmin, tmax)
-        });
-        MediumWalk::new(cells, inside)
+        match &self.region {
+            MediumRegion::Grid => MediumWalk::Cells(self.majorants.walk(ray.o, ray.d, tmin, tmax)),
+            MediumRegion::Inside(boundary) => {
+                let origin = self.index_to_world.transform_point3(ray.o.as_dvec3());
+                let dir = self.index_to_world.transform_vector3(ray.d.as_dvec3());
+                MediumWalk::Clipped {
+                    cells: self.majorants.walk(ray.o, ray.d, tmin, tmax),
+                    inside: Inside::new(boundary.as_ref(), origin, dir, tmin, tmax),
+                    pending: None,
+                }
+            }
+            MediumRegion::Everywhere => {
+                let d = self.majorants.max_density();
+                MediumWalk::Everywhere((tmin < tmax).then_some(Segment {
+                    t0: tmin,
+                    t1: tmax,
+                    dmin: d,
+                    dmax: d,
+                }))
+            }
+        }
+    }
+
+    /// Where a walk of the ray would start (`None` where it would yield nothing): the
+    /// entry into the majorant region (a fog box's: its box's, before its surface).
+    #[inline]
+    pub fn entry(&self, ray: &IndexRay, tmin: f32, tmax: f32) -> Option<f32> {
+        match self.region {
+            MediumRegion::Everywhere => (tmin < tmax).then_some(tmin),
+            _ => self.majorants.entry(ray.o, ray.d, tmin, tmax),
+        }
     }
 
     /// The optical depth of one voxel at unit density, κ = σt_max × voxel length (the
@@ -302,13 +335,43 @@ impl Medium {
             crossing_lookups,
             residual,
         };
-        self.majorants.prune(cost)
+        // Copies the structure only if an instance shares it (the session prunes one
+        // structure per grid and hands it to every instance instead).
+        Arc::make_mut(&mut self.majorants).prune(cost)
     }
 
     /// Rebuilds the majorant structure (e.g. to compare octree depths on one grid).
     pub fn set_majorants(&mut self, spec: MajorantSpec) {
-        self.majorants = MajorantTree::build(&self.density, spec);
+        self.majorants = Arc::new(MajorantTree::build(&self.density, spec));
         self.world_box = world_box(&self.majorants, self.world_to_index);
+    }
+
+    /// The same medium (grids and majorant structure shared, not copied) placed by
+    /// another volume transform: an instance of it, named `prim_path`.
+    pub fn instance(&self, prim_path: &str, volume_to_world: DMat4) -> Result<Medium, MediumError> {
+        let world_to_index = world_to_index(prim_path, "", volume_to_world, &self.density)?;
+        Ok(Medium {
+            prim_path: prim_path.to_string(),
+            density: self.density.clone(),
+            world_to_index,
+            sigma: self.sigma,
+            g: self.g,
+            majorants: self.majorants.clone(),
+            world_box: world_box(&self.majorants, world_to_index),
+            emission: self
+                .emission
+                .as_ref()
+                .map(|e| e.placed(prim_path, volume_to_world))
+                .transpose()?,
+            albedo: self
+                .albedo
+                .as_ref()
+                .map(|a| a.placed(prim_path, volume_to_world))
+                .transpose()?,
+            region: MediumRegion::Grid,
+            index_to_world: world_to_index.inverse(),
+            prefetch: self.prefetch,
+        })
     }
 
     /// The majorant structure `spec` over this medium's grid, pruned as
@@ -319,7 +382,7 @@ impl Medium {
         spec: MajorantSpec,
         crossing_lookups: f32,
         residual: bool,
-    ) -> MajorantTree {
+    ) -> Arc<MajorantTree> {
         let mut tree = MajorantTree::build(&self.density, spec);
         if matches!(spec, MajorantSpec::Octree { .. }) {
             tree.prune(PruneCost {
@@ -328,12 +391,12 @@ impl Medium {
                 residual,
             });
         }
-        tree
+        Arc::new(tree)
     }
 
     /// Installs `tree` (from [`build_majorants`](Self::build_majorants) on this
     /// medium) and hands back the structure it replaces.
-    pub fn replace_majorants(&mut self, tree: MajorantTree) -> MajorantTree {
+    pub fn replace_majorants(&mut self, tree: Arc<MajorantTree>) -> Arc<MajorantTree> {
         let old = std::mem::replace(&mut self.majorants, tree);
         self.world_box = world_box(&self.majorants, self.world_to_index);
         old
@@ -344,8 +407,17 @@ impl Medium {
     /// only the volumes it crosses.
     #[inline]
     pub fn may_meet(&self, origin: DVec3, dir: DVec3, tmin: f64, tmax: f64) -> bool {
+        self.span(origin, dir, tmin, tmax).is_some()
+    }
+
+    /// The part `[t0, t1]` of `[tmin, tmax]` where the ray `origin + t·dir` may meet
+    /// the medium (the world box's slab test; the whole range for a medium that is
+    /// everywhere), `None` where it cannot.
+    #[inline]
+    pub fn span(&self, origin: DVec3, dir: DVec3, tmin: f64, tmax: f64) -> Option<(f64, f64)> {
         let Some((lo, hi)) = self.world_box else {
-            return false;
+            let everywhere = matches!(self.region, MediumRegion::Everywhere) && tmin < tmax;
+            return everywhere.then_some((tmin, tmax));
         };
         let (mut t0, mut t1) = (tmin, tmax);
         for a in 0..3 {
@@ -363,7 +435,7 @@ impl Medium {
                 t1 = tb;
             }
         }
-        t0 <= t1
+        (t0 <= t1).then_some((t0, t1))
     }
 
     /// Makes the medium emissive (or not, with `None`). Emission changes no majorant:
@@ -419,6 +491,7 @@ fn constant_grid(
     name: &str,
     lo: DVec3,
     edge: DVec3,
+    background: f32,
 ) -> Result<Grid, crate::volume::grid::GridError> {
     let n = CONSTANT_EDGE;
     let voxel = edge / (n - 1) as f64;
@@ -426,7 +499,7 @@ fn constant_grid(
     Grid::from_raw(&RawGrid {
         name: name.to_string(),
         class: "fog volume".to_string(),
-        background: 0.0,
+        background,
         leaves: vec![RawLeaf {
             origin: [0; 3],
             values: vec![1.0; (n * n * n) as usize],
