@@ -171,7 +171,8 @@ def _density(node, sock_name, owner, warnings, default_attribute, fog=None):
     sock = node.inputs[sock_name]
     src = _linked(sock)
     if src is None:
-        return float(sock.default_value), default_attribute
+        # Cycles clamps a negative density (and strength) at 0.
+        return max(float(sock.default_value), 0.0), default_attribute
     scale = 1.0
     if src.bl_idname == "ShaderNodeMath" and src.operation == "MULTIPLY":
         a, b = src.inputs[0], src.inputs[1]
