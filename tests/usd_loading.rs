@@ -151,7 +151,11 @@ fn assert_volumes(scene: &Scene, expected: &Value) {
     for (v, e) in scene.volumes.iter().zip(vols) {
         let what = v.prim_path.as_str();
         assert_transform(what, &v.volume_to_world, &e["world"], &e["probe"]);
-        assert_field(&format!("{what} density"), &v.density, &e["density"]);
+        assert_field(
+            &format!("{what} density"),
+            v.shape.field().expect("a density field"),
+            &e["density"],
+        );
         let fields = e["fields"].as_object().unwrap();
         let names: Vec<&String> = v.fields.iter().map(|(n, _)| n).collect();
         assert_eq!(
@@ -763,8 +767,8 @@ fn minimal_stage_uses_schema_fallbacks() {
     assert_eq!(v.absorption, [f64::from(0.1f32); 3]);
     assert_eq!(v.scattering, [f64::from(0.9f32); 3]);
     assert_eq!(v.anisotropy, 0.0);
-    assert_eq!(v.density.field_index, None);
-    assert_eq!(v.density.field_name, "");
+    assert_eq!(v.shape.field().unwrap().field_index, None);
+    assert_eq!(v.shape.field().unwrap().field_name, "");
     assert_eq!(v.volume_to_world, DMat4::IDENTITY);
     let sun = &scene.distant_lights[0];
     // UsdLux overrides the LightAPI intensity fallback (1) with 50000 for a

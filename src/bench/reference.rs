@@ -80,7 +80,7 @@ pub fn cache_key(scene: &Scene, job: &RenderJob, r: &ReferenceSettings) -> Resul
     put(&String::from_utf8_lossy(&stage));
     put(&format!("{scene:?}"));
     for v in &scene.volumes {
-        if let AssetLocation::File(p) = &v.density.file {
+        if let Some(AssetLocation::File(p)) = v.shape.field().map(|f| &f.file) {
             // A missing file fails later, when the medium is loaded.
             let meta = std::fs::metadata(p).ok();
             let mtime = meta

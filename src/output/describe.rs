@@ -218,7 +218,8 @@ pub struct HoldoutMeshDescription {
 #[derive(Serialize, Debug, Clone)]
 pub struct VolumeDescription {
     pub prim_path: String,
-    /// The density field's OpenVDBAsset prim.
+    /// What the density is: the density field's OpenVDBAsset prim, or for fog
+    /// "fog box (N triangles, closed|not closed)" / "world fog".
     pub density_field: String,
     pub density_scale: f64,
     pub absorption: [f64; 3],
@@ -541,12 +542,21 @@ fn holdouts(scene: &Scene) -> Option<HoldoutsDescription> {
 }
 
 fn volume(v: &crate::scene::Volume, depth: u32) -> VolumeDescription {
+    use crate::scene::VolumeShape;
     let e = &v.emission;
     let name = |f: &Option<(String, Field)>| f.as_ref().map(|(n, _)| n.clone());
     let albedo = name(&v.albedo);
     VolumeDescription {
         prim_path: v.prim_path.clone(),
-        density_field: v.density.prim_path.clone(),
+        density_field: match &v.shape {
+            VolumeShape::Field(f) => f.prim_path.clone(),
+            VolumeShape::Mesh(m) => format!(
+                "fog box ({} triangles, {})",
+                m.mesh.triangles.len(),
+                if m.closed { "closed" } else { "not closed" }
+            ),
+            VolumeShape::World => "world fog".to_string(),
+        },
         density_scale: v.density_scale,
         absorption: v.absorption,
         scattering: v.scattering,

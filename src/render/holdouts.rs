@@ -21,6 +21,7 @@
 //! tmin of its own.
 
 use crate::scene::HoldoutMesh;
+use crate::volume::boundary::{keep_nearest, Boundary, Crossing, InsideRule};
 use glam::DVec3;
 use std::time::Instant;
 
@@ -43,6 +44,8 @@ pub struct Holdouts {
     triangles: Vec<Triangle>,
     /// Whether the tree is shallow enough for the ordered traversal's fixed stack.
     ordered: bool,
+    /// How crossings become inside intervals when the geometry bounds a fog medium.
+    rule: InsideRule,
     stats: HoldoutStats,
 }
 
@@ -157,6 +160,7 @@ impl Holdouts {
             nodes: Vec::new(),
             triangles: Vec::new(),
             ordered: false,
+            rule: InsideRule::Orientation,
             stats: HoldoutStats::default(),
         }
     }
@@ -204,6 +208,12 @@ impl Holdouts {
         holdouts
     }
 
+    /// The geometry as a fog medium's boundary read with `rule`.
+    pub fn with_rule(mut self, rule: InsideRule) -> Holdouts {
+        self.rule = rule;
+        self
+    }
+
     pub fn is_empty(&self) -> bool {
         self.nodes.is_empty()
     }
@@ -217,8 +227,9 @@ impl Holdouts {
     pub fn hit(&self, origin: DVec3, dir: DVec3, tmin: f64, tmax: f64) -> Option<f64> {
         let mut nearest = None;
         let mut tmax = tmax;
-        self.traverse(origin, dir, tmin, &mut tmax, |t| {
+        self.traverse(origin, dir, tmin, &mut tmax, |t, _, tmax| {
             nearest = Some(t);
+            *tmax = t;
             false
         });
         nearest
@@ -229,15 +240,16 @@ impl Holdouts {
     pub fn occluded(&self, origin: DVec3, dir: DVec3, tmin: f64, tmax: f64) -> bool {
         let mut blocked = false;
         let mut tmax = tmax;
-        self.traverse(origin, dir, tmin, &mut tmax, |_| {
+        self.traverse(origin, dir, tmin, &mut tmax, |_, _, _| {
             blocked = true;
             true
         });
         blocked
     }
 
-    /// Walks the nodes the ray meets within (tmin, *tmax); on each triangle hit, sets
-    /// *tmax to its t and calls `on_hit(t)`, stopping when it returns true.
+    /// Walks the nodes the ray meets within (tmin, *tmax); on each triangle hit calls
+    /// `on_hit(t, triangle, tmax)`, which may shrink *tmax (nodes beyond it are then
+    /// skipped), stopping when it returns true.
     #[inline(always)]
     fn traverse(
         &self,
@@ -245,7 +257,7 @@ impl Holdouts {
         dir: DVec3,
         tmin: f64,
         tmax: &mut f64,
-        mut on_hit: impl FnMut(f64) -> bool,
+        mut on_hit: impl FnMut(f64, &Triangle, &mut f64) -> bool,
     ) {
         // NaN bounds or rays would compare false everywhere below; refuse them up front.
         if self.nodes.is_empty() || !(tmin < *tmax) || !origin.is_finite() || !dir.is_finite() {
@@ -257,8 +269,7 @@ impl Holdouts {
             let first = node.first as usize;
             for tri in &self.triangles[first..first + node.count as usize] {
                 if let Some(t) = tri.hit(origin, dir, tmin, *tmax) {
-                    *tmax = t;
-                    if on_hit(t) {
+                    if on_hit(t, tri, tmax) {
                         return true;
                     }
                 }
@@ -329,6 +340,42 @@ impl Holdouts {
                 },
             };
         }
+    }
+}
+
+/// A fog box's surface: its BVH answers the crossings of a ray (every hit, with the
+/// side it is crossed from: the triangles' winding gives the outward normal
+/// (e1 × e2), which the reader made consistent and outward, or the parity rule for a
+/// mesh it could not).
+impl Boundary for Holdouts {
+    fn crossings(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        tmin: f64,
+        out: &mut [Crossing],
+    ) -> (usize, u64) {
+        let (mut n, mut total) = (0, 0u64);
+        let mut tmax = f64::INFINITY;
+        // The parity rule counts every crossing ahead, so only the orientation rule may
+        // cull beyond the batch's farthest kept crossing.
+        let cull = self.rule == InsideRule::Orientation;
+        self.traverse(origin, dir, tmin, &mut tmax, |t, tri, tmax| {
+            total += 1;
+            let entering = dir.dot(tri.e1.cross(tri.e2)) < 0.0;
+            let reach = keep_nearest(out, &mut n, Crossing { t, entering });
+            if cull {
+                // Strictly beyond the farthest kept one: a crossing at the same t is
+                // one of a shared edge's duplicates, which changes no state.
+                *tmax = reach.next_up();
+            }
+            false
+        });
+        (n, total)
+    }
+
+    fn rule(&self) -> InsideRule {
+        self.rule
     }
 }
 

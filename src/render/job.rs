@@ -4,21 +4,25 @@
 use crate::render::analysis::CodePaths;
 use crate::render::camera::CameraRays;
 use crate::render::film::{Film, Region};
+use crate::render::holdouts::Holdouts;
 use crate::render::integrator::{Extras, Integrator, SelectSegments};
 use crate::render::lights::Lights;
 use crate::render::sampler::SamplerKind;
 use crate::scene::schema::tokens;
-use crate::scene::{Field, Scene, Volume};
+use crate::scene::{Field, Scene, Volume, VolumeShape};
 use crate::track::free_path::{FreePathSampler, TransmittanceEstimator};
 use crate::track::race::MAX_MEDIA;
 use crate::track::select::{Dispatch, TrackerKind, TrackerSettings};
 use crate::volume::albedo::AlbedoGrid;
+use crate::volume::boundary::{Boundary, BoxBoundary, InsideRule};
 use crate::volume::emission::{Emission, EmissionGrid};
 use crate::volume::grid::Grid;
 use crate::volume::majorant::MajorantSpec;
 use crate::volume::medium::Medium;
 use crate::volume::vdb;
 use anyhow::{bail, Context};
+use glam::DVec3;
+use std::sync::Arc;
 
 pub struct RenderJob<'a> {
     /// The stage's volumes, one medium each (at least one).
@@ -141,16 +145,112 @@ pub fn media_for_scene_with(scene: &Scene, spec: MajorantSpec) -> anyhow::Result
             scene.volumes.len()
         );
     }
-    scene
+    // World fog is bounded by everything else, so it is built last (in its place).
+    let mut media = scene
         .volumes
         .iter()
-        .map(|volume| medium_for_volume(volume, spec))
-        .collect()
+        .map(|volume| match volume.shape {
+            VolumeShape::World => Ok(None),
+            _ => medium_for_volume(volume, spec).map(Some),
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let extent = scene_extent(scene, media.iter().flatten());
+    for (slot, volume) in media.iter_mut().zip(&scene.volumes) {
+        if slot.is_none() {
+            let boundary = Arc::new(BoxBoundary {
+                lo: extent.0,
+                hi: extent.1,
+            });
+            *slot = Some(fog_medium(volume, boundary, extent)?);
+        }
+    }
+    Ok(media.into_iter().flatten().collect())
 }
 
-/// Loads one volume's grids and builds its medium.
+/// The box world fog fills: around every other medium, holdout, local light and the
+/// camera, padded by 1 % of its diagonal (at least 1 unit), so that what the camera
+/// sees and what lights it stands in fog.
+fn scene_extent<'m>(scene: &Scene, media: impl Iterator<Item = &'m Medium>) -> (DVec3, DVec3) {
+    let mut b = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+    let mut add = |p: DVec3| {
+        if p.is_finite() {
+            b = (b.0.min(p), b.1.max(p));
+        }
+    };
+    add(scene.camera.camera_to_world.transform_point3(DVec3::ZERO));
+    for m in media {
+        if let Some((lo, hi)) = m.world_bounds() {
+            add(lo);
+            add(hi);
+        }
+    }
+    let meshes = scene
+        .holdouts
+        .iter()
+        .chain(scene.volumes.iter().filter_map(|v| match &v.shape {
+            VolumeShape::Mesh(m) => Some(&m.mesh),
+            _ => None,
+        }));
+    for mesh in meshes {
+        for p in &mesh.points {
+            add(DVec3::from_array(*p));
+        }
+    }
+    let origins = scene
+        .sphere_lights
+        .iter()
+        .map(|l| l.light_to_world)
+        .chain(scene.rect_lights.iter().map(|l| l.light_to_world))
+        .chain(scene.disk_lights.iter().map(|l| l.light_to_world))
+        .chain(scene.cylinder_lights.iter().map(|l| l.light_to_world));
+    for m in origins {
+        add(m.transform_point3(DVec3::ZERO));
+    }
+    let pad = DVec3::splat((0.01 * (b.1 - b.0).length()).max(1.0));
+    (b.0 - pad, b.1 + pad)
+}
+
+/// The homogeneous medium of fog (a fog box or world fog) inside `boundary`, whose box
+/// is `bounds`.
+fn fog_medium(
+    volume: &Volume,
+    boundary: Arc<dyn Boundary>,
+    bounds: (DVec3, DVec3),
+) -> anyhow::Result<Medium> {
+    let mut medium = Medium::homogeneous(
+        &volume.prim_path,
+        boundary,
+        bounds,
+        volume.density_scale,
+        volume.absorption,
+        volume.scattering,
+        volume.anisotropy,
+    )?;
+    medium.set_emission(emission_for_volume(volume)?);
+    Ok(medium)
+}
+
+/// Loads one volume's grids and builds its medium (a fog box's: its surface's BVH).
 fn medium_for_volume(volume: &Volume, spec: MajorantSpec) -> anyhow::Result<Medium> {
-    let grid = load_grid(volume, "density", &volume.density)?;
+    let field = match &volume.shape {
+        VolumeShape::Field(field) => field,
+        VolumeShape::Mesh(fog) => {
+            let rule = match fog.closed {
+                true => InsideRule::Orientation,
+                false => InsideRule::Parity,
+            };
+            let surface = Holdouts::build(std::slice::from_ref(&fog.mesh)).with_rule(rule);
+            let Some(bounds) = mesh_bounds(&fog.mesh) else {
+                bail!(
+                    "volume {}: the fog box's surface has no triangle to bound it",
+                    volume.prim_path
+                );
+            };
+            return fog_medium(volume, Arc::new(surface), bounds);
+        }
+        VolumeShape::World => unreachable!("world fog is built after the other media"),
+    };
+    let grid = load_grid(volume, "density", field)?;
     let mut medium = Medium::with_majorants(
         &volume.prim_path,
         grid,
@@ -191,6 +291,18 @@ pub fn albedo_for_volume(volume: &Volume) -> anyhow::Result<Option<AlbedoGrid>> 
         );
     }
     Ok(Some(albedo))
+}
+
+/// The box around a mesh's points, `None` without a triangle.
+fn mesh_bounds(mesh: &crate::scene::HoldoutMesh) -> Option<(DVec3, DVec3)> {
+    let mut b = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+    for t in &mesh.triangles {
+        for &i in t {
+            let p = DVec3::from_array(*mesh.points.get(i as usize)?);
+            b = (b.0.min(p), b.1.max(p));
+        }
+    }
+    (b.0.cmple(b.1).all()).then_some(b)
 }
 
 /// Loads one float grid of a volume's field; `role` names what it is for in errors.

@@ -848,7 +848,7 @@ fn scene_for_vdb(path: &Path, grid: Option<&str>) -> Result<Scene> {
         prim_path: format!("/{}", chosen.name),
         light_group: None,
         volume_to_world: glam::DMat4::IDENTITY,
-        density: field.clone(),
+        shape: crate::scene::VolumeShape::Field(field.clone()),
         // NimbusVolumeAPI's fallbacks (schemas/schema.usda).
         density_scale: 1.0,
         absorption: [0.1; 3],

@@ -374,7 +374,9 @@ fn prefix_depth(prefix: &str, path: &str) -> Option<usize> {
     .then_some(p.len())
 }
 
-/// A UsdVolVolume with Nimbus' volume parameters resolved (schema fallbacks applied).
+/// A medium of the scene with Nimbus' volume parameters resolved (schema fallbacks
+/// applied): a UsdVolVolume with a density field, a fog box (a closed gprim with a
+/// volume material) or world fog ([`VolumeShape`]).
 #[derive(Clone, Debug)]
 pub struct Volume {
     pub prim_path: String,
@@ -382,8 +384,8 @@ pub struct Volume {
     pub light_group: Option<String>,
     /// Volume → world (the prim's local-to-world transform at the scene's time).
     pub volume_to_world: DMat4,
-    /// The field the density is read from (the relationship `field:<density_field>`).
-    pub density: Field,
+    /// What the density is and where the medium is.
+    pub shape: VolumeShape,
     /// `nimbus:densityScale`: extinction per unit density is scaled by this.
     pub density_scale: f64,
     /// σa per unit density, per channel (`nimbus:absorption`).
@@ -404,6 +406,39 @@ pub struct Volume {
     /// When the parameters come from a bound material (no `NimbusVolumeAPI`): the
     /// volume shader read, as "prim path (info:id)".
     pub material_shader: Option<String>,
+}
+
+/// What a volume's density is and where it is.
+#[derive(Clone, Debug, PartialEq)]
+pub enum VolumeShape {
+    /// A UsdVolVolume: the field the density is read from (the relationship
+    /// `field:<density_field>`), where its grid is.
+    Field(Field),
+    /// A fog box: density 1 inside a gprim's surface (world-space triangles, wound so
+    /// that e1 × e2 points outwards when `closed`).
+    Mesh(FogMesh),
+    /// World fog (`nimbus:fill = "world"`): density 1 filling the scene's extent.
+    World,
+}
+
+impl VolumeShape {
+    /// The density field of a UsdVolVolume (`None` for fog).
+    pub fn field(&self) -> Option<&Field> {
+        match self {
+            VolumeShape::Field(f) => Some(f),
+            _ => None,
+        }
+    }
+}
+
+/// The surface of a fog box, as read.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FogMesh {
+    pub mesh: HoldoutMesh,
+    /// Closed and consistently oriented (every edge shared by two triangles that run
+    /// along it in opposite directions): inside is decided by the triangles' outward
+    /// orientation. Otherwise (after a stage warning) by the parity of crossings.
+    pub closed: bool,
 }
 
 /// The emission configuration of a volume, as authored (schema fallbacks applied; the

@@ -12,6 +12,7 @@ mod camera;
 pub mod defaults;
 pub mod description;
 pub mod diagnostics;
+pub mod fog;
 pub mod geometry;
 mod lights;
 mod motion;

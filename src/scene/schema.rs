@@ -64,6 +64,7 @@ pub mod tokens {
     pub const PREVIEW_NAME: &str = "nimbus:previewName";
     pub const LIGHT_GROUP: &str = "nimbus:lightGroup";
     pub const HOLDOUT: &str = "nimbus:holdout";
+    pub const FILL: &str = "nimbus:fill";
 }
 
 /// Why the embedded schema could not be registered. This is a build defect (the

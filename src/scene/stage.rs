@@ -12,6 +12,7 @@ use super::camera;
 use super::defaults;
 use super::description::*;
 use super::diagnostics::Diagnostics;
+use super::fog;
 use super::geometry;
 use super::lights;
 use super::motion;
@@ -142,6 +143,41 @@ struct Inventory {
     unread_lights: Vec<Prim>,
 }
 
+/// A fog medium's parameters, from `NimbusVolumeAPI` or a bound material.
+struct MediumParams {
+    density_scale: f64,
+    absorption: [f64; 3],
+    scattering: [f64; 3],
+    anisotropy: f64,
+    emission: VolumeEmission,
+    material_shader: Option<String>,
+}
+
+impl MediumParams {
+    fn volume(
+        self,
+        prim: &Prim,
+        light_group: Option<String>,
+        volume_to_world: DMat4,
+        shape: VolumeShape,
+    ) -> Volume {
+        Volume {
+            prim_path: prim.path().to_string(),
+            light_group,
+            volume_to_world,
+            shape,
+            density_scale: self.density_scale,
+            absorption: self.absorption,
+            scattering: self.scattering,
+            anisotropy: self.anisotropy,
+            fields: Vec::new(),
+            emission: self.emission,
+            albedo: None,
+            material_shader: self.material_shader,
+        }
+    }
+}
+
 struct Loader<'a> {
     stage: &'a Stage,
     time: Option<TimeCode>,
@@ -172,12 +208,13 @@ impl Loader<'_> {
         for prim in &inventory.unread_lights {
             self.unread_light(prim)?;
         }
-        let holdouts = self.holdouts(&inventory)?;
+        let (holdouts, fog_boxes) = self.gprims(&inventory)?;
         self.unsupported(&inventory, settings_prim.as_ref())?;
-        let volumes = volumes
+        let mut volumes: Vec<Volume> = volumes
             .iter()
             .map(|p| self.volume(p))
             .collect::<Result<_, _>>()?;
+        volumes.extend(fog_boxes);
         Ok(Scene {
             stage_path: path.to_path_buf(),
             // USD's default time code is NaN (`UsdTimeCode::Default()`).
@@ -292,11 +329,17 @@ impl Loader<'_> {
     }
 
     /// The visible gprims of a type Nimbus reads, with the `default` or `render`
-    /// purpose (`proxy` and `guide` are stand-ins a final render leaves out) and
-    /// `nimbus:holdout` not false (the attribute is read whether or not
-    /// `NimbusHoldoutAPI` is applied), as world-space triangles.
-    fn holdouts(&mut self, inventory: &Inventory) -> Result<Vec<HoldoutMesh>, SceneError> {
+    /// purpose (`proxy` and `guide` are stand-ins a final render leaves out), as
+    /// world-space triangles: fog boxes (a gprim with `NimbusVolumeAPI`, or bound to a
+    /// material with a volume output Nimbus reads) and holdouts (the others whose
+    /// `nimbus:holdout` is not false; the attribute is read whether or not
+    /// `NimbusHoldoutAPI` is applied).
+    fn gprims(
+        &mut self,
+        inventory: &Inventory,
+    ) -> Result<(Vec<HoldoutMesh>, Vec<Volume>), SceneError> {
         let mut holdouts = Vec::new();
+        let mut fog_boxes = Vec::new();
         for prim in self.visible(&inventory.gprims)? {
             let prototype = inventory
                 .point_instancers
@@ -316,7 +359,8 @@ impl Loader<'_> {
             if !matches!(purpose, geom::Purpose::Default | geom::Purpose::Render) {
                 continue;
             }
-            if read_bool(&prim, tokens::HOLDOUT, self.time)? == Some(false) {
+            let fog = self.medium_params(&prim)?;
+            if fog.is_none() && read_bool(&prim, tokens::HOLDOUT, self.time)? == Some(false) {
                 continue;
             }
             let Some(prim_type) = geometry::holdout_type(&prim)? else {
@@ -324,11 +368,98 @@ impl Loader<'_> {
                 continue;
             };
             let to_world = self.world_transform(&prim)?;
-            holdouts.push(geometry::read_holdout(
-                &prim, prim_type, &to_world, self.time,
-            )?);
+            let mesh = geometry::read_holdout(&prim, prim_type, &to_world, self.time)?;
+            match fog {
+                None => holdouts.push(mesh),
+                Some(params) => fog_boxes.push(self.fog_box(&prim, mesh, params, &to_world)?),
+            }
         }
-        Ok(holdouts)
+        Ok((holdouts, fog_boxes))
+    }
+
+    /// The medium of a fog box or of world fog (`prim` a gprim, or a Volume with
+    /// `nimbus:fill = "world"`): from `NimbusVolumeAPI`, else from a bound material
+    /// with a volume output Nimbus reads; `None` when the prim has neither (a gprim is
+    /// then a holdout). Fog has no grids: a `nimbus:*Field` naming one is an error.
+    fn medium_params(&self, prim: &Prim) -> Result<Option<MediumParams>, SceneError> {
+        let t = self.time;
+        let nimbus_api = prim
+            .has_api_schema(schema::VOLUME_API)
+            .map_err(|e| prim_error(prim.path(), e))?;
+        if nimbus_api {
+            for attr in [
+                tokens::TEMPERATURE_FIELD,
+                tokens::EMISSION_FIELD,
+                tokens::ALBEDO_FIELD,
+            ] {
+                if let Some(name) = read_string(prim, attr, t)?.filter(|n| !n.is_empty()) {
+                    return Err(prim_error(
+                        prim.path(),
+                        format!(
+                            "{attr} = \"{name}\": fog (a gprim with {}, or nimbus:fill = \"world\") has no fields; its density is 1 and its emission, with nimbus:emissionKind \"source\", the constant emissionColor × emissionScale",
+                            schema::VOLUME_API
+                        ),
+                    ));
+                }
+            }
+            return Ok(Some(MediumParams {
+                density_scale: read_f64(prim, tokens::DENSITY_SCALE, t)?.unwrap_or(1.0),
+                absorption: read_vec3(prim, tokens::ABSORPTION, t)?.unwrap_or([0.1; 3]),
+                scattering: read_vec3(prim, tokens::SCATTERING, t)?.unwrap_or([0.9; 3]),
+                anisotropy: read_f64(prim, tokens::ANISOTROPY, t)?.unwrap_or(0.0),
+                emission: self.emission(prim, &[])?,
+                material_shader: None,
+            }));
+        }
+        let Some(m) = shading::bound_volume_material(self.stage, prim, t)? else {
+            return Ok(None);
+        };
+        if m.density_field != DEFAULT_DENSITY_FIELD {
+            self.warnings.borrow_mut().warn(
+                "fog density primvar",
+                prim.path().to_string(),
+                Some("material:binding"),
+                format!(
+                    "{} names the density primvar `{}`; fog has none: its density is 1 (times the shader's density scale)",
+                    m.shader, m.density_field
+                ),
+            );
+        }
+        Ok(Some(MediumParams {
+            density_scale: m.density_scale,
+            absorption: m.absorption,
+            scattering: m.scattering,
+            anisotropy: m.anisotropy,
+            emission: VolumeEmission::default(),
+            material_shader: Some(format!("{} ({})", m.shader, m.shader_id)),
+        }))
+    }
+
+    /// A fog box: `mesh` (the gprim's triangles) checked for a closed, consistently
+    /// oriented surface, and wound outwards.
+    fn fog_box(
+        &self,
+        prim: &Prim,
+        mesh: HoldoutMesh,
+        p: MediumParams,
+        to_world: &DMat4,
+    ) -> Result<Volume, SceneError> {
+        let left_handed =
+            read_string(prim, "orientation", self.time)?.as_deref() == Some("leftHanded");
+        let mirrored =
+            (mesh.prim_type == "Mesh").then_some(left_handed != (to_world.determinant() < 0.0));
+        let (fog, problem) = fog::fog_mesh(mesh, mirrored);
+        if let Some(problem) = problem {
+            self.warnings
+                .borrow_mut()
+                .warn("fog surface", prim.path().to_string(), None, problem);
+        }
+        Ok(p.volume(
+            prim,
+            self.light_group(prim)?,
+            DMat4::IDENTITY,
+            VolumeShape::Mesh(fog),
+        ))
     }
 
     /// Drops prims whose computed visibility (inherited down namespace) is
@@ -443,6 +574,19 @@ impl Loader<'_> {
 
     fn volume(&mut self, prim: &Prim) -> Result<Volume, SceneError> {
         let t = self.time;
+        match read_string(prim, tokens::FILL, t)?.as_deref() {
+            None | Some("field") => {}
+            Some("world") => return self.world_fog(prim),
+            Some(other) => {
+                return Err(prim_error(
+                    prim.path(),
+                    format!(
+                        "{} = \"{other}\" is not one of \"field\", \"world\"",
+                        tokens::FILL
+                    ),
+                ))
+            }
+        }
         let (fields, relationship_count) = self.fields(prim)?;
         if relationship_count == 0 {
             return Err(prim_error(
@@ -470,7 +614,7 @@ impl Loader<'_> {
                 prim_path: prim.path().to_string(),
                 light_group: self.light_group(prim)?,
                 volume_to_world: self.world_transform(prim)?,
-                density,
+                shape: VolumeShape::Field(density),
                 density_scale: m.density_scale,
                 absorption: m.absorption,
                 scattering: m.scattering,
@@ -490,7 +634,7 @@ impl Loader<'_> {
             prim_path: prim.path().to_string(),
             light_group: self.light_group(prim)?,
             volume_to_world: self.world_transform(prim)?,
-            density,
+            shape: VolumeShape::Field(density),
             density_scale: read_f64(prim, tokens::DENSITY_SCALE, t)?.unwrap_or(1.0),
             absorption: read_vec3(prim, tokens::ABSORPTION, t)?.unwrap_or([0.1; 3]),
             scattering: read_vec3(prim, tokens::SCATTERING, t)?.unwrap_or([0.9; 3]),
@@ -500,6 +644,35 @@ impl Loader<'_> {
             albedo,
             material_shader: None,
         })
+    }
+
+    /// World fog: a Volume with `nimbus:fill = "world"` (its fields are not read).
+    fn world_fog(&mut self, prim: &Prim) -> Result<Volume, SceneError> {
+        let Some(p) = self.medium_params(prim)? else {
+            return Err(prim_error(
+                prim.path(),
+                format!(
+                    "{} = \"world\" needs the medium's parameters: apply {} or bind a volume material",
+                    tokens::FILL,
+                    schema::VOLUME_API
+                ),
+            ));
+        };
+        let (_, relationship_count) = self.fields(prim)?;
+        if relationship_count > 0 {
+            self.warnings.borrow_mut().warn(
+                "world fog fields",
+                prim.path().to_string(),
+                Some(tokens::FILL),
+                "world fog has density 1 everywhere: its field:* relationships are not read",
+            );
+        }
+        Ok(p.volume(
+            prim,
+            self.light_group(prim)?,
+            DMat4::IDENTITY,
+            VolumeShape::World,
+        ))
     }
 
     /// The density field: the relationship `field:<name>`, which must exist and

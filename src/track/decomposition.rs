@@ -185,7 +185,7 @@ pub(super) fn walk_processes<R: Rng, C: Tally, K>(
     cell: impl Fn(&Segment) -> Cell<K>,
     mut decide: impl FnMut(&Cell<K>, bool, f32, &mut R, &mut C) -> Option<FreePath>,
 ) -> FreePath {
-    let mut walk = q.medium.majorants.walk(q.ray.o, q.ray.d, q.tmin, q.tmax);
+    let mut walk = q.medium.walk(q.ray, q.tmin, q.tmax);
     let (mut tau_c, mut tau_r) = (OpticalDepth::sample(rng), OpticalDepth::sample(rng));
     while let Some(seg) = c.next_segment(&mut walk) {
         let k = cell(&seg);

@@ -95,7 +95,7 @@ pub fn walk_collisions<R: Rng, C: Tally, T>(
     c: &mut C,
     mut at: impl FnMut(f32, f32, &mut R, &mut C) -> ControlFlow<T>,
 ) -> Option<T> {
-    let mut walk = q.medium.majorants.walk(q.ray.o, q.ray.d, q.tmin, q.tmax);
+    let mut walk = q.medium.walk(q.ray, q.tmin, q.tmax);
     let mut tau = OpticalDepth::sample(rng);
     while let Some(seg) = c.next_segment(&mut walk) {
         let mu_bar = majorant(q, &seg);

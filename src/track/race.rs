@@ -18,8 +18,9 @@
 //! The lanes live on the stack (at most [`MAX_MEDIA`]): the hot path allocates nothing.
 
 use crate::track::free_path::{majorant, OpticalDepth, Query};
+use crate::volume::boundary::MediumWalk;
 use crate::volume::counters::Tally;
-use crate::volume::majorant::{Segment, TreeWalk};
+use crate::volume::majorant::Segment;
 use rand::Rng;
 use std::ops::ControlFlow;
 
@@ -29,7 +30,7 @@ pub const MAX_MEDIA: usize = 64;
 /// One medium's process (or pair of processes, for decomposition tracking's control
 /// and residual) along the ray.
 struct Lane<'a> {
-    walk: TreeWalk<'a>,
+    walk: MediumWalk<'a>,
     seg: Segment,
     rate: [f32; 2],
     /// Optical depth left to each process' next collision, at the start of `seg`.
@@ -69,7 +70,7 @@ pub fn race<R: Rng, C: Tally, T>(
     let mut lanes: [Option<Lane>; MAX_MEDIA] = [const { None }; MAX_MEDIA];
     for (lane, q) in lanes.iter_mut().zip(&qs[..k]) {
         *lane = Some(Lane {
-            walk: q.medium.majorants.walk(q.ray.o, q.ray.d, q.tmin, q.tmax),
+            walk: q.medium.walk(q.ray, q.tmin, q.tmax),
             seg: Segment {
                 t0: q.tmin,
                 t1: q.tmin,

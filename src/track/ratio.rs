@@ -159,7 +159,7 @@ pub(super) fn residual_ratio<T: Estimate, R: Rng, C: Tally>(
 ) -> T {
     let sg = q.sigma;
     let mut tr = T::ONE;
-    let mut walk = q.medium.majorants.walk(q.ray.o, q.ray.d, q.tmin, q.tmax);
+    let mut walk = q.medium.walk(q.ray, q.tmin, q.tmax);
     let mut tau = OpticalDepth::sample(rng);
     while let Some(seg) = c.next_segment(&mut walk) {
         if seg.dmin > 0.0 {

@@ -5,7 +5,8 @@
 //! grids and every tracker report here.
 
 use crate::color::Spectrum;
-use crate::volume::majorant::{Segment, TreeWalk};
+use crate::volume::boundary::MediumWalk;
+use crate::volume::majorant::Segment;
 use crate::volume::ticks::{self, Calibration, TrackerTimes};
 
 /// Counters the trackers keep per sample: plain integers on the worker's stack,
@@ -94,7 +95,7 @@ pub trait Tally {
     fn observe_throughput(&mut self, w: Spectrum);
     /// The next segment of a majorant walk, counted as a visited cell (and timed as
     /// traversal when timing).
-    fn next_segment(&mut self, walk: &mut TreeWalk) -> Option<Segment>;
+    fn next_segment(&mut self, walk: &mut MediumWalk) -> Option<Segment>;
     /// Starts timing a tracker query (0 when not timing).
     fn tracker_start(&self) -> u64;
     /// Ends the tracker query started at `t0`.
@@ -158,7 +159,7 @@ impl Tally for Counters {
     }
 
     #[inline(always)]
-    fn next_segment(&mut self, walk: &mut TreeWalk) -> Option<Segment> {
+    fn next_segment(&mut self, walk: &mut MediumWalk) -> Option<Segment> {
         let seg = if self.timing {
             let t0 = ticks::now();
             let seg = walk.next();
@@ -218,7 +219,7 @@ impl Tally for NoCounts {
     #[inline(always)]
     fn observe_throughput(&mut self, _w: Spectrum) {}
     #[inline(always)]
-    fn next_segment(&mut self, walk: &mut TreeWalk) -> Option<Segment> {
+    fn next_segment(&mut self, walk: &mut MediumWalk) -> Option<Segment> {
         walk.next()
     }
     #[inline(always)]

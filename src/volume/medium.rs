@@ -13,12 +13,14 @@
 
 use crate::color::Spectrum;
 use crate::volume::albedo::AlbedoGrid;
+use crate::volume::boundary::{Boundary, Inside, MediumWalk};
 use crate::volume::counters::Tally;
 use crate::volume::emission::Emission;
-use crate::volume::grid::{world_to_index, Grid, MediumError};
+use crate::volume::grid::{world_to_index, Grid, MediumError, RawGrid, RawLeaf};
 use crate::volume::majorant::{MajorantSpec, MajorantTree, PruneCost};
 use crate::volume::ticks;
 use glam::{DMat4, DVec3, Vec3};
+use std::sync::Arc;
 
 /// A ray mapped into a medium's index space.
 #[derive(Clone, Copy, Debug)]
@@ -107,6 +109,11 @@ pub struct Medium {
     /// Albedo multiplier c(x) (`nimbus:albedoField`), looked up at scatter events;
     /// `None` = constant albedo σs/σt. Set with [`Medium::set_albedo`].
     pub albedo: Option<AlbedoGrid>,
+    /// Where the medium is, when not wherever its grid is: the inside of a closed
+    /// surface (a fog box) or of the scene's box (world fog). Walks are clipped to it.
+    pub boundary: Option<Arc<dyn Boundary>>,
+    /// Index → world, for mapping index rays back to the boundary's world space.
+    index_to_world: DMat4,
     /// Whether trackers prefetch the next tentative collision's stencil
     /// ([`Grid::prefetch`]): only for grids whose bricks outgrow the caches
     /// ([`PREFETCH_BYTES`]), where a lookup waits on memory; below that the hint costs
@@ -212,9 +219,70 @@ impl Medium {
             majorants,
             emission: None,
             albedo: None,
+            boundary: None,
+            index_to_world: world_to_index.inverse(),
             prefetch: density.memory_bytes() > PREFETCH_BYTES,
             density,
         })
+    }
+
+    /// A homogeneous medium of density 1 inside `boundary` (a fog box, world fog),
+    /// whose box is `[lo, hi]` (world space): the coefficients are per world unit, times
+    /// `density_scale`. The constant density is stored as one brick of ones over the
+    /// box, so the majorants, trackers, counters and AOVs treat it as they treat any
+    /// grid (one cell, one lookup per collision; every tentative collision is real);
+    /// walks are clipped to the inside of the boundary.
+    #[allow(clippy::too_many_arguments)]
+    pub fn homogeneous(
+        prim_path: &str,
+        boundary: Arc<dyn Boundary>,
+        (lo, hi): (DVec3, DVec3),
+        density_scale: f64,
+        absorption: [f64; 3],
+        scattering: [f64; 3],
+        anisotropy: f64,
+    ) -> Result<Medium, MediumError> {
+        let invalid = |message: String| MediumError::Invalid {
+            prim: prim_path.to_string(),
+            message,
+        };
+        let size = hi - lo;
+        if !(lo.is_finite() && hi.is_finite() && size.min_element() >= 0.0) {
+            return Err(invalid(format!(
+                "its bounds ({lo} .. {hi}) are not a finite box"
+            )));
+        }
+        // Padded, so a lookup rounding just outside the box still reads only ones; a
+        // flat box (a plane) gets some thickness, as a zero scale would make the
+        // transform singular. The walk is clipped to the boundary anyway.
+        let pad = DVec3::splat(1e-4 * size.max_element().max(1e-6));
+        let grid = constant_grid(prim_path, lo - pad, size + 2.0 * pad)
+            .map_err(|e| invalid(format!("constant density: {e}")))?;
+        let mut medium = Medium::with_majorants(
+            prim_path,
+            grid,
+            DMat4::IDENTITY,
+            density_scale,
+            absorption,
+            scattering,
+            anisotropy,
+            MajorantSpec::Uniform { cell_voxels: 0 },
+        )?;
+        medium.boundary = Some(boundary);
+        Ok(medium)
+    }
+
+    /// The walk of the ray `ray`, `t` in `[tmin, tmax)`, over the majorant segments,
+    /// clipped to the boundary's inside when the medium has one.
+    #[inline(always)]
+    pub fn walk(&self, ray: &IndexRay, tmin: f32, tmax: f32) -> MediumWalk<'_> {
+        let cells = self.majorants.walk(ray.o, ray.d, tmin, tmax);
+        let inside = self.boundary.as_deref().map(|b| {
+            let origin = self.index_to_world.transform_point3(ray.o.as_dvec3());
+            let dir = self.index_to_world.transform_vector3(ray.d.as_dvec3());
+            Inside::new(b, origin, dir, tmin, tmax)
+        });
+        MediumWalk::new(cells, inside)
     }
 
     /// The optical depth of one voxel at unit density, κ = σt_max × voxel length (the
@@ -339,6 +407,34 @@ impl Medium {
     pub fn density<C: Tally>(&self, p: Vec3, counters: &mut C) -> f32 {
         lookup(counters, || self.density.sample_trilinear(p.to_array()))
     }
+}
+
+/// Voxels per edge of the constant grid: index [0, 7] spans the box, and the trilinear
+/// stencil of any point in it reads only stored ones.
+const CONSTANT_EDGE: i32 = 8;
+
+/// One brick of ones whose voxel centres 0 and 7 lie on the faces of the box at `lo`
+/// of size `edge`.
+fn constant_grid(
+    name: &str,
+    lo: DVec3,
+    edge: DVec3,
+) -> Result<Grid, crate::volume::grid::GridError> {
+    let n = CONSTANT_EDGE;
+    let voxel = edge / (n - 1) as f64;
+    let index_to_world = DMat4::from_translation(lo) * DMat4::from_scale(voxel);
+    Grid::from_raw(&RawGrid {
+        name: name.to_string(),
+        class: "fog volume".to_string(),
+        background: 0.0,
+        leaves: vec![RawLeaf {
+            origin: [0; 3],
+            values: vec![1.0; (n * n * n) as usize],
+            active: [u64::MAX; 8],
+        }],
+        tiles: Vec::new(),
+        index_to_world,
+    })
 }
 
 /// Runs the density lookup `read`, counted (and timed when the counters time).

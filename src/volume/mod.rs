@@ -3,6 +3,7 @@
 
 pub mod albedo;
 pub mod asset;
+pub mod boundary;
 pub mod counters;
 pub mod emission;
 pub mod grid;

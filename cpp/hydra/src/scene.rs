@@ -18,7 +18,7 @@ use glam::{DMat4, DVec3};
 use nimbus::scene::{
     Camera, Collection, CylinderLight, DiskLight, DistantLight, DomeLight, Field, HoldoutMesh,
     LightControls, Projection, RectLight, RenderSettings, Scene, Shaping, SphereLight, Volume,
-    VolumeEmission,
+    VolumeEmission, VolumeShape,
 };
 use nimbus::volume::asset::AssetLocation;
 use nimbus::volume::emission::EmissionKind;
@@ -438,7 +438,7 @@ fn volume(v: &VolumeDesc, warnings: &mut Vec<String>) -> Result<Volume> {
             prim_path: v.path.clone(),
             light_group: None,
             volume_to_world,
-            density: named(&density_name)?,
+            shape: VolumeShape::Field(named(&density_name)?),
             density_scale: m.density_scale,
             absorption: m.absorption,
             scattering: m.scattering,
@@ -483,7 +483,7 @@ fn volume(v: &VolumeDesc, warnings: &mut Vec<String>) -> Result<Volume> {
         prim_path: v.path.clone(),
         light_group: text(pv, "nimbus:lightGroup").map(str::to_string),
         volume_to_world,
-        density,
+        shape: VolumeShape::Field(density),
         density_scale: scalar(path, pv, "nimbus:densityScale")?.unwrap_or(1.0),
         absorption: color3(path, pv, "nimbus:absorption")?.unwrap_or([0.1; 3]),
         scattering: color3(path, pv, "nimbus:scattering")?.unwrap_or([0.9; 3]),

@@ -186,7 +186,7 @@ fn desc_of(scene: &Scene) -> SceneDesc {
         let density = v
             .fields
             .iter()
-            .find(|(_, f)| *f == v.density)
+            .find(|(_, f)| Some(f) == v.shape.field())
             .map(|(n, _)| n.clone())
             .expect("the density among the fields");
         primvars.push(token("nimbus:densityField", &density));
