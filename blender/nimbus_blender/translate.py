@@ -6,6 +6,9 @@ leaves out or writes differently from what Cycles renders (docs/blender.md):
   Scatter, Volume Absorption, Emission and Add Shader mapped to NimbusVolumeAPI as
   Cycles' svm_node_principled_volume and volume closures mean them; any other node
   is a warning naming the material and the node;
+- fog meshes: a mesh whose material has a Volume output gets NimbusVolumeAPI with the
+  same mapping, without grids (Cycles fills a mesh's inside with Density x 1);
+- world fog: the World Output's Volume as a `Volume` prim with `nimbus:fill = "world"`;
 - lights: `enableColorTemperature = 0` unless Temperature is on (the exporter always
   writes 1, and pxr's 6500 K is not white), a sun's intensity = its strength (the
   exporter writes strength / 4) and angle = its full angle, light groups;
@@ -35,6 +38,8 @@ INSTANCES = f"{ROOT}/nimbus_volumes"
 # Curves, texts and surfaces as holdout meshes (the exporter writes them as curves
 # or not at all) are defined under this prim.
 HOLDOUTS = f"{ROOT}/nimbus_holdouts"
+# The world's volume shader (World Output > Volume) as a fog filling the world.
+WORLD_VOLUME = f"{ROOT}/nimbus_world_volume"
 # Grids made in memory are written here, in the translation's folder.
 GENERATED_VDBS = "volumes_nimbus"
 
@@ -101,8 +106,39 @@ def _linked(sock):
     return sock.links[0].from_node if sock.is_linked and sock.links else None
 
 
+def _active_output(tree, idname):
+    """The output node of type `idname` Cycles uses: the active one of those for All or
+    Cycles, else the first."""
+    out = None
+    for n in tree.nodes:
+        if n.bl_idname == idname and n.target in ("ALL", "CYCLES"):
+            if out is None or n.is_active_output:
+                out = n
+    return out
+
+
+def material_outputs(material):
+    """(surface node, volume node) linked to the material's active Material Output,
+    each None when unlinked."""
+    if material is None or not material.node_tree:
+        return None, None
+    out = _active_output(material.node_tree, "ShaderNodeOutputMaterial")
+    if out is None:
+        return None, None
+    return _linked(out.inputs["Surface"]), _linked(out.inputs["Volume"])
+
+
+def world_volume_node(world):
+    """The node linked to the Volume input of the world's active World Output, or None."""
+    if world is None or not world.node_tree:
+        return None
+    out = _active_output(world.node_tree, "ShaderNodeOutputWorld")
+    return _linked(out.inputs["Volume"]) if out is not None else None
+
+
 class _Medium:
-    """Coefficients per unit of the density grid, summed over closures."""
+    """Coefficients per unit of the density grid (per world unit for a fog), summed
+    over closures."""
 
     def __init__(self):
         self.sigma_s = [0.0, 0.0, 0.0]
@@ -120,14 +156,23 @@ class _Medium:
             self.anisotropy.append((w, g))
 
 
-def _density(node, sock_name, material, warnings, medium, default_attribute):
+# What a fog (no grids) is called in warnings, by its kind.
+_FOG_NAMES = {"mesh": "a fog mesh", "world": "the world volume"}
+
+
+def _density(node, sock_name, owner, warnings, default_attribute, fog=None):
     """A closure's Density input: a number (the grid `default_attribute` times it for
     Principled Volume; Cycles fills the whole volume for the others), or an Attribute
-    node (optionally times a number by a Math node)."""
+    node (optionally times a number by a Math node). Returns (number, attribute).
+
+    `fog` ("mesh" or "world"; None for a Volume object): there are no grids, and
+    Cycles reads an attribute the mesh or world does not have as 0 (svm_node_attr_init):
+    an Attribute node is a warning and the input is 0 (the closure is left out)."""
     sock = node.inputs[sock_name]
     src = _linked(sock)
     if src is None:
-        return float(sock.default_value), default_attribute
+        # Cycles clamps a negative density (and strength) at 0.
+        return max(float(sock.default_value), 0.0), default_attribute
     scale = 1.0
     if src.bl_idname == "ShaderNodeMath" and src.operation == "MULTIPLY":
         a, b = src.inputs[0], src.inputs[1]
@@ -137,27 +182,35 @@ def _density(node, sock_name, material, warnings, medium, default_attribute):
         elif nb is not None and na is None:
             src, scale = nb, float(a.default_value)
     if src.bl_idname == "ShaderNodeAttribute" and src.attribute_name:
+        if fog is not None:
+            warnings.append(
+                f"{owner}: node '{src.name}' (Attribute '{src.attribute_name}') drives "
+                f"'{node.name}'.{sock_name}: {_FOG_NAMES[fog]} has no grids (Cycles reads "
+                "an attribute it lacks as 0); left out")
+            return 0.0, None
         return scale, src.attribute_name
     warnings.append(
-        f"material '{material.name}': node '{src.name}' ({src.bl_idname}) drives "
+        f"{owner}: node '{src.name}' ({src.bl_idname}) drives "
         f"'{node.name}'.{sock_name}: not translated; Nimbus uses {sock.default_value!r}")
     return float(sock.default_value), default_attribute
 
 
-def _closure(node, material, medium, warnings, weight=1.0):
-    """Adds the volume closure `node` (Cycles' meaning) to `medium`."""
+def _closure(node, owner, medium, warnings, weight=1.0, fog=None):
+    """Adds the volume closure `node` (Cycles' meaning) to `medium`. `owner` names the
+    node tree in warnings ("material 'M'", "world 'W'"); `fog` as in _density."""
     kind = node.bl_idname
     if kind == "ShaderNodeAddShader":
         for sock in node.inputs:
             n = _linked(sock)
             if n is not None:
-                _closure(n, material, medium, warnings, weight)
+                _closure(n, owner, medium, warnings, weight, fog)
         return
     if kind == "ShaderNodeVolumePrincipled":
         # svm_node_principled_volume: sigma_s = C D d(x),
-        # sigma_a = max(1 - C, 0) max(1 - sqrt(A), 0) D d(x).
-        attr = node.inputs["Density Attribute"].default_value or "density"
-        d, attr = _density(node, "Density", material, warnings, medium, attr)
+        # sigma_a = max(1 - C, 0) max(1 - sqrt(A), 0) D d(x); without the attribute
+        # (a mesh, the world) d = 1.
+        attr = None if fog else (node.inputs["Density Attribute"].default_value or "density")
+        d, attr = _density(node, "Density", owner, warnings, attr, fog)
         c = [max(x, 0.0) for x in _socket_value(node.inputs["Color"])]
         a = [max(x, 0.0) for x in _socket_value(node.inputs["Absorption Color"])]
         g = float(node.inputs["Anisotropy"].default_value)
@@ -165,25 +218,31 @@ def _closure(node, material, medium, warnings, weight=1.0):
         ab = [weight * d * max(1.0 - x, 0.0) * max(1.0 - math.sqrt(y), 0.0) for x, y in zip(c, a)]
         medium.add(s, ab, g)
         medium.density_attribute = medium.density_attribute or attr
-        if node.inputs["Color Attribute"].default_value:
+        if node.inputs["Color Attribute"].default_value and not fog:
             warnings.append(
-                f"material '{material.name}': '{node.name}'.Color Attribute "
+                f"{owner}: '{node.name}'.Color Attribute "
                 f"'{node.inputs['Color Attribute'].default_value}' is not translated; "
                 "Nimbus uses Color")
         for linked in ("Color", "Absorption Color", "Anisotropy"):
             n = _linked(node.inputs[linked])
             if n is not None:
                 warnings.append(
-                    f"material '{material.name}': node '{n.name}' drives '{node.name}'."
+                    f"{owner}: node '{n.name}' drives '{node.name}'."
                     f"{linked}: not translated; Nimbus uses the socket's value")
         # Emission Strength is a plain input (not times the density): a number is a
         # constant source, an Attribute node (optionally times a number) its grid.
-        strength, field = _density(node, "Emission Strength", material, warnings, medium, None)
+        strength, field = _density(node, "Emission Strength", owner, warnings, None, fog)
         if strength > 0:
             medium.emission = (_socket_value(node.inputs["Emission Color"]),
                                weight * strength, field)
         bb = float(node.inputs["Blackbody Intensity"].default_value)
-        if bb > 0:
+        if bb > 0 and fog:
+            temperature = float(node.inputs["Temperature"].default_value)
+            warnings.append(
+                f"{owner}: '{node.name}'.Blackbody Intensity {bb:g}: Cycles renders the "
+                f"blackbody of Temperature {temperature:g} K in {_FOG_NAMES[fog]}; Nimbus' "
+                "blackbody needs a temperature grid; left out")
+        elif bb > 0:
             tint = [1.0, 1.0, 1.0]
             if "Blackbody Tint" in node.inputs:
                 tint = list(_socket_value(node.inputs["Blackbody Tint"]))[:3]
@@ -198,16 +257,16 @@ def _closure(node, material, medium, warnings, weight=1.0):
         phase = getattr(node, "phase", "HENYEY_GREENSTEIN")
         if phase != "HENYEY_GREENSTEIN":
             warnings.append(
-                f"material '{material.name}': node '{node.name}' uses the {phase} phase "
+                f"{owner}: node '{node.name}' uses the {phase} phase "
                 "function; Nimbus renders Henyey-Greenstein with its Anisotropy")
-        d, attr = _density(node, "Density", material, warnings, medium, None)
+        d, attr = _density(node, "Density", owner, warnings, None, fog)
         c = [max(x, 0.0) for x in _socket_value(node.inputs["Color"])]
         medium.add([weight * d * x for x in c], [0.0, 0.0, 0.0],
                    float(node.inputs["Anisotropy"].default_value))
         medium.density_attribute = medium.density_attribute or attr
         return
     if kind == "ShaderNodeVolumeAbsorption":
-        d, attr = _density(node, "Density", material, warnings, medium, None)
+        d, attr = _density(node, "Density", owner, warnings, None, fog)
         c = [max(x, 0.0) for x in _socket_value(node.inputs["Color"])]
         medium.add([0.0, 0.0, 0.0], [weight * d * max(1.0 - x, 0.0) for x in c])
         medium.density_attribute = medium.density_attribute or attr
@@ -217,9 +276,66 @@ def _closure(node, material, medium, warnings, weight=1.0):
                            weight * float(node.inputs["Strength"].default_value), None)
         return
     warnings.append(
-        f"material '{material.name}': node '{node.name}' ({kind}) is not a volume shader "
+        f"{owner}: node '{node.name}' ({kind}) is not a volume shader "
         "Nimbus translates (Principled Volume, Volume Scatter, Volume Absorption, Emission, "
         "Add Shader); left out")
+
+
+def _medium_attrs(medium, who, warnings, density_field=None):
+    """The NimbusVolumeAPI attributes of `medium` and its single-scattering albedo.
+    `who` names the object or world in warnings; `density_field` the density grid
+    (None for a fog: density 1, coefficients per world unit)."""
+    # Nimbus' coefficients are per unit of density x densityScale: factor out the
+    # largest so the colours stay in a readable range.
+    scale = max(max(medium.sigma_s), max(medium.sigma_a), 1e-30)
+    g = 0.0
+    if medium.anisotropy:
+        w = sum(x for x, _ in medium.anisotropy)
+        g = sum(x * y for x, y in medium.anisotropy) / w
+    attrs = {}
+    if density_field is not None:
+        attrs["token nimbus:densityField"] = f'"{density_field}"'
+    attrs.update({
+        "float nimbus:densityScale": _f(scale),
+        "color3f nimbus:scattering": _c([x / scale for x in medium.sigma_s]),
+        "color3f nimbus:absorption": _c([x / scale for x in medium.sigma_a]),
+        "float nimbus:anisotropy": _f(g),
+    })
+    # Cycles (svm_node_principled_volume, the Emission closure) emits Strength x Color
+    # (and the blackbody) per unit length wherever the shader runs, whatever the
+    # density: Nimbus' emissionKind "source" means exactly that (docs/usd.md), S/mu_a
+    # collected at absorption events. Without an emission field the source is constant.
+    if medium.emission is not None or medium.blackbody is not None:
+        attrs["uniform token nimbus:emissionKind"] = '"source"'
+        color, strength, field = medium.emission or ((0.0, 0.0, 0.0), 0.0, None)
+        source = [strength * max(c, 0.0) for c in list(color)[:3]]
+        if any(c > 0 and a <= 0 for c, a in zip(source, medium.sigma_a)):
+            warnings.append(
+                f"{who}: emission in a channel without absorption: Nimbus "
+                "collects emission where the medium absorbs (docs/usd.md, Emission), so "
+                "that channel emits nothing")
+        k = max(source)
+        if field is not None:
+            attrs["token nimbus:emissionField"] = f'"{field}"'
+        attrs["color3f nimbus:emissionColor"] = _c(
+            [c / k for c in source] if k > 0 else [1.0, 1.0, 1.0])
+        # 0 turns the constant field off (blackbody only).
+        attrs["float nimbus:emissionScale"] = _f(k)
+    if medium.blackbody is not None:
+        intensity, temperature, attribute, tint = medium.blackbody
+        if max(tint) != min(tint):
+            warnings.append(
+                f"{who}: Blackbody Tint {tuple(tint)} is not grey: Nimbus' "
+                "blackbody has no tint; it uses the mean")
+        intensity *= sum(tint) / 3.0
+        # Cycles: sigma_SB 1e-6 / pi T^4; Nimbus: intensity (T / 1000 K)^4.
+        cycles_1000k = 5.670373e-8 * 1e-6 / math.pi * 1e12
+        attrs["token nimbus:temperatureField"] = f'"{attribute}"'
+        attrs["float nimbus:temperatureScale"] = _f(temperature)
+        attrs["float nimbus:blackbodyIntensity"] = _f(intensity * cycles_1000k)
+    st = [a + b for a, b in zip(medium.sigma_s, medium.sigma_a)]
+    albedo = tuple(s / t if t > 0 else 0.0 for s, t in zip(medium.sigma_s, st))
+    return attrs, albedo
 
 
 def volume_medium(obj, warnings):
@@ -235,72 +351,57 @@ def volume_medium(obj, warnings):
         medium.add([0.5] * 3, [0.5 * (1.0 - 0.0)] * 3, 0.0)
         medium.density_attribute = "density"
     else:
-        out = None
-        for n in material.node_tree.nodes:
-            if n.bl_idname == "ShaderNodeOutputMaterial" and n.target in ("ALL", "CYCLES"):
-                if out is None or n.is_active_output:
-                    out = n
-        src = _linked(out.inputs["Volume"]) if out is not None else None
+        src = material_outputs(material)[1]
         if src is None:
             raise TranslationError(
                 f"object '{obj.name}': material '{material.name}' has no volume shader "
                 "connected to its Material Output's Volume input")
-        _closure(src, material, medium, warnings)
+        _closure(src, f"material '{material.name}'", medium, warnings)
     if medium.density_attribute is None:
         warnings.append(
             f"object '{obj.name}': the density of material "
             f"'{material.name if material else ''}' is a constant (Cycles fills the volume's "
             "active voxels with it); Nimbus uses the grid 'density' times it")
         medium.density_attribute = "density"
-    # Nimbus' coefficients are per unit of density x densityScale: factor out the
-    # largest so the colours stay in a readable range.
-    scale = max(max(medium.sigma_s), max(medium.sigma_a), 1e-30)
-    g = 0.0
-    if medium.anisotropy:
-        w = sum(x for x, _ in medium.anisotropy)
-        g = sum(x * y for x, y in medium.anisotropy) / w
-    attrs = {
-        "token nimbus:densityField": f'"{medium.density_attribute}"',
-        "float nimbus:densityScale": _f(scale),
-        "color3f nimbus:scattering": _c([x / scale for x in medium.sigma_s]),
-        "color3f nimbus:absorption": _c([x / scale for x in medium.sigma_a]),
-        "float nimbus:anisotropy": _f(g),
-    }
-    # Cycles (svm_node_principled_volume, the Emission closure) emits Strength x Color
-    # (and the blackbody) per unit length wherever the shader runs, whatever the
-    # density: Nimbus' emissionKind "source" means exactly that (docs/usd.md), S/mu_a
-    # collected at absorption events. Without an emission field the source is constant.
-    if medium.emission is not None or medium.blackbody is not None:
-        attrs["uniform token nimbus:emissionKind"] = '"source"'
-        color, strength, field = medium.emission or ((0.0, 0.0, 0.0), 0.0, None)
-        source = [strength * max(c, 0.0) for c in list(color)[:3]]
-        if any(c > 0 and a <= 0 for c, a in zip(source, medium.sigma_a)):
-            warnings.append(
-                f"object '{obj.name}': emission in a channel without absorption: Nimbus "
-                "collects emission where the medium absorbs (docs/usd.md, Emission), so "
-                "that channel emits nothing")
-        k = max(source)
-        if field is not None:
-            attrs["token nimbus:emissionField"] = f'"{field}"'
-        attrs["color3f nimbus:emissionColor"] = _c(
-            [c / k for c in source] if k > 0 else [1.0, 1.0, 1.0])
-        # 0 turns the constant field off (blackbody only).
-        attrs["float nimbus:emissionScale"] = _f(k)
-    if medium.blackbody is not None:
-        intensity, temperature, attribute, tint = medium.blackbody
-        if max(tint) != min(tint):
-            warnings.append(
-                f"object '{obj.name}': Blackbody Tint {tuple(tint)} is not grey: Nimbus' "
-                "blackbody has no tint; it uses the mean")
-        intensity *= sum(tint) / 3.0
-        # Cycles: sigma_SB 1e-6 / pi T^4; Nimbus: intensity (T / 1000 K)^4.
-        cycles_1000k = 5.670373e-8 * 1e-6 / math.pi * 1e12
-        attrs["token nimbus:temperatureField"] = f'"{attribute}"'
-        attrs["float nimbus:temperatureScale"] = _f(temperature)
-        attrs["float nimbus:blackbodyIntensity"] = _f(intensity * cycles_1000k)
-    st = [a + b for a, b in zip(medium.sigma_s, medium.sigma_a)]
-    albedo = tuple(s / t if t > 0 else 0.0 for s, t in zip(medium.sigma_s, st))
-    return attrs, albedo
+    return _medium_attrs(medium, f"object '{obj.name}'", warnings, medium.density_attribute)
+
+
+def fog_mesh_medium(obj, warnings):
+    """A mesh whose material has a Volume output link is a fog mesh (docs/blender.md:
+    Cycles fills its inside with Density x 1): (material, NimbusVolumeAPI attributes
+    without fields, albedo), or None when no material of the evaluated mesh has one."""
+    materials = [s.material for s in obj.material_slots if s.material is not None]
+    fogs = [m for m in materials if material_outputs(m)[1] is not None]
+    if not fogs:
+        return None
+    material = fogs[0]
+    if len({m.name for m in materials}) > 1:
+        warnings.append(
+            f"object '{obj.name}': several materials; Nimbus fills the whole mesh with the "
+            f"volume of material '{material.name}' (Cycles: each material's volume inside "
+            "the faces it is on)")
+    surface, src = material_outputs(material)
+    if surface is not None:
+        warnings.append(
+            f"object '{obj.name}': material '{material.name}' has a Surface shader "
+            f"('{surface.name}') besides its Volume: Nimbus renders the fog only, the "
+            "surface is not rendered (Cycles draws the surface, and shows the fog inside "
+            "only through a transmitting or transparent surface)")
+    medium = _Medium()
+    _closure(src, f"material '{material.name}'", medium, warnings, fog="mesh")
+    attrs, albedo = _medium_attrs(medium, f"object '{obj.name}'", warnings)
+    return material, attrs, albedo
+
+
+def world_fog_medium(world, warnings):
+    """The world's Volume output as a homogeneous fog filling the world: (NimbusVolumeAPI
+    attributes without fields, albedo), or None without a Volume link."""
+    src = world_volume_node(world)
+    if src is None:
+        return None
+    medium = _Medium()
+    _closure(src, f"world '{world.name}'", medium, warnings, fog="world")
+    return _medium_attrs(medium, f"world '{world.name}'", warnings)
 
 
 def _f(x):
@@ -346,11 +447,7 @@ def light_lines(obj, warnings):
 
 def _world_background(world):
     """The Background node feeding the active World Output's Surface, or None."""
-    out = None
-    for n in world.node_tree.nodes:
-        if n.bl_idname == "ShaderNodeOutputWorld" and n.target in ("ALL", "CYCLES"):
-            if out is None or n.is_active_output:
-                out = n
+    out = _active_output(world.node_tree, "ShaderNodeOutputWorld")
     src = _linked(out.inputs["Surface"]) if out is not None else None
     return src if src is not None and src.bl_idname == "ShaderNodeBackground" else None
 
@@ -657,6 +754,7 @@ def translate(depsgraph, folder):
         return f'"{path.rsplit("/", 1)[1]}"' in text
 
     seen = set()
+    fog_instances = set()
     volume_paths = set()
     instances = 0
     for inst in depsgraph.object_instances:
@@ -687,6 +785,13 @@ def translate(depsgraph, folder):
         if inst.is_instance or obj.name in seen:
             if inst.is_instance and obj.type == "LIGHT":
                 warnings.append(f"object '{obj.name}': instances are not translated")
+            elif (inst.is_instance and obj.type == "MESH" and obj.name not in fog_instances
+                  and any(material_outputs(s.material)[1] is not None
+                          for s in obj.material_slots if s.material is not None)):
+                fog_instances.add(obj.name)
+                warnings.append(
+                    f"object '{obj.name}': instances of a mesh with a volume material are "
+                    "not translated as fog (they render as the exporter writes them)")
             continue
         seen.add(obj.name)
         path = data_path(obj) if obj.data is not None else None
@@ -729,8 +834,22 @@ def translate(depsgraph, folder):
                     "as OpenVDB and load a frame as a Volume object); its mesh is left out")
                 if exists(path):
                     prims[path] = ([], ["bool nimbus:holdout = 0"])
-            elif not obj.nimbus.holdout and exists(path):
-                prims[path] = ([], ["bool nimbus:holdout = 0"])
+            else:
+                fog = None
+                if exists(path) and len(obj.data.polygons) > 0:
+                    fog = fog_mesh_medium(obj, warnings)
+                if fog is not None:
+                    # A fog mesh (docs/blender.md): the reader makes it no holdout.
+                    _, attrs, a = fog
+                    lines = [f"{k} = {v}" for k, v in attrs.items()]
+                    group = getattr(obj, "lightgroup", "")
+                    if group and group in groups:
+                        lines.append(f'token nimbus:lightGroup = "{_group_token(group)}"')
+                        used.add(group)
+                    prims[path] = (["NimbusVolumeAPI"], lines)
+                    albedo = albedo or a
+                elif not obj.nimbus.holdout and exists(path):
+                    prims[path] = ([], ["bool nimbus:holdout = 0"])
         elif obj.type in ("CURVE", "FONT", "SURFACE", "CURVES"):
             if obj.nimbus.holdout:
                 holdout_mesh(obj, inst.matrix_world, prims, warnings)
@@ -746,6 +865,18 @@ def translate(depsgraph, folder):
             used.add(group)
         if lines:
             prims[WORLD_PRIM] = (schemas, lines)
+    fog = world_fog_medium(world, warnings) if world is not None else None
+    if fog is not None:
+        # Cycles' world volume is infinite (docs/blender.md): a Volume filling the world.
+        attrs, a = fog
+        lines = ['uniform token nimbus:fill = "world"']
+        lines += [f"{k} = {v}" for k, v in attrs.items()]
+        group = getattr(world, "lightgroup", "")
+        if group and group in groups:
+            lines.append(f'token nimbus:lightGroup = "{_group_token(group)}"')
+            used.add(group)
+        prims[WORLD_VOLUME] = (["NimbusVolumeAPI"], lines, "def Volume")
+        albedo = albedo or a
     # The exporter writes some volume instances itself (a collection instance: under
     # the instancer, without material); the overlay defines every instance, so the
     # exporter's copies are deactivated.
