@@ -7,8 +7,9 @@
 // host has its own minimal scene delegate over pxr/usd (StageSceneDelegate below)
 // instead of UsdImagingDelegate / the stage scene index. It hands over what hdNimbus
 // reads: volumes with their openvdbAsset fields (NimbusVolumeAPI's `nimbus:*`
-// attributes as constant primvars), meshes and cubes (as meshes, as UsdImaging hands
-// them; `nimbus:holdout = false` leaves one out), the UsdLux lights, the camera, and the
+// attributes, `nimbus:fill` too, as constant primvars), meshes and cubes (as meshes,
+// as UsdImaging hands them; `nimbus:holdout = false` leaves one out; their `nimbus:*`
+// attributes as constant primvars too, which make one a fog box), the UsdLux lights, the camera, and the
 // render settings prim's `nimbus:*` attributes as render settings. Light linking as
 // UsdImaging hands it over: a light's `lightLink` / `shadowLink` collection that leaves
 // out some rprim is named by its collection path (the `lightLink` / `shadowLink` light
@@ -218,14 +219,13 @@ public:
         return out;
     }
 
-    // A volume's NimbusVolumeAPI attributes (`nimbus:*`) as constant primvars.
+    // A volume's or a gprim's NimbusVolumeAPI attributes (`nimbus:*`) as constant
+    // primvars.
     HdPrimvarDescriptorVector GetPrimvarDescriptors(SdfPath const &id,
                                                     HdInterpolation interpolation) override {
         HdPrimvarDescriptorVector out;
         UsdPrim prim = _stage->GetPrimAtPath(id);
-        if (interpolation != HdInterpolationConstant || !prim || !prim.IsA<UsdVolVolume>()) {
-            return out;
-        }
+        if (interpolation != HdInterpolationConstant || !prim) return out;
         for (UsdAttribute const &a : prim.GetAttributes()) {
             if (a.GetName().GetString().rfind("nimbus:", 0) == 0 && a.HasAuthoredValue()) {
                 out.emplace_back(a.GetName(), HdInterpolationConstant);
