@@ -2,7 +2,8 @@
 //! ([`nimbus::scene::Scene`]): the second reader of the one render pipeline. The
 //! conversions follow the USD reader's (`nimbus::scene::stage`): world transforms, UsdLux
 //! parameters with schema fallbacks, NimbusVolumeAPI's fallback coefficients, holdout
-//! meshes fan-triangulated. Also the render settings the delegate reads (`settings`)
+//! meshes fan-triangulated, fog boxes (meshes with NimbusVolumeAPI's primvars or a volume
+//! material) and world fog (`nimbus:fill = "world"`). Also the render settings the delegate reads (`settings`)
 //! and offers the host with their defaults (`setting_descriptors`), side by side.
 
 // Only the bridge's plain structs. cxx declares shared structs only inside the
