@@ -144,6 +144,11 @@ fn compare(name: &str, a: &[Vec<f32>; 4], b: &[Vec<f32>; 4]) -> [usize; 4] {
 
 /// Renders `stage` through the Hydra host into `out` (RES, SPP) and returns its RGBA.
 fn hydra_render(host: &Path, stage: &Path, out: &Path) -> [Vec<f32>; 4] {
+    hydra_render_logged(host, stage, out).0
+}
+
+/// [`hydra_render`], and the host's standard error (hdNimbus' warnings).
+fn hydra_render_logged(host: &Path, stage: &Path, out: &Path) -> ([Vec<f32>; 4], String) {
     let o = Command::new(host)
         .arg(stage)
         .arg("-o")
@@ -163,11 +168,16 @@ fn hydra_render(host: &Path, stage: &Path, out: &Path) -> [Vec<f32>; 4] {
         "nimbus-hydra {}: {e}",
         stage.display()
     );
-    rgba(out)
+    (rgba(out), e.into_owned())
 }
 
 /// Renders `stage` with `nimbus render` into `out` (RES, SPP) and returns its RGBA.
 fn nimbus_render(stage: &Path, out: &Path) -> [Vec<f32>; 4] {
+    nimbus_render_logged(stage, out).0
+}
+
+/// [`nimbus_render`], and its standard error (the stage warnings).
+fn nimbus_render_logged(stage: &Path, out: &Path) -> ([Vec<f32>; 4], String) {
     let o = common::cli::nimbus(&[
         "render",
         stage.to_str().unwrap(),
@@ -184,7 +194,7 @@ fn nimbus_render(stage: &Path, out: &Path) -> [Vec<f32>; 4] {
         stage.display(),
         common::cli::stderr(&o)
     );
-    rgba(out)
+    (rgba(out), common::cli::stderr(&o))
 }
 
 /// The example cloud with a second cloud (`/World/Cloud2`, the same grid moved right
@@ -251,6 +261,172 @@ fn linking_stage(dir: &Path, linked: bool) -> PathBuf {
     });
     std::fs::write(&path, text).unwrap();
     path
+}
+
+/// A camera, a sun, render settings (RES, maxDepth 8, seed 3) and `world`, the prims
+/// under /World, as a stage in `dir`.
+fn small_stage(dir: &Path, name: &str, world: &str) -> PathBuf {
+    let text = format!(
+        r#"#usda 1.0
+(
+    upAxis = "Y"
+    metersPerUnit = 1
+    renderSettingsPrimPath = "/Render/Settings"
+)
+
+def Xform "World"
+{{
+    def Camera "Camera"
+    {{
+        float focalLength = 35
+        float horizontalAperture = 36
+        float verticalAperture = 27
+        float2 clippingRange = (0.1, 100)
+        double3 xformOp:translate = (0, 0.3, 5)
+        uniform token[] xformOpOrder = ["xformOp:translate"]
+    }}
+
+    def DistantLight "Sun"
+    {{
+        float inputs:intensity = 3
+        bool inputs:normalize = 1
+        float3 xformOp:rotateXYZ = (-40, 30, 0)
+        uniform token[] xformOpOrder = ["xformOp:rotateXYZ"]
+    }}
+{world}
+}}
+
+def Scope "Render"
+{{
+    def RenderSettings "Settings" (
+        prepend apiSchemas = ["NimbusRenderSettingsAPI"]
+    )
+    {{
+        rel camera = </World/Camera>
+        uniform int2 resolution = ({}, {})
+        int nimbus:maxDepth = 8
+        int nimbus:seed = 3
+    }}
+}}
+"#,
+        RES.0, RES.1
+    );
+    let path = dir.join(format!("{name}.usda"));
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// Fog boxes (docs/usd.md): a Cube with NimbusVolumeAPI, rotated and scaled (Hydra
+/// hands it over as a mesh of its six faces), and a prism Mesh with NimbusVolumeAPI
+/// emitting as a source, its faces authored pointing inwards (a warning, read
+/// outwards), and a Cube bound to a material whose `outputs:mtlx:volume` is an
+/// `ND_anisotropic_vdf` (its anisotropy from the material's interface input); a plain
+/// Cube in front of them stays a holdout.
+fn fog_box_stage(dir: &Path) -> PathBuf {
+    small_stage(
+        dir,
+        "fog_boxes",
+        r#"
+    def Cube "Box" (
+        prepend apiSchemas = ["NimbusVolumeAPI"]
+    )
+    {
+        double size = 1
+        float nimbus:densityScale = 2
+        color3f nimbus:absorption = (0.3, 0.2, 0.1)
+        color3f nimbus:scattering = (0.5, 0.6, 0.7)
+        float nimbus:anisotropy = 0.4
+        double3 xformOp:translate = (-0.9, 0, 0)
+        float3 xformOp:rotateXYZ = (20, 35, 50)
+        float3 xformOp:scale = (1.5, 0.8, 1.1)
+        uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateXYZ", "xformOp:scale"]
+    }
+
+    def Mesh "Prism" (
+        prepend apiSchemas = ["NimbusVolumeAPI"]
+    )
+    {
+        point3f[] points = [(0, 0, 0), (1, 0, 0), (0.5, 0.9, 0), (0, 0, 0.8), (1, 0, 0.8), (0.5, 0.9, 0.8)]
+        int[] faceVertexCounts = [3, 3, 4, 4, 4]
+        int[] faceVertexIndices = [0, 1, 2, 5, 4, 3, 3, 4, 1, 0, 4, 5, 2, 1, 5, 3, 0, 2]
+        float nimbus:densityScale = 1.5
+        uniform token nimbus:emissionKind = "source"
+        color3f nimbus:emissionColor = (1, 0.5, 0.2)
+        float nimbus:emissionScale = 0.8
+        double3 xformOp:translate = (0.4, -0.6, -0.2)
+        uniform token[] xformOpOrder = ["xformOp:translate"]
+    }
+
+    def Cube "Veil" (
+        prepend apiSchemas = ["MaterialBindingAPI"]
+    )
+    {
+        rel material:binding = </World/Haze>
+        double size = 1
+        double3 xformOp:translate = (1.3, 0.6, -0.8)
+        float3 xformOp:rotateXYZ = (0, 30, 10)
+        uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateXYZ"]
+    }
+
+    def Material "Haze"
+    {
+        float inputs:g = 0.3
+        token outputs:mtlx:volume.connect = </World/Haze/vdf.outputs:out>
+
+        def Shader "vdf"
+        {
+            uniform token info:id = "ND_anisotropic_vdf"
+            color3f inputs:absorption = (0.2, 0.1, 0.1)
+            color3f inputs:scattering = (1.2, 1.5, 1.8)
+            float inputs:anisotropy.connect = </World/Haze.inputs:g>
+            token outputs:out
+        }
+    }
+
+    def Cube "Wall"
+    {
+        double size = 1
+        double3 xformOp:translate = (0.3, 0.75, 1)
+        float3 xformOp:scale = (2, 0.3, 0.2)
+        uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:scale"]
+    }"#,
+    )
+}
+
+/// World fog: a Volume with NimbusVolumeAPI and `nimbus:fill = "world"` (no fields),
+/// lit by the sun and a sphere light, around a holdout pillar.
+fn world_fog_stage(dir: &Path) -> PathBuf {
+    small_stage(
+        dir,
+        "world_fog",
+        r#"
+    def Volume "Air" (
+        prepend apiSchemas = ["NimbusVolumeAPI"]
+    )
+    {
+        uniform token nimbus:fill = "world"
+        float nimbus:densityScale = 0.2
+        color3f nimbus:absorption = (0.05, 0.05, 0.05)
+        color3f nimbus:scattering = (0.9, 0.8, 0.7)
+        float nimbus:anisotropy = 0.3
+    }
+
+    def SphereLight "Bulb"
+    {
+        float inputs:intensity = 30
+        float inputs:radius = 0.1
+        double3 xformOp:translate = (0.8, 1, 0.5)
+        uniform token[] xformOpOrder = ["xformOp:translate"]
+    }
+
+    def Cube "Pillar"
+    {
+        double size = 1
+        double3 xformOp:translate = (-0.5, 0, 0)
+        float3 xformOp:scale = (0.5, 2, 0.5)
+        uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:scale"]
+    }"#,
+    )
 }
 
 mod hydra_host {
@@ -481,5 +657,63 @@ mod hydra_host {
             "linking changed only {differ} of {} pixels",
             hydra[0].len()
         );
+    }
+
+    /// Fog through Hydra (`fog_box_stage`, `world_fog_stage`): the host hands the fog
+    /// gprims over as meshes with their `nimbus:*` attributes as constant primvars or
+    /// their bound material's volume network, and world fog as a Volume with the
+    /// `nimbus:fill` primvar; hdNimbus makes the same
+    /// fog boxes and world fog as the USD reader, and the images agree with `nimbus
+    /// render` of the same stages as the example stages do (same tolerance: the
+    /// transforms are handed over as matrices). The inward prism's warning reaches the
+    /// host as the reader's reaches `nimbus render`'s log, naming the prim. Power: the
+    /// fog shows (mean alpha measured 0.095 for the three boxes, 0.60 for world fog; a
+    /// holdout or nothing leaves alpha 0), and fog read as holdouts or left out would
+    /// differ from `nimbus render`'s image. Measured: fog boxes 3,063 to 3,072 of 3,072
+    /// pixels bit-identical per channel, world fog 2,971 to 3,072, all within 1e-5.
+    /// The fog gprims' paths sort as they stand in the stage (Box, Prism, Veil):
+    /// hdNimbus takes media in path order, `nimbus render` in stage order, and media
+    /// taken in another order agree in distribution only (docs/hydra.md, "Order").
+    #[test]
+    fn fog_boxes_and_world_fog_through_hydra_match_nimbus_render() {
+        let Some(host) = host() else {
+            return;
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        for (name, stage) in [
+            ("fog boxes", fog_box_stage(d)),
+            ("world fog", world_fog_stage(d)),
+        ] {
+            let file = name.replace(' ', "_");
+            let (hydra, hydra_log) =
+                hydra_render_logged(&host, &stage, &d.join(format!("{file}_hydra.exr")));
+            let (nimbus, nimbus_log) =
+                nimbus_render_logged(&stage, &d.join(format!("{file}_nimbus.exr")));
+            let identical = compare(name, &hydra, &nimbus);
+            eprintln!("hydra_host {name}: bit-identical pixels per channel {identical:?}");
+            let mean_alpha =
+                hydra[3].iter().map(|&a| a as f64).sum::<f64>() / hydra[3].len() as f64;
+            eprintln!("hydra_host {name}: mean alpha {mean_alpha:.4}");
+            assert!(mean_alpha > 0.02, "{name}: mean alpha {mean_alpha}: no fog");
+            let inward = "faces point inwards";
+            if name == "fog boxes" {
+                for (who, log) in [("nimbus-hydra", &hydra_log), ("nimbus render", &nimbus_log)] {
+                    assert!(
+                        log.lines()
+                            .any(|l| l.contains("/World/Prism") && l.contains(inward)),
+                        "{who}: no warning about /World/Prism's faces: {log}"
+                    );
+                }
+            } else {
+                // hdNimbus' warnings are the tracker's note, none about a prim.
+                assert!(
+                    !hydra_log
+                        .lines()
+                        .any(|l| l.contains("Warning") && l.contains("/World/")),
+                    "{hydra_log}"
+                );
+            }
+        }
     }
 }

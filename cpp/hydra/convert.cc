@@ -97,9 +97,9 @@ void HdNimbusSceneStore::SetVolume(SdfPath const &id, HdNimbusVolumeRecord rec) 
     _Synced();
 }
 
-void HdNimbusSceneStore::SetMesh(SdfPath const &id, nimbus_hydra::MeshDesc desc) {
+void HdNimbusSceneStore::SetMesh(SdfPath const &id, HdNimbusMeshRecord rec) {
     std::lock_guard<std::mutex> lock(_mutex);
-    _meshes[id] = std::move(desc);
+    _meshes[id] = std::move(rec);
     ++_version;
     _Synced();
 }
@@ -125,6 +125,16 @@ void HdNimbusSceneStore::Remove(SdfPath const &id) {
     if (n) ++_version;
 }
 
+template <class Desc>
+void HdNimbusSceneStore::_FillMaterial(SdfPath const &materialId, Desc &desc) const {
+    if (!materialId.IsEmpty()) desc.material_path = materialId.GetString();
+    auto m = _materials.find(materialId);
+    if (m == _materials.end()) return;
+    desc.shader_path = m->second.shaderPath;
+    desc.shader_id = m->second.shaderId;
+    for (auto const &p : m->second.params) desc.shader_params.push_back(p);
+}
+
 nimbus_hydra::SceneDesc HdNimbusSceneStore::Snapshot() const {
     std::lock_guard<std::mutex> lock(_mutex);
     nimbus_hydra::SceneDesc s;
@@ -133,7 +143,11 @@ nimbus_hydra::SceneDesc HdNimbusSceneStore::Snapshot() const {
     for (auto const &u : _unsupportedLights) {
         s.unsupported_lights.push_back(rust::String(u.first.GetString() + " (" + u.second + ")"));
     }
-    for (auto const &m : _meshes) s.meshes.push_back(m.second);
+    for (auto const &m : _meshes) {
+        nimbus_hydra::MeshDesc desc = m.second.desc;
+        _FillMaterial(m.second.materialId, desc);
+        s.meshes.push_back(std::move(desc));
+    }
     for (auto const &v : _volumes) {
         nimbus_hydra::VolumeDesc desc = v.second.desc;
         for (size_t i = 0; i < desc.fields.size() && i < v.second.fieldIds.size(); ++i) {
@@ -144,15 +158,7 @@ nimbus_hydra::SceneDesc HdNimbusSceneStore::Snapshot() const {
             f.grid = it->second.grid;
             f.index = it->second.index;
         }
-        auto m = _materials.find(v.second.materialId);
-        if (!v.second.materialId.IsEmpty()) {
-            desc.material_path = v.second.materialId.GetString();
-        }
-        if (m != _materials.end()) {
-            desc.shader_path = m->second.shaderPath;
-            desc.shader_id = m->second.shaderId;
-            for (auto const &p : m->second.params) desc.shader_params.push_back(p);
-        }
+        _FillMaterial(v.second.materialId, desc);
         s.volumes.push_back(std::move(desc));
     }
     return s;

@@ -41,6 +41,12 @@ struct HdNimbusVolumeRecord {
     SdfPath materialId;
 };
 
+// A mesh as synced: its description and its material.
+struct HdNimbusMeshRecord {
+    nimbus_hydra::MeshDesc desc;
+    SdfPath materialId;
+};
+
 // A material's volume shader, as synced.
 struct HdNimbusMaterialRecord {
     std::string shaderPath;
@@ -56,17 +62,22 @@ public:
     void SetLight(SdfPath const &id, nimbus_hydra::LightDesc desc);
     void SetUnsupportedLight(SdfPath const &id, std::string const &type);
     void SetVolume(SdfPath const &id, HdNimbusVolumeRecord rec);
-    void SetMesh(SdfPath const &id, nimbus_hydra::MeshDesc desc);
+    void SetMesh(SdfPath const &id, HdNimbusMeshRecord rec);
     void SetField(SdfPath const &id, nimbus_hydra::FieldDesc desc);
     void SetMaterial(SdfPath const &id, HdNimbusMaterialRecord rec);
     // Forgets the prim `id` of any kind.
     void Remove(SdfPath const &id);
     // Bumped by every change.
     uint64_t Version() const { return _version.load(); }
-    // Everything, with the volumes' fields and materials filled in.
+    // Everything, with the volumes' fields and the volumes' and meshes' materials
+    // filled in.
     nimbus_hydra::SceneDesc Snapshot() const;
 
 private:
+    // Under the lock: the material `materialId`'s path and volume shader into `desc`
+    // (a VolumeDesc or a MeshDesc).
+    template <class Desc>
+    void _FillMaterial(SdfPath const &materialId, Desc &desc) const;
     // Under the lock: a prim was synced on this thread.
     void _Synced() { _threads.insert(std::this_thread::get_id()); }
 
@@ -77,7 +88,7 @@ private:
     std::map<SdfPath, nimbus_hydra::LightDesc> _lights;
     std::map<SdfPath, std::string> _unsupportedLights;
     std::map<SdfPath, HdNimbusVolumeRecord> _volumes;
-    std::map<SdfPath, nimbus_hydra::MeshDesc> _meshes;
+    std::map<SdfPath, HdNimbusMeshRecord> _meshes;
     std::map<SdfPath, nimbus_hydra::FieldDesc> _fields;
     std::map<SdfPath, HdNimbusMaterialRecord> _materials;
 };

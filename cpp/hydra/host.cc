@@ -7,13 +7,16 @@
 // host has its own minimal scene delegate over pxr/usd (StageSceneDelegate below)
 // instead of UsdImagingDelegate / the stage scene index. It hands over what hdNimbus
 // reads: volumes with their openvdbAsset fields (NimbusVolumeAPI's `nimbus:*`
-// attributes as constant primvars), meshes and cubes (as meshes, as UsdImaging hands
-// them; `nimbus:holdout = false` leaves one out), the UsdLux lights, the camera, and the
+// attributes, `nimbus:fill` too, as constant primvars), meshes and cubes (as meshes,
+// as UsdImaging hands them; `nimbus:holdout = false` leaves one out; their `nimbus:*`
+// attributes as constant primvars too, which make one a fog box), the UsdLux lights, the camera, and the
 // render settings prim's `nimbus:*` attributes as render settings. Light linking as
 // UsdImaging hands it over: a light's `lightLink` / `shadowLink` collection that leaves
 // out some rprim is named by its collection path (the `lightLink` / `shadowLink` light
-// params), and the rprims it includes list that name among their categories. No
-// materials, instancing, motion or purposes.
+// params), and the rprims it includes list that name among their categories.
+// Materials: an rprim's bound material (all-purpose binding) and the material's volume
+// network (the shader its ri, mtlx, kma or universal volume output leads to, and those
+// upstream). No instancing, motion or purposes.
 //
 //   nimbus-hydra STAGE -o OUT.exr [--res WxH] [--spp N] [--camera PATH] [--delegate NAME]
 //                [--aov NAME=FILE.exr]...
@@ -29,6 +32,7 @@
 #include "pxr/imaging/hd/camera.h"
 #include "pxr/imaging/hd/engine.h"
 #include "pxr/imaging/hd/light.h"
+#include "pxr/imaging/hd/material.h"
 #include "pxr/imaging/hd/renderBuffer.h"
 #include "pxr/imaging/hd/renderDelegate.h"
 #include "pxr/imaging/hd/renderIndex.h"
@@ -52,11 +56,15 @@
 #include "pxr/usd/usdLux/boundableLightBase.h"
 #include "pxr/usd/usdLux/nonboundableLightBase.h"
 #include "pxr/usd/usdRender/settings.h"
+#include "pxr/usd/usdShade/material.h"
+#include "pxr/usd/usdShade/materialBindingAPI.h"
+#include "pxr/usd/usdShade/shader.h"
 #include "pxr/usd/usdVol/openVDBAsset.h"
 #include "pxr/usd/usdVol/volume.h"
 
 #include <chrono>
 #include <map>
+#include <set>
 #include <cstdio>
 #include <cstdlib>
 #include <string>
@@ -100,6 +108,8 @@ public:
                     index.InsertRprim(HdPrimTypeTokens->mesh, this, p);
                     _rprims.push_back(p);
                 }
+            } else if (prim.IsA<UsdShadeMaterial>()) {
+                index.InsertSprim(HdPrimTypeTokens->material, this, p);
             } else if (prim.IsA<UsdGeomCamera>()) {
                 index.InsertSprim(HdPrimTypeTokens->camera, this, p);
                 if (_firstCamera.IsEmpty()) _firstCamera = p;
@@ -207,6 +217,31 @@ public:
         return v;
     }
 
+    // The material bound to an rprim (its all-purpose binding, inherited).
+    SdfPath GetMaterialId(SdfPath const &id) override {
+        UsdPrim prim = _stage->GetPrimAtPath(id);
+        if (!prim) return SdfPath();
+        UsdShadeMaterial m = UsdShadeMaterialBindingAPI(prim).ComputeBoundMaterial();
+        return m ? m.GetPath() : SdfPath();
+    }
+
+    // A material's volume network as UsdImaging hands it over: the shader its
+    // `outputs:ri:volume`, `outputs:mtlx:volume`, `outputs:kma:volume` or
+    // `outputs:volume` leads to (through node graphs), and the shaders upstream of it,
+    // upstream first; parameters by input name, interface inputs resolved.
+    VtValue GetMaterialResource(SdfPath const &id) override {
+        HdMaterialNetworkMap map;
+        UsdShadeMaterial material(_stage->GetPrimAtPath(id));
+        if (!material) return VtValue(map);
+        UsdShadeShader source =
+            material.ComputeVolumeSource({TfToken("ri"), TfToken("mtlx"), TfToken("kma")});
+        if (!source) return VtValue(map);
+        std::set<SdfPath> seen;
+        _AddNode(source, map.map[HdMaterialTerminalTokens->volume], seen);
+        map.terminals.push_back(source.GetPath());
+        return VtValue(map);
+    }
+
     HdVolumeFieldDescriptorVector GetVolumeFieldDescriptors(SdfPath const &id) override {
         HdVolumeFieldDescriptorVector out;
         for (auto const &f : UsdVolVolume(_stage->GetPrimAtPath(id)).GetFieldPaths()) {
@@ -218,14 +253,13 @@ public:
         return out;
     }
 
-    // A volume's NimbusVolumeAPI attributes (`nimbus:*`) as constant primvars.
+    // A volume's or a gprim's NimbusVolumeAPI attributes (`nimbus:*`) as constant
+    // primvars.
     HdPrimvarDescriptorVector GetPrimvarDescriptors(SdfPath const &id,
                                                     HdInterpolation interpolation) override {
         HdPrimvarDescriptorVector out;
         UsdPrim prim = _stage->GetPrimAtPath(id);
-        if (interpolation != HdInterpolationConstant || !prim || !prim.IsA<UsdVolVolume>()) {
-            return out;
-        }
+        if (interpolation != HdInterpolationConstant || !prim) return out;
         for (UsdAttribute const &a : prim.GetAttributes()) {
             if (a.GetName().GetString().rfind("nimbus:", 0) == 0 && a.HasAuthoredValue()) {
                 out.emplace_back(a.GetName(), HdInterpolationConstant);
@@ -284,6 +318,34 @@ public:
     }
 
 private:
+    static void _AddNode(UsdShadeShader const &shader, HdMaterialNetwork &net,
+                         std::set<SdfPath> &seen) {
+        if (!seen.insert(shader.GetPath()).second) return;
+        HdMaterialNode node;
+        node.path = shader.GetPath();
+        shader.GetShaderId(&node.identifier);
+        for (UsdShadeInput const &input : shader.GetInputs()) {
+            UsdShadeAttributeVector attrs = input.GetValueProducingAttributes();
+            if (attrs.empty()) continue;
+            UsdAttribute const &a = attrs[0];
+            if (UsdShadeOutput::IsOutput(a)) {
+                UsdShadeShader upstream(a.GetPrim());
+                if (!upstream) continue;
+                _AddNode(upstream, net, seen);
+                HdMaterialRelationship r;
+                r.inputId = upstream.GetPath();
+                r.inputName = UsdShadeOutput(a).GetBaseName();
+                r.outputId = shader.GetPath();
+                r.outputName = input.GetBaseName();
+                net.relationships.push_back(r);
+            } else {
+                VtValue v;
+                if (a.Get(&v)) node.parameters[input.GetBaseName()] = v;
+            }
+        }
+        net.nodes.push_back(node);
+    }
+
     UsdStageRefPtr _stage;
     UsdGeomXformCache _xf;
     SdfPath _firstCamera;

@@ -85,13 +85,15 @@ void HdNimbusMesh::Sync(HdSceneDelegate *delegate, HdRenderParam *param,
         *dirtyBits &= ~HdChangeTracker::AllSceneDirtyBits;
         return;
     }
-    nimbus_hydra::MeshDesc d;
+    HdNimbusMeshRecord rec;
+    nimbus_hydra::MeshDesc &d = rec.desc;
     d.path = id.GetString();
     d.xform = HdNimbusMatrix(delegate->GetTransform(id));
     HdMeshTopology topology = GetMeshTopology(delegate);
     for (int c : topology.GetFaceVertexCounts()) d.face_counts.push_back(c);
     for (int i : topology.GetFaceVertexIndices()) d.face_indices.push_back(i);
     for (int h : topology.GetHoleIndices()) d.hole_indices.push_back(h);
+    d.left_handed = topology.GetOrientation() == HdTokens->leftHanded;
     VtValue points = delegate->Get(id, HdTokens->points);
     if (points.IsHolding<VtVec3fArray>()) {
         for (GfVec3f const &p : points.UncheckedGet<VtVec3fArray>()) {
@@ -108,7 +110,14 @@ void HdNimbusMesh::Sync(HdSceneDelegate *delegate, HdRenderParam *param,
     }
     d.double_sided = delegate->GetDoubleSided(id);
     d.categories = HdNimbusCategories(delegate, id);
-    store.SetMesh(id, std::move(d));
+    // NimbusVolumeAPI's `nimbus:*` primvars and the material make it a fog box (Rust
+    // decides: scene.rs).
+    for (HdPrimvarDescriptor const &pv :
+         delegate->GetPrimvarDescriptors(id, HdInterpolationConstant)) {
+        d.primvars.push_back(HdNimbusParam(pv.name.GetString(), delegate->Get(id, pv.name)));
+    }
+    rec.materialId = delegate->GetMaterialId(id);
+    store.SetMesh(id, std::move(rec));
     *dirtyBits &= ~HdChangeTracker::AllSceneDirtyBits;
 }
 

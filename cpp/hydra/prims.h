@@ -28,7 +28,8 @@ protected:
     TfTokenVector const &GetBuiltinPrimvarNames() const override;
 };
 
-// A mesh rprim: a holdout (black matte occluder), its control cage.
+// A mesh rprim: its control cage, constant primvars, transform and material (a holdout,
+// a black matte occluder, or a fog box: the Rust half decides).
 class HdNimbusMesh final : public HdMesh {
 public:
     explicit HdNimbusMesh(SdfPath const &id) : HdMesh(id) {}

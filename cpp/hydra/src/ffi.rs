@@ -100,7 +100,8 @@ pub mod bridge {
         categories: Vec<String>,
     }
 
-    /// A mesh rprim: its control cage in object space (a holdout).
+    /// A mesh rprim: its control cage in object space, its constant primvars and its
+    /// material's volume shader (a holdout, or a fog box: see `scene.rs`).
     #[derive(Clone, Debug, Default)]
     struct MeshDesc {
         path: String,
@@ -110,8 +111,16 @@ pub mod bridge {
         face_indices: Vec<i32>,
         hole_indices: Vec<i32>,
         double_sided: bool,
+        /// The topology's orientation is `leftHanded` (faces wound clockwise seen
+        /// from their front).
+        left_handed: bool,
         /// The light-linking collections it is in (Hydra's categories).
         categories: Vec<String>,
+        primvars: Vec<ParamDesc>,
+        material_path: String,
+        shader_path: String,
+        shader_id: String,
+        shader_params: Vec<ParamDesc>,
     }
 
     /// The camera rendered through, in Hydra's units (world units, not UsdGeomCamera's

@@ -2,7 +2,8 @@
 //! ([`nimbus::scene::Scene`]): the second reader of the one render pipeline. The
 //! conversions follow the USD reader's (`nimbus::scene::stage`): world transforms, UsdLux
 //! parameters with schema fallbacks, NimbusVolumeAPI's fallback coefficients, holdout
-//! meshes fan-triangulated. Also the render settings the delegate reads (`settings`)
+//! meshes fan-triangulated, fog boxes (meshes with NimbusVolumeAPI's primvars or a volume
+//! material) and world fog (`nimbus:fill = "world"`). Also the render settings the delegate reads (`settings`)
 //! and offers the host with their defaults (`setting_descriptors`), side by side.
 
 // Only the bridge's plain structs. cxx declares shared structs only inside the
@@ -15,8 +16,9 @@ use crate::ffi::bridge::{
 };
 use anyhow::{anyhow, bail, Result};
 use glam::{DMat4, DVec3};
+use nimbus::scene::schema::tokens;
 use nimbus::scene::{
-    Camera, Collection, CylinderLight, DiskLight, DistantLight, DomeLight, Field, HoldoutMesh,
+    fog, Camera, Collection, CylinderLight, DiskLight, DistantLight, DomeLight, Field, HoldoutMesh,
     LightControls, Projection, RectLight, RenderSettings, Scene, Shaping, SphereLight, Volume,
     VolumeEmission, VolumeShape,
 };
@@ -74,9 +76,7 @@ pub fn scene_of(desc: &SceneDesc) -> Result<(Scene, Vec<String>)> {
     let mut meshes: Vec<&MeshDesc> = desc.meshes.iter().collect();
     meshes.sort_by(|a, b| a.path.cmp(&b.path));
     for m in meshes {
-        if let Some(h) = holdout(m)? {
-            scene.holdouts.push(h);
-        }
+        mesh(m, &mut scene, &mut warnings)?;
     }
     Ok((scene, warnings))
 }
@@ -344,49 +344,280 @@ struct ShaderCoefficients {
     anisotropy: f64,
 }
 
-fn shader(v: &VolumeDesc) -> Result<Option<ShaderCoefficients>> {
-    let p = &v.shader_params;
-    let at = |n: &str| format!("{} ({})", v.shader_path, n);
-    match v.shader_id.as_str() {
-        "PxrVolume" => {
-            // As the USD reader: the primvar's field scaled by densityMultiplier, else
-            // the `density` field scaled by densityFloat too; albedo diffuseColor.
-            let density = scalar(&at("densityFloat"), p, "densityFloat")?.unwrap_or(1.0);
-            let multiplier =
-                scalar(&at("densityMultiplier"), p, "densityMultiplier")?.unwrap_or(1.0);
-            let albedo = color3(&at("diffuseColor"), p, "diffuseColor")?.unwrap_or([1.0; 3]);
-            let g = scalar(&at("anisotropy"), p, "anisotropy")?.unwrap_or(0.0);
-            let field = text(p, "densityFloatPrimVar").map(str::to_string);
-            let scale = match field {
-                Some(_) => multiplier,
-                None => multiplier * density,
-            };
-            Ok(Some(ShaderCoefficients {
-                density_field: field,
-                density_scale: scale,
-                absorption: albedo.map(|a| (1.0 - a).max(0.0)),
-                scattering: albedo,
-                anisotropy: g,
-            }))
+/// An rprim's bound material as handed over: its path and its volume shader
+/// (`HdNimbusMaterial` keeps a PxrVolume or ND_anisotropic_vdf node wherever it sits,
+/// else the volume terminal's first node; no shader when the material has no volume
+/// terminal).
+struct Material<'a> {
+    path: &'a str,
+    shader_path: &'a str,
+    shader_id: &'a str,
+    params: &'a [ParamDesc],
+}
+
+impl<'a> Material<'a> {
+    fn of_volume(v: &'a VolumeDesc) -> Material<'a> {
+        Material {
+            path: &v.material_path,
+            shader_path: &v.shader_path,
+            shader_id: &v.shader_id,
+            params: &v.shader_params,
         }
-        "ND_anisotropic_vdf" => {
-            let absorption = color3(&at("absorption"), p, "absorption")?.unwrap_or([0.0; 3]);
-            let scattering = color3(&at("scattering"), p, "scattering")?.unwrap_or([0.0; 3]);
-            let g = scalar(&at("anisotropy"), p, "anisotropy")?.unwrap_or(0.0);
-            Ok(Some(ShaderCoefficients {
-                density_field: None,
-                density_scale: 1.0,
-                absorption,
-                scattering,
-                anisotropy: g,
-            }))
-        }
-        _ => Ok(None),
     }
+
+    fn of_mesh(m: &'a MeshDesc) -> Material<'a> {
+        Material {
+            path: &m.material_path,
+            shader_path: &m.shader_path,
+            shader_id: &m.shader_id,
+            params: &m.shader_params,
+        }
+    }
+
+    /// "shader (id)", as the USD reader names a volume's material shader.
+    fn shader_name(&self) -> String {
+        format!("{} ({})", self.shader_path, self.shader_id)
+    }
+
+    /// The coefficients of the volume shader, when it is one Nimbus reads.
+    fn coefficients(&self) -> Result<Option<ShaderCoefficients>> {
+        let p = self.params;
+        let at = |n: &str| format!("{} ({})", self.shader_path, n);
+        match self.shader_id {
+            "PxrVolume" => {
+                // As the USD reader: the primvar's field scaled by densityMultiplier,
+                // else the `density` field scaled by densityFloat too; albedo
+                // diffuseColor.
+                let density = scalar(&at("densityFloat"), p, "densityFloat")?.unwrap_or(1.0);
+                let multiplier =
+                    scalar(&at("densityMultiplier"), p, "densityMultiplier")?.unwrap_or(1.0);
+                let albedo = color3(&at("diffuseColor"), p, "diffuseColor")?.unwrap_or([1.0; 3]);
+                let g = scalar(&at("anisotropy"), p, "anisotropy")?.unwrap_or(0.0);
+                let field = text(p, "densityFloatPrimVar").map(str::to_string);
+                let scale = match field {
+                    Some(_) => multiplier,
+                    None => multiplier * density,
+                };
+                Ok(Some(ShaderCoefficients {
+                    density_field: field,
+                    density_scale: scale,
+                    absorption: albedo.map(|a| (1.0 - a).max(0.0)),
+                    scattering: albedo,
+                    anisotropy: g,
+                }))
+            }
+            "ND_anisotropic_vdf" => {
+                let absorption = color3(&at("absorption"), p, "absorption")?.unwrap_or([0.0; 3]);
+                let scattering = color3(&at("scattering"), p, "scattering")?.unwrap_or([0.0; 3]);
+                let g = scalar(&at("anisotropy"), p, "anisotropy")?.unwrap_or(0.0);
+                Ok(Some(ShaderCoefficients {
+                    density_field: None,
+                    density_scale: 1.0,
+                    absorption,
+                    scattering,
+                    anisotropy: g,
+                }))
+            }
+            _ => Ok(None),
+        }
+    }
+}
+
+/// NimbusVolumeAPI's medium attributes. Hydra has no applied schemas: an rprim that
+/// carries one of them as a primvar is read as having the API applied (as the USD
+/// reader reads a prim with `NimbusVolumeAPI`). `nimbus:fill` (which says what a
+/// Volume is, not what its medium is) and `nimbus:lightGroup` (NimbusLightAPI's) do
+/// not count, nor does `nimbus:holdout`.
+const VOLUME_API_PRIMVARS: [&str; 13] = [
+    tokens::DENSITY_FIELD,
+    tokens::DENSITY_SCALE,
+    tokens::ABSORPTION,
+    tokens::SCATTERING,
+    tokens::ANISOTROPY,
+    tokens::ALBEDO_FIELD,
+    tokens::TEMPERATURE_FIELD,
+    tokens::TEMPERATURE_SCALE,
+    tokens::BLACKBODY_INTENSITY,
+    tokens::EMISSION_FIELD,
+    tokens::EMISSION_COLOR,
+    tokens::EMISSION_SCALE,
+    tokens::EMISSION_KIND,
+];
+
+fn has_volume_api(primvars: &[ParamDesc]) -> bool {
+    VOLUME_API_PRIMVARS
+        .iter()
+        .any(|name| param(primvars, name).is_some())
+}
+
+/// A medium's parameters without its fields: from NimbusVolumeAPI's primvars (schema
+/// fallbacks for those absent), as the USD reader reads a fog box or world fog.
+struct Medium {
+    density_scale: f64,
+    absorption: [f64; 3],
+    scattering: [f64; 3],
+    anisotropy: f64,
+    emission: VolumeEmission,
+    material_shader: Option<String>,
+}
+
+impl Medium {
+    fn volume(self, path: &str, light_group: Option<String>, shape: VolumeShape) -> Volume {
+        Volume {
+            prim_path: path.to_string(),
+            light_group,
+            volume_to_world: DMat4::IDENTITY,
+            shape,
+            density_scale: self.density_scale,
+            absorption: self.absorption,
+            scattering: self.scattering,
+            anisotropy: self.anisotropy,
+            fields: Vec::new(),
+            emission: self.emission,
+            albedo: None,
+            material_shader: self.material_shader,
+        }
+    }
+}
+
+/// The emission of `nimbus:*` primvars; the fields by the names `named` resolves.
+fn emission(
+    path: &str,
+    pv: &[ParamDesc],
+    named: &dyn Fn(&str) -> Result<Option<(String, Field)>>,
+) -> Result<VolumeEmission> {
+    let defaults = VolumeEmission::default();
+    Ok(VolumeEmission {
+        temperature: named(tokens::TEMPERATURE_FIELD)?,
+        temperature_scale: scalar(path, pv, tokens::TEMPERATURE_SCALE)?
+            .unwrap_or(defaults.temperature_scale),
+        blackbody_intensity: scalar(path, pv, tokens::BLACKBODY_INTENSITY)?
+            .unwrap_or(defaults.blackbody_intensity),
+        emission: named(tokens::EMISSION_FIELD)?,
+        emission_color: color3(path, pv, tokens::EMISSION_COLOR)?
+            .unwrap_or(defaults.emission_color),
+        emission_scale: scalar(path, pv, tokens::EMISSION_SCALE)?
+            .unwrap_or(defaults.emission_scale),
+        kind: match text(pv, tokens::EMISSION_KIND) {
+            None => defaults.kind,
+            Some(t) => EmissionKind::from_token(t).ok_or_else(|| {
+                anyhow!(
+                    "volume {path}: primvars:nimbus:emissionKind `{t}` is neither \"radiance\" nor \"source\""
+                )
+            })?,
+        },
+    })
+}
+
+/// The medium of a fog box or of world fog at `path`: from NimbusVolumeAPI's primvars,
+/// else from a material whose volume shader Nimbus reads; `None` when it has neither.
+/// Fog has no fields: a temperature, emission or albedo field named is an error; a
+/// PxrVolume's density primvar is a warning (its density is 1 × the shader's scale).
+fn fog_medium(
+    path: &str,
+    pv: &[ParamDesc],
+    material: &Material,
+    warnings: &mut Vec<String>,
+) -> Result<Option<Medium>> {
+    if has_volume_api(pv) {
+        return api_medium(path, pv).map(Some);
+    }
+    let Some(m) = material.coefficients()? else {
+        return Ok(None);
+    };
+    if let Some(field) = &m.density_field {
+        warnings.push(format!(
+            "{path}: {} names the density primvar `{field}`; fog has none: its density is 1 (times the shader's density scale)",
+            material.shader_path
+        ));
+    }
+    Ok(Some(Medium {
+        density_scale: m.density_scale,
+        absorption: m.absorption,
+        scattering: m.scattering,
+        anisotropy: m.anisotropy,
+        emission: VolumeEmission::default(),
+        material_shader: Some(material.shader_name()),
+    }))
+}
+
+/// NimbusVolumeAPI's medium of fog from the `nimbus:*` primvars, schema fallbacks for
+/// those absent (as the USD reader reads a gprim with the API).
+fn api_medium(path: &str, pv: &[ParamDesc]) -> Result<Medium> {
+    for attr in [
+        tokens::TEMPERATURE_FIELD,
+        tokens::EMISSION_FIELD,
+        tokens::ALBEDO_FIELD,
+    ] {
+        if let Some(name) = text(pv, attr) {
+            bail!(
+                "{path}: {attr} = \"{name}\": fog (a mesh with NimbusVolumeAPI's primvars, or nimbus:fill = \"world\") has no fields; its density is 1 and its emission, with nimbus:emissionKind \"source\", the constant emissionColor × emissionScale"
+            );
+        }
+    }
+    Ok(Medium {
+        density_scale: scalar(path, pv, tokens::DENSITY_SCALE)?.unwrap_or(1.0),
+        absorption: color3(path, pv, tokens::ABSORPTION)?.unwrap_or([0.1; 3]),
+        scattering: color3(path, pv, tokens::SCATTERING)?.unwrap_or([0.9; 3]),
+        anisotropy: scalar(path, pv, tokens::ANISOTROPY)?.unwrap_or(0.0),
+        emission: emission(path, pv, &|_| Ok(None))?,
+        material_shader: None,
+    })
+}
+
+/// The warning for an rprim whose material is not one Nimbus reads (`what` it is read
+/// as instead).
+fn unread_material(kind: &str, path: &str, material: &Material, what: &str) -> String {
+    format!(
+        "{kind} {path}: material {} ({}) is not one Nimbus reads (PxrVolume, ND_anisotropic_vdf or nimbus:* primvars); {what}",
+        material.path,
+        match material.shader_id.is_empty() {
+            true => "no volume shader",
+            false => material.shader_id,
+        }
+    )
+}
+
+/// World fog: a Volume rprim with `nimbus:fill = "world"`, its medium as a fog box's,
+/// else NimbusVolumeAPI's fallbacks (the primvar `nimbus:fill` is NimbusVolumeAPI's, so
+/// the API is there); fields are not read (a warning if it has any).
+fn world_fog(v: &VolumeDesc, warnings: &mut Vec<String>) -> Result<Volume> {
+    let path = v.path.as_str();
+    let pv = &v.primvars;
+    let material = Material::of_volume(v);
+    let medium = match fog_medium(path, pv, &material, warnings)? {
+        Some(m) => m,
+        None => {
+            if !v.material_path.is_empty() {
+                warnings.push(unread_material(
+                    "volume",
+                    path,
+                    &material,
+                    "the schema's fallback coefficients are used",
+                ));
+            }
+            api_medium(path, pv)?
+        }
+    };
+    if !v.fields.is_empty() {
+        warnings.push(format!(
+            "volume {path}: world fog has density 1 everywhere: its fields are not read"
+        ));
+    }
+    let light_group = text(pv, tokens::LIGHT_GROUP).map(str::to_string);
+    Ok(medium.volume(path, light_group, VolumeShape::World))
 }
 
 fn volume(v: &VolumeDesc, warnings: &mut Vec<String>) -> Result<Volume> {
     let path = v.path.as_str();
+    match text(&v.primvars, tokens::FILL) {
+        None | Some("field") => {}
+        Some("world") => return world_fog(v, warnings),
+        Some(other) => bail!(
+            "{path}: {} = \"{other}\" is not one of \"field\", \"world\"",
+            tokens::FILL
+        ),
+    }
     if v.fields.is_empty() {
         bail!("{path}: volume has no fields");
     }
@@ -412,31 +643,29 @@ fn volume(v: &VolumeDesc, warnings: &mut Vec<String>) -> Result<Volume> {
             })
     };
     let pv = &v.primvars;
-    let has_nimbus = pv.iter().any(|p| {
-        p.name
-            .trim_start_matches("primvars:")
-            .starts_with("nimbus:")
-    });
-    let material = match has_nimbus {
+    let has_nimbus = has_volume_api(pv);
+    let material = Material::of_volume(v);
+    let coefficients = match has_nimbus {
         true => None,
-        false => shader(v)?,
+        false => material.coefficients()?,
     };
-    if !has_nimbus && material.is_none() && !v.material_path.is_empty() {
-        warnings.push(format!(
-            "volume {path}: material {} ({}) is not one Nimbus reads (PxrVolume, ND_anisotropic_vdf or nimbus:* primvars); the schema's fallback coefficients are used",
-            v.material_path,
-            match v.shader_id.is_empty() {
-                true => "no volume shader",
-                false => v.shader_id.as_str(),
-            }
+    if !has_nimbus && coefficients.is_none() && !v.material_path.is_empty() {
+        warnings.push(unread_material(
+            "volume",
+            path,
+            &material,
+            "the schema's fallback coefficients are used",
         ));
     }
     let volume_to_world = finite_matrix(path, &v.xform)?;
-    if let Some(m) = material {
+    // `nimbus:lightGroup` (NimbusLightAPI) whether the medium is the material's or not,
+    // as the USD reader reads it.
+    let light_group = text(pv, tokens::LIGHT_GROUP).map(str::to_string);
+    if let Some(m) = coefficients {
         let density_name = m.density_field.unwrap_or_else(|| "density".to_string());
         return Ok(Volume {
             prim_path: v.path.clone(),
-            light_group: None,
+            light_group,
             volume_to_world,
             shape: VolumeShape::Field(named(&density_name)?),
             density_scale: m.density_scale,
@@ -446,53 +675,76 @@ fn volume(v: &VolumeDesc, warnings: &mut Vec<String>) -> Result<Volume> {
             fields,
             emission: VolumeEmission::default(),
             albedo: None,
-            material_shader: Some(format!("{} ({})", v.shader_path, v.shader_id)),
+            material_shader: Some(material.shader_name()),
         });
     }
-    let density_name = text(pv, "nimbus:densityField").unwrap_or("density");
+    let density_name = text(pv, tokens::DENSITY_FIELD).unwrap_or("density");
     let optional = |attr: &str| -> Result<Option<(String, Field)>> {
         match text(pv, attr) {
             None => Ok(None),
             Some(n) => Ok(Some((n.to_string(), named(n)?))),
         }
     };
-    let defaults = VolumeEmission::default();
-    let emission = VolumeEmission {
-        temperature: optional("nimbus:temperatureField")?,
-        temperature_scale: scalar(path, pv, "nimbus:temperatureScale")?
-            .unwrap_or(defaults.temperature_scale),
-        blackbody_intensity: scalar(path, pv, "nimbus:blackbodyIntensity")?
-            .unwrap_or(defaults.blackbody_intensity),
-        emission: optional("nimbus:emissionField")?,
-        emission_color: color3(path, pv, "nimbus:emissionColor")?
-            .unwrap_or(defaults.emission_color),
-        emission_scale: scalar(path, pv, "nimbus:emissionScale")?
-            .unwrap_or(defaults.emission_scale),
-        kind: match text(pv, "nimbus:emissionKind") {
-            None => defaults.kind,
-            Some(t) => EmissionKind::from_token(t).ok_or_else(|| {
-                anyhow!(
-                    "volume {path}: primvars:nimbus:emissionKind `{t}` is neither \"radiance\" nor \"source\""
-                )
-            })?,
-        },
-    };
+    let emission = emission(path, pv, &optional)?;
     let density = named(density_name)?;
-    let albedo = optional("nimbus:albedoField")?;
+    let albedo = optional(tokens::ALBEDO_FIELD)?;
     Ok(Volume {
         prim_path: v.path.clone(),
-        light_group: text(pv, "nimbus:lightGroup").map(str::to_string),
+        light_group,
         volume_to_world,
         shape: VolumeShape::Field(density),
-        density_scale: scalar(path, pv, "nimbus:densityScale")?.unwrap_or(1.0),
-        absorption: color3(path, pv, "nimbus:absorption")?.unwrap_or([0.1; 3]),
-        scattering: color3(path, pv, "nimbus:scattering")?.unwrap_or([0.9; 3]),
-        anisotropy: scalar(path, pv, "nimbus:anisotropy")?.unwrap_or(0.0),
+        density_scale: scalar(path, pv, tokens::DENSITY_SCALE)?.unwrap_or(1.0),
+        absorption: color3(path, pv, tokens::ABSORPTION)?.unwrap_or([0.1; 3]),
+        scattering: color3(path, pv, tokens::SCATTERING)?.unwrap_or([0.9; 3]),
+        anisotropy: scalar(path, pv, tokens::ANISOTROPY)?.unwrap_or(0.0),
         fields,
         emission,
         albedo,
         material_shader: None,
     })
+}
+
+/// A mesh rprim: a fog box when it carries NimbusVolumeAPI's primvars or its material's
+/// volume shader is one Nimbus reads (the medium inside its surface, checked and wound
+/// outwards by `nimbus::scene::fog::fog_mesh`, whose warning is the mesh's), else a
+/// holdout (a warning when its material has a volume shader Nimbus does not read).
+fn mesh(m: &MeshDesc, scene: &mut Scene, warnings: &mut Vec<String>) -> Result<()> {
+    let path = m.path.as_str();
+    let material = Material::of_mesh(m);
+    let medium = fog_medium(path, &m.primvars, &material, warnings)?;
+    let Some(medium) = medium else {
+        if !m.shader_id.is_empty() {
+            warnings.push(unread_material(
+                "mesh",
+                path,
+                &material,
+                "the mesh is a holdout",
+            ));
+        }
+        if let Some(h) = holdout(m)? {
+            scene.holdouts.push(h);
+        }
+        return Ok(());
+    };
+    let Some(surface) = holdout(m)? else {
+        warnings.push(format!(
+            "mesh {path}: a fog box without a face that is not degenerate; it is left out"
+        ));
+        return Ok(());
+    };
+    // The authored winding runs clockwise seen from outside: a left-handed topology,
+    // or a mirroring transform (both handed over, unlike the implicit shape a
+    // tessellated Cube or Sphere was).
+    let mirrored = m.left_handed != (matrix(&m.xform).determinant() < 0.0);
+    let (fog, problem) = fog::fog_mesh(surface, Some(mirrored));
+    if let Some(problem) = problem {
+        warnings.push(format!("mesh {path}: {problem}"));
+    }
+    let light_group = text(&m.primvars, tokens::LIGHT_GROUP).map(str::to_string);
+    scene
+        .volumes
+        .push(medium.volume(path, light_group, VolumeShape::Mesh(fog)));
+    Ok(())
 }
 
 /// A mesh as a holdout: world-space points, fan-triangulated faces without holes,
@@ -944,8 +1196,7 @@ pub(crate) mod tests {
             face_counts: vec![4, 5, 3],
             face_indices: vec![0, 1, 2, 3, 0, 1, 2, 4, 3, 0, 1, 2],
             hole_indices: vec![2],
-            double_sided: false,
-            categories: Vec::new(),
+            ..MeshDesc::default()
         };
         let desc = SceneDesc {
             meshes: vec![mesh.clone()],
@@ -963,6 +1214,337 @@ pub(crate) mod tests {
         };
         let e = scene_of(&desc).unwrap_err().to_string();
         assert!(e.contains("/m") && e.contains("9"), "{e}");
+    }
+
+    fn p(name: &str, numbers: &[f64], text: &str) -> ParamDesc {
+        ParamDesc {
+            name: name.into(),
+            numbers: numbers.to_vec(),
+            text: text.into(),
+        }
+    }
+
+    /// A unit cube's 6 quads, counter-clockwise seen from outside.
+    pub(crate) fn cube_mesh(path: &str) -> MeshDesc {
+        MeshDesc {
+            path: path.into(),
+            xform: identity(),
+            points: [
+                [0., 0., 0.],
+                [1., 0., 0.],
+                [1., 1., 0.],
+                [0., 1., 0.],
+                [0., 0., 1.],
+                [1., 0., 1.],
+                [1., 1., 1.],
+                [0., 1., 1.],
+            ]
+            .concat(),
+            face_counts: vec![4; 6],
+            face_indices: vec![
+                0, 3, 2, 1, 4, 5, 6, 7, 0, 1, 5, 4, 2, 3, 7, 6, 1, 2, 6, 5, 0, 4, 7, 3,
+            ],
+            ..MeshDesc::default()
+        }
+    }
+
+    fn one_mesh(m: MeshDesc) -> Result<(Scene, Vec<String>)> {
+        scene_of(&SceneDesc {
+            meshes: vec![m],
+            ..SceneDesc::default()
+        })
+    }
+
+    /// A mesh with NimbusVolumeAPI's primvars is a fog box (fallbacks for the absent
+    /// ones, the emission's, its light group), not a holdout; with only
+    /// `nimbus:holdout` or `nimbus:lightGroup` it stays a holdout.
+    #[test]
+    fn meshes_with_volume_primvars_are_fog_boxes() {
+        let mut m = cube_mesh("/box");
+        m.primvars = vec![
+            p("primvars:nimbus:densityScale", &[3.0], ""),
+            p("nimbus:emissionKind", &[], "source"),
+            p("nimbus:emissionColor", &[1.0, 0.5, 0.25], ""),
+            p("primvars:nimbus:lightGroup", &[], "fog"),
+            p("primvars:displayColor", &[0.5, 0.5, 0.5], ""),
+        ];
+        let (s, w) = one_mesh(m).unwrap();
+        assert!(w.is_empty(), "{w:?}");
+        assert!(s.holdouts.is_empty());
+        let v = &s.volumes[0];
+        let VolumeShape::Mesh(fog) = &v.shape else {
+            panic!("{:?}", v.shape)
+        };
+        assert!(fog.closed);
+        assert_eq!(fog.mesh.triangles.len(), 12);
+        assert_eq!(
+            (v.density_scale, v.absorption, v.scattering, v.anisotropy),
+            (3.0, [0.1; 3], [0.9; 3], 0.0)
+        );
+        assert_eq!(v.emission.kind, EmissionKind::from_token("source").unwrap());
+        assert_eq!(v.emission.emission_color, [1.0, 0.5, 0.25]);
+        assert!(v.fields.is_empty() && v.material_shader.is_none());
+        assert_eq!(v.light_group.as_deref(), Some("fog"));
+        assert_eq!(v.volume_to_world, DMat4::IDENTITY);
+
+        for other in ["primvars:nimbus:holdout", "primvars:nimbus:lightGroup"] {
+            let mut m = cube_mesh("/wall");
+            m.primvars = vec![p(other, &[1.0], "x")];
+            let (s, w) = one_mesh(m).unwrap();
+            assert!(w.is_empty(), "{w:?}");
+            assert_eq!((s.holdouts.len(), s.volumes.len()), (1, 0), "{other}");
+        }
+    }
+
+    /// A mesh whose material's volume shader Nimbus reads is a fog box with the
+    /// shader's coefficients (a PxrVolume's density primvar is a warning: fog has none);
+    /// one whose material's volume shader it does not read is a holdout and a warning
+    /// naming the material; a material without a volume shader (a surface's) is a
+    /// holdout without one.
+    #[test]
+    fn meshes_with_a_volume_material_are_fog_boxes() {
+        let mut m = cube_mesh("/haze");
+        m.material_path = "/mat".into();
+        m.shader_path = "/mat/vdf".into();
+        m.shader_id = "ND_anisotropic_vdf".into();
+        m.shader_params = vec![
+            p("absorption", &[0.1, 0.2, 0.3], ""),
+            p("scattering", &[0.4, 0.5, 0.6], ""),
+            p("anisotropy", &[0.3], ""),
+        ];
+        let (s, w) = one_mesh(m.clone()).unwrap();
+        assert!(w.is_empty(), "{w:?}");
+        let v = &s.volumes[0];
+        assert!(matches!(v.shape, VolumeShape::Mesh(_)));
+        assert_eq!(
+            (v.absorption, v.scattering, v.anisotropy, v.density_scale),
+            ([0.1, 0.2, 0.3], [0.4, 0.5, 0.6], 0.3, 1.0)
+        );
+        assert_eq!(
+            v.material_shader.as_deref(),
+            Some("/mat/vdf (ND_anisotropic_vdf)")
+        );
+
+        let mut pxr = m.clone();
+        pxr.shader_id = "PxrVolume".into();
+        pxr.shader_params = vec![
+            p("densityFloat", &[2.0], ""),
+            p("densityMultiplier", &[3.0], ""),
+            p("densityFloatPrimVar", &[], "density"),
+        ];
+        let (s, w) = one_mesh(pxr).unwrap();
+        assert_eq!(s.volumes[0].density_scale, 3.0);
+        assert!(
+            w.iter()
+                .any(|w| w.contains("/haze") && w.contains("density primvar `density`")),
+            "{w:?}"
+        );
+
+        let mut principled = m.clone();
+        principled.shader_id = "principled_volume".into();
+        let (s, w) = one_mesh(principled).unwrap();
+        assert_eq!((s.holdouts.len(), s.volumes.len()), (1, 0));
+        assert!(
+            w.iter().any(|w| w.contains("/haze")
+                && w.contains("/mat")
+                && w.contains("principled_volume")
+                && w.contains("holdout")),
+            "{w:?}"
+        );
+
+        let mut surface = m;
+        surface.shader_path.clear();
+        surface.shader_id.clear();
+        surface.shader_params.clear();
+        let (s, w) = one_mesh(surface).unwrap();
+        assert_eq!((s.holdouts.len(), s.volumes.len()), (1, 0));
+        assert!(w.is_empty(), "{w:?}");
+    }
+
+    /// The authored winding against the topology's orientation and the transform's
+    /// handedness: a right-handed cube wound outwards (counter-clockwise seen from
+    /// outside) and a left-handed one wound inwards, each also mirrored by its
+    /// transform, are read without a warning; a right-handed one wound inwards is read
+    /// outwards with a warning naming it; an open one is read by parity with a warning. Every one comes
+    /// out wound outwards (positive enclosed volume).
+    #[test]
+    fn fog_box_winding_orientation_and_mirroring() {
+        let inverted = |m: &mut MeshDesc| {
+            for f in m.face_indices.chunks_mut(4) {
+                f.reverse();
+            }
+        };
+        let mut mirror = identity();
+        mirror[0] = -1.0;
+        let case = |left_handed: bool, inward: bool, xform: [f64; 16], faces: usize| {
+            let mut m = cube_mesh("/box");
+            m.primvars = vec![p("nimbus:densityScale", &[1.0], "")];
+            m.left_handed = left_handed;
+            m.xform = xform;
+            if inward {
+                inverted(&mut m);
+            }
+            m.face_counts.truncate(faces);
+            m.face_indices.truncate(4 * faces);
+            let (s, w) = one_mesh(m).unwrap();
+            let VolumeShape::Mesh(fog) = &s.volumes[0].shape else {
+                panic!()
+            };
+            let pt = |i: u32| DVec3::from_array(fog.mesh.points[i as usize]);
+            let volume: f64 = fog
+                .mesh
+                .triangles
+                .iter()
+                .map(|&[a, b, c]| pt(a).dot(pt(b).cross(pt(c))) / 6.0)
+                .sum();
+            (fog.closed, volume, w)
+        };
+        for (left, inward, xform) in [
+            (false, false, identity()),
+            (true, true, identity()),
+            (false, false, mirror),
+            (true, true, mirror),
+        ] {
+            let (closed, volume, w) = case(left, inward, xform, 6);
+            assert!(closed && (volume - 1.0).abs() < 1e-12, "{volume}");
+            assert!(w.is_empty(), "left {left} inward {inward}: {w:?}");
+        }
+        let (closed, volume, w) = case(false, true, identity(), 6);
+        assert!(closed && (volume - 1.0).abs() < 1e-12, "{volume}");
+        assert!(
+            w.iter()
+                .any(|w| w.contains("/box") && w.contains("faces point inwards")),
+            "{w:?}"
+        );
+        let (closed, _, w) = case(false, false, identity(), 5);
+        assert!(!closed);
+        assert!(
+            w.iter()
+                .any(|w| w.contains("/box") && w.contains("not a closed")),
+            "{w:?}"
+        );
+    }
+
+    /// Fog has no fields: a temperature, emission or albedo field named on a fog box
+    /// or on world fog is an error naming the prim and the attribute.
+    #[test]
+    fn fields_named_on_fog_are_errors() {
+        for attr in [
+            "nimbus:temperatureField",
+            "nimbus:emissionField",
+            "nimbus:albedoField",
+        ] {
+            let mut m = cube_mesh("/box");
+            m.primvars = vec![p(&format!("primvars:{attr}"), &[], "heat")];
+            let e = one_mesh(m).unwrap_err().to_string();
+            assert!(
+                e.contains("/box") && e.contains(attr) && e.contains("no fields"),
+                "{e}"
+            );
+            let world = VolumeDesc {
+                path: "/world".into(),
+                xform: identity(),
+                primvars: vec![
+                    p("nimbus:fill", &[], "world"),
+                    p(&format!("primvars:{attr}"), &[], "heat"),
+                ],
+                ..VolumeDesc::default()
+            };
+            let e = scene_of(&SceneDesc {
+                volumes: vec![world],
+                ..SceneDesc::default()
+            })
+            .unwrap_err()
+            .to_string();
+            assert!(e.contains("/world") && e.contains(attr), "{e}");
+        }
+    }
+
+    /// A Volume rprim with `nimbus:fill = "world"` is world fog: without fields (its
+    /// fields, if any, are a warning and not read), its medium from the primvars, else
+    /// a material Nimbus reads, else NimbusVolumeAPI's fallbacks; "field" is an
+    /// ordinary volume; another token is an error.
+    #[test]
+    fn world_fog_from_the_fill_primvar() {
+        let world = |extra: Vec<ParamDesc>| VolumeDesc {
+            path: "/world".into(),
+            xform: identity(),
+            primvars: [vec![p("primvars:nimbus:fill", &[], "world")], extra].concat(),
+            ..VolumeDesc::default()
+        };
+        let run = |v: VolumeDesc| {
+            scene_of(&SceneDesc {
+                volumes: vec![v],
+                ..SceneDesc::default()
+            })
+        };
+        let (s, w) = run(world(vec![
+            p("nimbus:densityScale", &[0.02], ""),
+            p("nimbus:lightGroup", &[], "air"),
+        ]))
+        .unwrap();
+        assert!(w.is_empty(), "{w:?}");
+        let v = &s.volumes[0];
+        assert_eq!(v.shape, VolumeShape::World);
+        assert_eq!((v.density_scale, v.scattering), (0.02, [0.9; 3]));
+        assert_eq!(v.light_group.as_deref(), Some("air"));
+        assert!(v.fields.is_empty());
+
+        let (s, w) = run(world(Vec::new())).unwrap();
+        assert!(w.is_empty(), "{w:?}");
+        assert_eq!(
+            (s.volumes[0].density_scale, s.volumes[0].absorption),
+            (1.0, [0.1; 3])
+        );
+
+        let mut m = world(Vec::new());
+        m.material_path = "/mat".into();
+        m.shader_path = "/mat/vdf".into();
+        m.shader_id = "ND_anisotropic_vdf".into();
+        m.shader_params = vec![p("scattering", &[0.5], "")];
+        let (s, _) = run(m).unwrap();
+        assert_eq!(s.volumes[0].scattering, [0.5; 3]);
+        assert_eq!(s.volumes[0].shape, VolumeShape::World);
+
+        let mut with_fields = smoke_volume();
+        with_fields.primvars = vec![p("nimbus:fill", &[], "world")];
+        let (s, w) = run(with_fields).unwrap();
+        assert_eq!(s.volumes[0].shape, VolumeShape::World);
+        assert!(
+            w.iter()
+                .any(|w| w.contains("/smoke") && w.contains("not read")),
+            "{w:?}"
+        );
+
+        let mut field = smoke_volume();
+        field.primvars = vec![p("nimbus:fill", &[], "field")];
+        let (s, _) = run(field).unwrap();
+        assert!(matches!(s.volumes[0].shape, VolumeShape::Field(_)));
+
+        let mut sky = smoke_volume();
+        sky.primvars = vec![p("nimbus:fill", &[], "sky")];
+        let e = run(sky).unwrap_err().to_string();
+        assert!(e.contains("/smoke") && e.contains("\"sky\""), "{e}");
+    }
+
+    /// A volume's `nimbus:lightGroup` (NimbusLightAPI's) does not hide its material
+    /// (as the USD reader reads them: the material's coefficients and the group).
+    #[test]
+    fn a_light_group_keeps_the_volume_material() {
+        let mut v = smoke_volume();
+        v.primvars = vec![p("primvars:nimbus:lightGroup", &[], "smoke")];
+        v.material_path = "/mat".into();
+        v.shader_path = "/mat/vdf".into();
+        v.shader_id = "ND_anisotropic_vdf".into();
+        v.shader_params = vec![p("scattering", &[0.5], "")];
+        let (s, w) = scene_of(&SceneDesc {
+            volumes: vec![v],
+            ..SceneDesc::default()
+        })
+        .unwrap();
+        assert!(w.is_empty(), "{w:?}");
+        assert_eq!(s.volumes[0].scattering, [0.5; 3]);
+        assert_eq!(s.volumes[0].light_group.as_deref(), Some("smoke"));
     }
 
     /// Settings by the schema's names; a wrong kind of value names the setting.

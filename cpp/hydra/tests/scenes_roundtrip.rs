@@ -16,7 +16,7 @@ use hd_nimbus::ffi::bridge::{
 use hd_nimbus::scene::scene_of;
 use nimbus::render::film::Aov;
 use nimbus::render::session::{Overrides, Session};
-use nimbus::scene::{load_stage, Field, LightControls, LoadOptions, Scene};
+use nimbus::scene::{load_stage, Field, LightControls, LoadOptions, Scene, VolumeShape};
 use nimbus::volume::asset::AssetLocation;
 use std::path::{Path, PathBuf};
 
@@ -171,7 +171,6 @@ fn desc_of(scene: &Scene) -> SceneDesc {
         d.lights.push(ld);
     }
     for v in &scene.volumes {
-        assert!(v.material_shader.is_none(), "{}: a material", v.prim_path);
         let e = &v.emission;
         let mut primvars = vec![
             number("nimbus:densityScale", v.density_scale),
@@ -182,14 +181,72 @@ fn desc_of(scene: &Scene) -> SceneDesc {
             number("nimbus:blackbodyIntensity", e.blackbody_intensity),
             color("nimbus:emissionColor", e.emission_color),
             number("nimbus:emissionScale", e.emission_scale),
+            token("nimbus:emissionKind", e.kind.token()),
         ];
-        let density = v
-            .fields
-            .iter()
-            .find(|(_, f)| Some(f) == v.shape.field())
-            .map(|(n, _)| n.clone())
-            .expect("the density among the fields");
-        primvars.push(token("nimbus:densityField", &density));
+        // A medium from a material: the material's shader and its parameters instead
+        // (ND_anisotropic_vdf's are the coefficients themselves).
+        let mut material = (String::new(), String::new(), String::new(), Vec::new());
+        if let Some(shader) = &v.material_shader {
+            let (path, id) = shader
+                .strip_suffix(')')
+                .and_then(|s| s.split_once(" ("))
+                .expect("\"shader (id)\"");
+            assert_eq!(id, "ND_anisotropic_vdf", "{}", v.prim_path);
+            let plain = |p: ParamDesc| ParamDesc {
+                name: p.name.trim_start_matches("primvars:nimbus:").into(),
+                ..p
+            };
+            primvars.clear();
+            material = (
+                path.rsplit_once('/').map_or("", |(m, _)| m).to_string(),
+                path.to_string(),
+                id.to_string(),
+                vec![
+                    plain(color("nimbus:absorption", v.absorption)),
+                    plain(color("nimbus:scattering", v.scattering)),
+                    plain(number("nimbus:anisotropy", v.anisotropy)),
+                ],
+            );
+        }
+        if let Some(g) = &v.light_group {
+            primvars.push(token("nimbus:lightGroup", g));
+        }
+        let (material_path, shader_path, shader_id, shader_params) = material;
+        match &v.shape {
+            VolumeShape::Mesh(fog) => {
+                d.meshes.push(MeshDesc {
+                    path: v.prim_path.clone(),
+                    xform: v.volume_to_world.to_cols_array(),
+                    points: fog.mesh.points.iter().flatten().copied().collect(),
+                    face_counts: vec![3; fog.mesh.triangles.len()],
+                    face_indices: fog
+                        .mesh
+                        .triangles
+                        .iter()
+                        .flatten()
+                        .map(|&i| i as i32)
+                        .collect(),
+                    double_sided: fog.mesh.double_sided,
+                    primvars,
+                    material_path,
+                    shader_path,
+                    shader_id,
+                    shader_params,
+                    ..MeshDesc::default()
+                });
+                continue;
+            }
+            VolumeShape::World => primvars.push(token("nimbus:fill", "world")),
+            VolumeShape::Field(density) => {
+                let density = v
+                    .fields
+                    .iter()
+                    .find(|(_, f)| f == density)
+                    .map(|(n, _)| n.clone())
+                    .expect("the density among the fields");
+                primvars.push(token("nimbus:densityField", &density));
+            }
+        }
         for (attr, f) in [
             ("nimbus:temperatureField", &e.temperature),
             ("nimbus:emissionField", &e.emission),
@@ -199,14 +256,15 @@ fn desc_of(scene: &Scene) -> SceneDesc {
                 primvars.push(token(attr, name));
             }
         }
-        if let Some(g) = &v.light_group {
-            primvars.push(token("nimbus:lightGroup", g));
-        }
         d.volumes.push(VolumeDesc {
             path: v.prim_path.clone(),
             xform: v.volume_to_world.to_cols_array(),
             fields: v.fields.iter().map(|(n, f)| field(n, f)).collect(),
             primvars,
+            material_path,
+            shader_path,
+            shader_id,
+            shader_params,
             ..VolumeDesc::default()
         });
     }
@@ -219,7 +277,7 @@ fn desc_of(scene: &Scene) -> SceneDesc {
             face_indices: h.triangles.iter().flatten().map(|&i| i as i32).collect(),
             hole_indices: Vec::new(),
             double_sided: h.double_sided,
-            categories: Vec::new(),
+            ..MeshDesc::default()
         });
     }
     let s = &scene.settings;
@@ -264,7 +322,11 @@ fn comparable(mut s: Scene) -> Scene {
     s.settings.prim_path = None;
     s.settings.products.clear();
     s.warnings = Default::default();
-    for h in &mut s.holdouts {
+    let fog_surfaces = s.volumes.iter_mut().filter_map(|v| match &mut v.shape {
+        VolumeShape::Mesh(fog) => Some(&mut fog.mesh),
+        _ => None,
+    });
+    for h in s.holdouts.iter_mut().chain(fog_surfaces) {
         h.faces = 0;
         h.degenerate_triangles = 0;
         h.prim_type = "Mesh".into();
@@ -296,6 +358,112 @@ fn example_stages_convert_back_and_render_bit_identically() {
     for stage in stages {
         let read = load_stage(&stage, &LoadOptions::default())
             .unwrap_or_else(|e| panic!("{}: {e:#}", stage.display()));
+        round_trip(&stage, read);
+    }
+}
+
+/// The cloud example with fog (`tests/fog.rs`, docs/usd.md): world fog in its own
+/// light group, a fog Cube (NimbusVolumeAPI, emitting as a source) rotated and scaled,
+/// and a prism Mesh bound to an `ND_anisotropic_vdf` material, handed over as hdNimbus
+/// receives them (the gprims as meshes with their `nimbus:*` primvars or their
+/// material's volume shader, world fog as a Volume with the `nimbus:fill` primvar).
+#[test]
+fn fog_stage_converts_back_and_renders_bit_identically() {
+    let dir = std::env::temp_dir().join(format!("hdnimbus-fog-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let text = std::fs::read_to_string(repo().join("scenes/cloud/cloud.usda")).unwrap();
+    let fog = r#"
+    def Volume "Haze" (
+        prepend apiSchemas = ["NimbusVolumeAPI"]
+    )
+    {
+        uniform token nimbus:fill = "world"
+        float nimbus:densityScale = 0.03
+        token nimbus:lightGroup = "air"
+    }
+
+    def Cube "Box" (
+        prepend apiSchemas = ["NimbusVolumeAPI"]
+    )
+    {
+        double size = 0.8
+        float nimbus:densityScale = 3
+        color3f nimbus:absorption = (0.5, 0.3, 0.2)
+        color3f nimbus:scattering = (0.2, 0.4, 0.6)
+        uniform token nimbus:emissionKind = "source"
+        color3f nimbus:emissionColor = (1, 0.4, 0.1)
+        float nimbus:emissionScale = 2
+        double3 xformOp:translate = (-1.1, -0.6, 0.5)
+        float3 xformOp:rotateXYZ = (20, 35, 50)
+        float3 xformOp:scale = (1.5, 0.8, 1.1)
+        uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateXYZ", "xformOp:scale"]
+    }
+
+    def Mesh "Prism" (
+        prepend apiSchemas = ["MaterialBindingAPI"]
+    )
+    {
+        rel material:binding = </World/Mist>
+        point3f[] points = [(0, 0, 0), (0.8, 0, 0), (0.4, 0.7, 0), (0, 0, 0.6), (0.8, 0, 0.6), (0.4, 0.7, 0.6)]
+        int[] faceVertexCounts = [3, 3, 4, 4, 4]
+        int[] faceVertexIndices = [0, 2, 1, 3, 4, 5, 0, 1, 4, 3, 1, 2, 5, 4, 2, 0, 3, 5]
+        double3 xformOp:translate = (0.6, -0.9, 0.4)
+        uniform token[] xformOpOrder = ["xformOp:translate"]
+    }
+
+    def Material "Mist"
+    {
+        token outputs:mtlx:volume.connect = </World/Mist/vdf.outputs:out>
+        def Shader "vdf"
+        {
+            uniform token info:id = "ND_anisotropic_vdf"
+            color3f inputs:absorption = (0.1, 0.2, 0.3)
+            color3f inputs:scattering = (1.5, 1.2, 0.9)
+            float inputs:anisotropy = 0.3
+            token outputs:out
+        }
+    }
+"#;
+    let at = text.find("    def Camera \"Camera\"").unwrap();
+    let text = format!("{}{fog}\n{}", &text[..at], &text[at..]).replace(
+        "@./cloud.vdb@",
+        &format!("@{}@", repo().join("scenes/cloud/cloud.vdb").display()),
+    );
+    let stage = dir.join("fog.usda");
+    std::fs::write(&stage, text).unwrap();
+    let read = load_stage(&stage, &LoadOptions::default()).unwrap_or_else(|e| panic!("{e:#}"));
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert!(read.warnings.is_empty(), "{:?}", read.warnings.lines());
+    let shapes: Vec<(&str, &str)> = read
+        .volumes
+        .iter()
+        .map(|v| {
+            let shape = match &v.shape {
+                VolumeShape::Field(_) => "field",
+                VolumeShape::Mesh(m) if m.closed => "closed fog box",
+                VolumeShape::Mesh(_) => "open fog box",
+                VolumeShape::World => "world fog",
+            };
+            (v.prim_path.as_str(), shape)
+        })
+        .collect();
+    assert_eq!(
+        shapes,
+        [
+            ("/World/Cloud", "field"),
+            ("/World/Haze", "world fog"),
+            ("/World/Box", "closed fog box"),
+            ("/World/Prism", "closed fog box"),
+        ]
+    );
+    assert!(read.holdouts.is_empty());
+    round_trip(&stage, read);
+}
+
+/// `read` (the USD reader's scene of `stage`) handed over as Hydra structs comes back
+/// from `scene_of` as the same scene and renders the same image.
+fn round_trip(stage: &Path, read: Scene) {
+    {
         let (back, warnings) = scene_of(&desc_of(&read)).unwrap();
         assert!(warnings.is_empty(), "{}: {warnings:?}", stage.display());
         let (mut a, b) = (comparable(read.clone()), comparable(back.clone()));
@@ -335,7 +503,7 @@ fn example_stages_convert_back_and_render_bit_identically() {
             ..Overrides::default()
         };
         let render = |scene: Scene| {
-            let s = Session::from_scene(&stage, scene, &o).unwrap();
+            let s = Session::from_scene(stage, scene, &o).unwrap();
             let job = s.job(false);
             let film = job.render(&|| {});
             [Aov::R, Aov::G, Aov::B, Aov::A].map(|c| film.channel(c))
