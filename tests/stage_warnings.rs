@@ -214,7 +214,8 @@ fn cloud_with(dir: &Path, name: &str, replace: &[(&str, &str)]) -> PathBuf {
 
 /// Prims besides lights that the render does not show as authored: gprims Nimbus has no
 /// holdout for (one line per type, none for a prototype or for `nimbus:holdout =
-/// false`), a point instancer, a Field3DAsset field, and render settings and a product
+/// false`), a point instancer with a gprim prototype (only volume prototypes are
+/// placed), a Field3DAsset field, and render settings and a product
 /// asking for non-square pixels, a crop, another conform policy and their own
 /// resolution. Each names its prim and attribute; `--strict` refuses them.
 #[test]
@@ -275,7 +276,7 @@ fn unread_prims_and_settings_warn_once_per_kind_and_are_errors_under_strict() {
     let expect = [
         "/World/Dust: Points prims are not read as holdouts: this one does not occlude the volumes (set nimbus:holdout = false to say so) (the same for /World/MoreDust)",
         "/World/Hair: BasisCurves prims are not read as holdouts",
-        "/World/Scatter.protoIndices: point instancers are not read",
+        "/World/Scatter.prototypes: 1 gprims beneath its prototypes are not placed",
         "/World/Cloud.field:temperature: targets /World/Cloud/temperature (Field3DAsset); Nimbus reads OpenVDBAsset fields only",
         "/Render/Settings.pixelAspectRatio: is 2: Nimbus renders square pixels",
         "/Render/Settings.dataWindowNDC: is [0.0, 0.0, 0.5, 1.0]: Nimbus renders the whole frame",

@@ -109,6 +109,9 @@ impl RenderStats {
         let (totals, _samples, nonfinite) = film.totals();
         let samples = film.width as f64 * film.height as f64 * p.spp as f64;
         let media = session.media();
+        // Instances share grids and majorant structures: each is counted once.
+        let grids = distinct(media, |m| std::sync::Arc::as_ptr(&m.density) as usize);
+        let trees = distinct(media, |m| std::sync::Arc::as_ptr(&m.majorants) as usize);
         let t = &session.tracking;
         let calibration = t.profile.then(crate::volume::ticks::Calibration::measure);
         let times = calibration.map(|c| c.split(&totals));
@@ -152,8 +155,8 @@ impl RenderStats {
             cells_visited: totals.cells_visited,
             majorant_violations: totals.majorant_violations,
             nonfinite_samples: nonfinite,
-            sanitized_voxels: media.iter().map(|m| m.density.sanitized_voxels).sum(),
-            majorant_cells: media.iter().map(|m| m.majorants.cell_count()).sum(),
+            sanitized_voxels: grids.iter().map(|m| m.density.sanitized_voxels).sum(),
+            majorant_cells: trees.iter().map(|m| m.majorants.cell_count()).sum(),
             octree_depth: match session.spec {
                 MajorantSpec::Octree { depth } => Some(depth),
                 MajorantSpec::Uniform { .. } => None,
@@ -163,8 +166,8 @@ impl RenderStats {
                 .map(|m| m.majorants.levels())
                 .max()
                 .unwrap_or(0),
-            octree_build_seconds: media.iter().map(|m| m.majorants.build_seconds()).sum(),
-            octree_memory_bytes: media.iter().map(|m| m.majorants.memory_bytes()).sum(),
+            octree_build_seconds: trees.iter().map(|m| m.majorants.build_seconds()).sum(),
+            octree_memory_bytes: trees.iter().map(|m| m.majorants.memory_bytes()).sum(),
             vdb_reader: crate::volume::vdb::active_reader().name().into(),
             lookup_seconds: times.map(|t| t.lookup_seconds),
             traversal_seconds: times.map(|t| t.traversal_seconds),
@@ -194,4 +197,13 @@ pub struct RunFacts {
     pub counting: bool,
     /// The tile rendered, if any.
     pub tile: Option<crate::render::tiles::Tile>,
+}
+
+/// The media with a distinct `key` (the first of each), in order.
+fn distinct(
+    media: &[crate::volume::medium::Medium],
+    key: impl Fn(&crate::volume::medium::Medium) -> usize,
+) -> Vec<&crate::volume::medium::Medium> {
+    let mut seen = std::collections::HashSet::new();
+    media.iter().filter(|m| seen.insert(key(m))).collect()
 }
