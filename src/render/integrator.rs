@@ -880,10 +880,21 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         mut f: impl FnMut(&[Query], &[usize], bool) -> T,
         go_on: impl Fn(&T) -> bool,
     ) -> T {
-        if self.media.len() == 1 {
-            let ids: &[usize] = if mask & 1 == 1 { &[0] } else { &[] };
-            return self
-                .queries::<1, T>(origin, dir, tmin, tmax, tracked, ids, |q, i| f(q, i, true));
+        if let [m] = self.media {
+            // One volume (the common stage): its query built directly.
+            if mask & 1 == 0 {
+                return f(&[], &[], true);
+            }
+            let (ray, sigma) = (m.index_ray(origin, dir), tracked.sigma(m));
+            let q = [Query {
+                medium: m,
+                sigma: &sigma,
+                ray: &ray,
+                tmin,
+                tmax,
+                majorant_scale: self.majorant_scale,
+            }];
+            return f(&q, &[0], true);
         }
         let mut ids = [0usize; MAX_MEDIA];
         let mut k = 0;

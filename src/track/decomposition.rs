@@ -18,7 +18,7 @@
 use super::race::race;
 use super::scheme::{collide, Coefficients, Scheme, SchemeOptions};
 use crate::color::Spectrum;
-use crate::track::free_path::{FreePath, FreePathSampler, OpticalDepth, Query};
+use crate::track::free_path::{with_walk, FreePath, FreePathSampler, OpticalDepth, Query};
 use crate::volume::counters::Tally;
 use crate::volume::majorant::Segment;
 use rand::Rng;
@@ -185,37 +185,38 @@ pub(super) fn walk_processes<R: Rng, C: Tally, K>(
     cell: impl Fn(&Segment) -> Cell<K>,
     mut decide: impl FnMut(&Cell<K>, bool, f32, &mut R, &mut C) -> Option<FreePath>,
 ) -> FreePath {
-    let mut walk = q.medium.walk(q.ray, q.tmin, q.tmax);
-    let (mut tau_c, mut tau_r) = (OpticalDepth::sample(rng), OpticalDepth::sample(rng));
-    while let Some(seg) = c.next_segment(&mut walk) {
-        let k = cell(&seg);
-        let (mu_c, mu_r) = (k.split.mu_c, k.split.mu_r);
-        if !(mu_c > 0.0) && !(mu_r > 0.0) {
-            continue;
+    with_walk!(q, |walk| {
+        let (mut tau_c, mut tau_r) = (OpticalDepth::sample(rng), OpticalDepth::sample(rng));
+        while let Some(seg) = c.next_segment(&mut walk) {
+            let k = cell(&seg);
+            let (mu_c, mu_r) = (k.split.mu_c, k.split.mu_r);
+            if !(mu_c > 0.0) && !(mu_r > 0.0) {
+                continue;
+            }
+            // Each process spends its own optical depth across cells.
+            let mut tc = tau_c.time(seg.t0, mu_c);
+            let mut tr = tau_r.time(seg.t0, mu_r);
+            loop {
+                let control_first = tc <= tr;
+                let t = if control_first { tc } else { tr };
+                if t >= seg.t1 {
+                    tau_c = tau_c.left(tc, seg.t1, mu_c);
+                    tau_r = tau_r.left(tr, seg.t1, mu_r);
+                    break;
+                }
+                if let Some(event) = decide(&k, control_first, t, rng, c) {
+                    return event;
+                }
+                // Memoryless: only the process that fired draws its next time.
+                if control_first {
+                    tc = OpticalDepth::sample(rng).time(t, mu_c);
+                } else {
+                    tr = OpticalDepth::sample(rng).time(t, mu_r);
+                }
+            }
         }
-        // Each process spends its own optical depth across cells.
-        let mut tc = tau_c.time(seg.t0, mu_c);
-        let mut tr = tau_r.time(seg.t0, mu_r);
-        loop {
-            let control_first = tc <= tr;
-            let t = if control_first { tc } else { tr };
-            if t >= seg.t1 {
-                tau_c = tau_c.left(tc, seg.t1, mu_c);
-                tau_r = tau_r.left(tr, seg.t1, mu_r);
-                break;
-            }
-            if let Some(event) = decide(&k, control_first, t, rng, c) {
-                return event;
-            }
-            // Memoryless: only the process that fired draws its next time.
-            if control_first {
-                tc = OpticalDepth::sample(rng).time(t, mu_c);
-            } else {
-                tr = OpticalDepth::sample(rng).time(t, mu_r);
-            }
-        }
-    }
-    FreePath::Escape
+        FreePath::Escape
+    })
 }
 
 /// [`walk_processes`] for several media: every medium runs its control and residual

@@ -83,6 +83,29 @@ pub trait TransmittanceEstimator: Sync {
     }
 }
 
+/// Binds `$walk` to the medium's walk along `$q`'s ray and runs `$body` with it: for
+/// a grid medium the bare majorant walk (built in place, no clipping state), for fog
+/// the walk clipped to its region ([`Medium::walk`]). The body is compiled once per
+/// walk type, so the grid path pays nothing for fog.
+macro_rules! with_walk {
+    ($q:expr, |$walk:ident| $body:expr) => {
+        match &$q.medium.region {
+            $crate::volume::boundary::MediumRegion::Grid => {
+                let mut $walk = $q
+                    .medium
+                    .majorants
+                    .walk($q.ray.o, $q.ray.d, $q.tmin, $q.tmax);
+                $body
+            }
+            _ => {
+                let mut $walk = $q.medium.walk($q.ray, $q.tmin, $q.tmax);
+                $body
+            }
+        }
+    };
+}
+pub(crate) use with_walk;
+
 /// Walks the tentative collisions of the null-collision process whose majorant is
 /// μ̄ = d_max·max σt (times `q.majorant_scale`) in each cell along the query's ray,
 /// restarting the exponential at every cell boundary and skipping empty cells without
@@ -95,27 +118,28 @@ pub fn walk_collisions<R: Rng, C: Tally, T>(
     c: &mut C,
     mut at: impl FnMut(f32, f32, &mut R, &mut C) -> ControlFlow<T>,
 ) -> Option<T> {
-    let mut walk = q.medium.walk(q.ray, q.tmin, q.tmax);
-    let mut tau = OpticalDepth::sample(rng);
-    while let Some(seg) = c.next_segment(&mut walk) {
-        let mu_bar = majorant(q, &seg);
-        if !(mu_bar > 0.0) {
-            continue; // empty cell: skipped without a lookup
-        }
-        let mut t = seg.t0;
-        loop {
-            let Some(tc) = tau.collide(t, seg.t1, mu_bar) else {
-                break;
-            };
-            t = tc;
-            tau = OpticalDepth::sample(rng);
-            prefetch_next(q, tau, t, seg.t1, mu_bar);
-            if let ControlFlow::Break(v) = at(t, mu_bar, rng, c) {
-                return Some(v);
+    with_walk!(q, |walk| {
+        let mut tau = OpticalDepth::sample(rng);
+        while let Some(seg) = c.next_segment(&mut walk) {
+            let mu_bar = majorant(q, &seg);
+            if !(mu_bar > 0.0) {
+                continue; // empty cell: skipped without a lookup
+            }
+            let mut t = seg.t0;
+            loop {
+                let Some(tc) = tau.collide(t, seg.t1, mu_bar) else {
+                    break;
+                };
+                t = tc;
+                tau = OpticalDepth::sample(rng);
+                prefetch_next(q, tau, t, seg.t1, mu_bar);
+                if let ControlFlow::Break(v) = at(t, mu_bar, rng, c) {
+                    return Some(v);
+                }
             }
         }
-    }
-    None
+        None
+    })
 }
 
 /// Where the medium asks for it ([`Medium::prefetch`]), starts the lookup of the

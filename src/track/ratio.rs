@@ -12,7 +12,7 @@
 //! probability [`RR_SURVIVAL`] and is divided by it, which keeps it unbiased.
 
 use crate::track::free_path::{
-    prefetch_next, walk_collisions, OpticalDepth, Query, TransmittanceEstimator,
+    prefetch_next, walk_collisions, with_walk, OpticalDepth, Query, TransmittanceEstimator,
 };
 
 use crate::color::Spectrum;
@@ -159,38 +159,39 @@ pub(super) fn residual_ratio<T: Estimate, R: Rng, C: Tally>(
 ) -> T {
     let sg = q.sigma;
     let mut tr = T::ONE;
-    let mut walk = q.medium.walk(q.ray, q.tmin, q.tmax);
-    let mut tau = OpticalDepth::sample(rng);
-    while let Some(seg) = c.next_segment(&mut walk) {
-        if seg.dmin > 0.0 {
-            let len = seg.t1 - seg.t0;
-            tr.attenuate(&sg.t, |st| (-seg.dmin * st * len).exp());
-            // The control attenuates without collisions, so roulette here too:
-            // otherwise a shadow ray whose estimate the control has driven to ~0
-            // keeps walking (and looking up the residual) to the far side.
-            if !roulette(&mut tr, rng) {
-                return tr;
+    with_walk!(q, |walk| {
+        let mut tau = OpticalDepth::sample(rng);
+        while let Some(seg) = c.next_segment(&mut walk) {
+            if seg.dmin > 0.0 {
+                let len = seg.t1 - seg.t0;
+                tr.attenuate(&sg.t, |st| (-seg.dmin * st * len).exp());
+                // The control attenuates without collisions, so roulette here too:
+                // otherwise a shadow ray whose estimate the control has driven to ~0
+                // keeps walking (and looking up the residual) to the far side.
+                if !roulette(&mut tr, rng) {
+                    return tr;
+                }
+            }
+            let mu_r = (seg.dmax - seg.dmin) * sg.t_max * q.majorant_scale;
+            if !(mu_r > 0.0) {
+                continue;
+            }
+            let mut t = seg.t0;
+            while let Some(tc) = tau.collide(t, seg.t1, mu_r) {
+                t = tc;
+                tau = OpticalDepth::sample(rng);
+                prefetch_next(q, tau, t, seg.t1, mu_r);
+                let d = q.medium.density(q.ray.at(t), c);
+                c.residual_lookup();
+                c.null_collision();
+                tr.attenuate(&sg.t, |st| 1.0 - (d - seg.dmin) * st / mu_r);
+                if !roulette(&mut tr, rng) {
+                    return tr;
+                }
             }
         }
-        let mu_r = (seg.dmax - seg.dmin) * sg.t_max * q.majorant_scale;
-        if !(mu_r > 0.0) {
-            continue;
-        }
-        let mut t = seg.t0;
-        while let Some(tc) = tau.collide(t, seg.t1, mu_r) {
-            t = tc;
-            tau = OpticalDepth::sample(rng);
-            prefetch_next(q, tau, t, seg.t1, mu_r);
-            let d = q.medium.density(q.ray.at(t), c);
-            c.residual_lookup();
-            c.null_collision();
-            tr.attenuate(&sg.t, |st| 1.0 - (d - seg.dmin) * st / mu_r);
-            if !roulette(&mut tr, rng) {
-                return tr;
-            }
-        }
-    }
-    tr
+        tr
+    })
 }
 
 impl TransmittanceEstimator for Ratio {

@@ -5,7 +5,6 @@
 //! grids and every tracker report here.
 
 use crate::color::Spectrum;
-use crate::volume::boundary::MediumWalk;
 use crate::volume::majorant::Segment;
 use crate::volume::ticks::{self, Calibration, TrackerTimes};
 
@@ -95,7 +94,7 @@ pub trait Tally {
     fn observe_throughput(&mut self, w: Spectrum);
     /// The next segment of a majorant walk, counted as a visited cell (and timed as
     /// traversal when timing).
-    fn next_segment(&mut self, walk: &mut MediumWalk) -> Option<Segment>;
+    fn next_segment<W: Iterator<Item = Segment>>(&mut self, walk: &mut W) -> Option<Segment>;
     /// Starts timing a tracker query (0 when not timing).
     fn tracker_start(&self) -> u64;
     /// Ends the tracker query started at `t0`.
@@ -159,7 +158,7 @@ impl Tally for Counters {
     }
 
     #[inline(always)]
-    fn next_segment(&mut self, walk: &mut MediumWalk) -> Option<Segment> {
+    fn next_segment<W: Iterator<Item = Segment>>(&mut self, walk: &mut W) -> Option<Segment> {
         let seg = if self.timing {
             let t0 = ticks::now();
             let seg = walk.next();
@@ -219,7 +218,7 @@ impl Tally for NoCounts {
     #[inline(always)]
     fn observe_throughput(&mut self, _w: Spectrum) {}
     #[inline(always)]
-    fn next_segment(&mut self, walk: &mut MediumWalk) -> Option<Segment> {
+    fn next_segment<W: Iterator<Item = Segment>>(&mut self, walk: &mut W) -> Option<Segment> {
         walk.next()
     }
     #[inline(always)]
