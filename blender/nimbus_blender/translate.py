@@ -415,6 +415,17 @@ def _c(v):
 # ---- lights and world ----------------------------------------------------------------
 
 
+def _medium_lines(obj, attrs, groups, used):
+    """The overlay lines of a medium's NimbusVolumeAPI attributes, with the object's
+    light group when some source uses it (recorded in `used`)."""
+    lines = [f"{k} = {v}" for k, v in attrs.items()]
+    group = getattr(obj, "lightgroup", "")
+    if group and group in groups:
+        lines.append(f'token nimbus:lightGroup = "{_group_token(group)}"')
+        used.add(group)
+    return lines
+
+
 def _group_token(name):
     if "'" in name or '"' in name or "\\" in name:
         raise TranslationError(f"light group '{name}': quotes and backslashes are not allowed")
@@ -806,12 +817,7 @@ def translate(depsgraph, folder):
                 for g in obj.data.grids:
                     prims[f"{path}/{prim_name(g.name)}"] = ([], [f"asset filePath = @{vdb}@"])
             attrs, a = volume_medium(obj, warnings)
-            lines = [f"{k} = {v}" for k, v in attrs.items()]
-            group = getattr(obj, "lightgroup", "")
-            if group and group in groups:
-                lines.append(f'token nimbus:lightGroup = "{_group_token(group)}"')
-                used.add(group)
-            prims[path] = (["NimbusVolumeAPI"], lines)
+            prims[path] = (["NimbusVolumeAPI"], _medium_lines(obj, attrs, groups, used))
             albedo = albedo or a
         elif obj.type == "LIGHT":
             if not exists(path):
@@ -841,12 +847,7 @@ def translate(depsgraph, folder):
                 if fog is not None:
                     # A fog mesh (docs/blender.md): the reader makes it no holdout.
                     _, attrs, a = fog
-                    lines = [f"{k} = {v}" for k, v in attrs.items()]
-                    group = getattr(obj, "lightgroup", "")
-                    if group and group in groups:
-                        lines.append(f'token nimbus:lightGroup = "{_group_token(group)}"')
-                        used.add(group)
-                    prims[path] = (["NimbusVolumeAPI"], lines)
+                    prims[path] = (["NimbusVolumeAPI"], _medium_lines(obj, attrs, groups, used))
                     albedo = albedo or a
                 elif not obj.nimbus.holdout and exists(path):
                     prims[path] = ([], ["bool nimbus:holdout = 0"])

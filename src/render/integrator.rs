@@ -899,21 +899,14 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         let mut ids = [0usize; MAX_MEDIA];
         let mut k = 0;
         let mut overflow = false;
-        let mut take = |i: usize| {
-            let m = &self.media[i];
-            if in_mask(mask, i) && m.may_meet(origin, dir, tmin as f64, tmax as f64) {
-                if k < MAX_MEDIA {
-                    ids[k] = i;
-                    k += 1;
-                } else {
-                    overflow = true;
-                }
+        self.media_met(origin, dir, tmin, tmax, mask, |i, _| {
+            if k < MAX_MEDIA {
+                ids[k] = i;
+                k += 1;
+            } else {
+                overflow = true;
             }
-        };
-        match self.extras.media_index {
-            None => (0..self.media.len()).for_each(&mut take),
-            Some(index) => index.candidates(origin, dir, tmin, tmax, &mut take),
-        }
+        });
         if overflow {
             return self.spans(origin, dir, tmin, tmax, tracked, mask, &mut f, &go_on);
         }
@@ -955,24 +948,14 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         let mut c = [(0f32, 0f32, 0u32); CANDIDATES];
         let mut n = 0;
         let mut dropped = false;
-        let mut take = |i: usize| {
-            if !in_mask(mask, i) {
-                return;
-            }
-            let Some((a, b)) = self.media[i].span(origin, dir, tmin as f64, tmax as f64) else {
-                return;
-            };
+        self.media_met(origin, dir, tmin, tmax, mask, |i, (a, b)| {
             if n < CANDIDATES {
                 c[n] = (a as f32, b as f32, i as u32);
                 n += 1;
             } else {
                 dropped = true;
             }
-        };
-        match self.extras.media_index {
-            None => (0..self.media.len()).for_each(&mut take),
-            Some(index) => index.candidates(origin, dir, tmin, tmax, &mut take),
-        }
+        });
         let c = &mut c[..n];
         c.sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.2.cmp(&y.2)));
         let mut s = tmin;
@@ -1012,6 +995,33 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                 return r;
             }
             s = e;
+        }
+    }
+
+    /// Calls `f(i, (t0, t1))` for every medium i in `mask` whose box the ray
+    /// `origin + t·dir` meets in [`tmin`, `tmax`] (over `[t0, t1]`): the media index's
+    /// candidates on stages with many volumes, else every medium, each tested exactly.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn media_met(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        tmin: f32,
+        tmax: f32,
+        mask: u64,
+        mut f: impl FnMut(usize, (f64, f64)),
+    ) {
+        let mut take = |i: usize| {
+            if in_mask(mask, i) {
+                if let Some(span) = self.media[i].span(origin, dir, tmin as f64, tmax as f64) {
+                    f(i, span);
+                }
+            }
+        };
+        match self.extras.media_index {
+            None => (0..self.media.len()).for_each(&mut take),
+            Some(index) => index.candidates(origin, dir, tmin, tmax, &mut take),
         }
     }
 

@@ -4,7 +4,7 @@
 //!
 //! The tree is obvhs' (as the holdouts'), over f32 boxes padded well beyond the f32
 //! rounding of the query; each candidate is then tested exactly
-//! ([`Medium::may_meet`], f64), so the answer is the loop's. Media that are everywhere
+//! ([`Medium::span`], f64), so the answer is the loop's. Media that are everywhere
 //! (world fog) have no box and are always candidates.
 
 use crate::volume::medium::Medium;

@@ -431,6 +431,44 @@ impl VolumeShape {
     }
 }
 
+/// A fog medium's parameters, as a reader finds them (`NimbusVolumeAPI` or a bound
+/// volume material): everything of a [`Volume`] but where it is, and no fields.
+#[derive(Clone, Debug)]
+pub struct FogParams {
+    pub density_scale: f64,
+    pub absorption: [f64; 3],
+    pub scattering: [f64; 3],
+    pub anisotropy: f64,
+    pub emission: VolumeEmission,
+    pub material_shader: Option<String>,
+}
+
+impl FogParams {
+    /// The fog volume `prim_path` of `shape` (a fog box's surface is already in world
+    /// space, world fog has none: no transform).
+    pub fn volume(
+        self,
+        prim_path: &str,
+        light_group: Option<String>,
+        shape: VolumeShape,
+    ) -> Volume {
+        Volume {
+            prim_path: prim_path.to_string(),
+            light_group,
+            volume_to_world: DMat4::IDENTITY,
+            shape,
+            density_scale: self.density_scale,
+            absorption: self.absorption,
+            scattering: self.scattering,
+            anisotropy: self.anisotropy,
+            fields: Vec::new(),
+            emission: self.emission,
+            albedo: None,
+            material_shader: self.material_shader,
+        }
+    }
+}
+
 /// The surface of a fog box, as read.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FogMesh {

@@ -144,41 +144,6 @@ struct Inventory {
     unread_lights: Vec<Prim>,
 }
 
-/// A fog medium's parameters, from `NimbusVolumeAPI` or a bound material.
-struct MediumParams {
-    density_scale: f64,
-    absorption: [f64; 3],
-    scattering: [f64; 3],
-    anisotropy: f64,
-    emission: VolumeEmission,
-    material_shader: Option<String>,
-}
-
-impl MediumParams {
-    fn volume(
-        self,
-        prim: &Prim,
-        light_group: Option<String>,
-        volume_to_world: DMat4,
-        shape: VolumeShape,
-    ) -> Volume {
-        Volume {
-            prim_path: prim.path().to_string(),
-            light_group,
-            volume_to_world,
-            shape,
-            density_scale: self.density_scale,
-            absorption: self.absorption,
-            scattering: self.scattering,
-            anisotropy: self.anisotropy,
-            fields: Vec::new(),
-            emission: self.emission,
-            albedo: None,
-            material_shader: self.material_shader,
-        }
-    }
-}
-
 struct Loader<'a> {
     stage: &'a Stage,
     time: Option<TimeCode>,
@@ -453,7 +418,7 @@ impl Loader<'_> {
     /// `nimbus:fill = "world"`): from `NimbusVolumeAPI`, else from a bound material
     /// with a volume output Nimbus reads; `None` when the prim has neither (a gprim is
     /// then a holdout). Fog has no grids: a `nimbus:*Field` naming one is an error.
-    fn medium_params(&self, prim: &Prim) -> Result<Option<MediumParams>, SceneError> {
+    fn medium_params(&self, prim: &Prim) -> Result<Option<FogParams>, SceneError> {
         let t = self.time;
         let nimbus_api = prim
             .has_api_schema(schema::VOLUME_API)
@@ -474,7 +439,7 @@ impl Loader<'_> {
                     ));
                 }
             }
-            return Ok(Some(MediumParams {
+            return Ok(Some(FogParams {
                 density_scale: read_f64(prim, tokens::DENSITY_SCALE, t)?.unwrap_or(1.0),
                 absorption: read_vec3(prim, tokens::ABSORPTION, t)?.unwrap_or([0.1; 3]),
                 scattering: read_vec3(prim, tokens::SCATTERING, t)?.unwrap_or([0.9; 3]),
@@ -497,7 +462,7 @@ impl Loader<'_> {
                 ),
             );
         }
-        Ok(Some(MediumParams {
+        Ok(Some(FogParams {
             density_scale: m.density_scale,
             absorption: m.absorption,
             scattering: m.scattering,
@@ -513,7 +478,7 @@ impl Loader<'_> {
         &self,
         prim: &Prim,
         mesh: HoldoutMesh,
-        p: MediumParams,
+        p: FogParams,
         to_world: &DMat4,
     ) -> Result<Volume, SceneError> {
         let left_handed =
@@ -527,9 +492,8 @@ impl Loader<'_> {
                 .warn("fog surface", prim.path().to_string(), None, problem);
         }
         Ok(p.volume(
-            prim,
+            &prim.path().to_string(),
             self.light_group(prim)?,
-            DMat4::IDENTITY,
             VolumeShape::Mesh(fog),
         ))
     }
@@ -740,9 +704,8 @@ impl Loader<'_> {
             );
         }
         Ok(p.volume(
-            prim,
+            &prim.path().to_string(),
             self.light_group(prim)?,
-            DMat4::IDENTITY,
             VolumeShape::World,
         ))
     }

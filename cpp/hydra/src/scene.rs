@@ -18,9 +18,9 @@ use anyhow::{anyhow, bail, Result};
 use glam::{DMat4, DVec3};
 use nimbus::scene::schema::tokens;
 use nimbus::scene::{
-    fog, Camera, Collection, CylinderLight, DiskLight, DistantLight, DomeLight, Field, HoldoutMesh,
-    LightControls, Projection, RectLight, RenderSettings, Scene, Shaping, SphereLight, Volume,
-    VolumeEmission, VolumeShape,
+    fog, Camera, Collection, CylinderLight, DiskLight, DistantLight, DomeLight, Field, FogParams,
+    HoldoutMesh, LightControls, Projection, RectLight, RenderSettings, Scene, Shaping, SphereLight,
+    Volume, VolumeEmission, VolumeShape,
 };
 use nimbus::volume::asset::AssetLocation;
 use nimbus::volume::emission::EmissionKind;
@@ -450,36 +450,6 @@ fn has_volume_api(primvars: &[ParamDesc]) -> bool {
         .any(|name| param(primvars, name).is_some())
 }
 
-/// A medium's parameters without its fields: from NimbusVolumeAPI's primvars (schema
-/// fallbacks for those absent), as the USD reader reads a fog box or world fog.
-struct Medium {
-    density_scale: f64,
-    absorption: [f64; 3],
-    scattering: [f64; 3],
-    anisotropy: f64,
-    emission: VolumeEmission,
-    material_shader: Option<String>,
-}
-
-impl Medium {
-    fn volume(self, path: &str, light_group: Option<String>, shape: VolumeShape) -> Volume {
-        Volume {
-            prim_path: path.to_string(),
-            light_group,
-            volume_to_world: DMat4::IDENTITY,
-            shape,
-            density_scale: self.density_scale,
-            absorption: self.absorption,
-            scattering: self.scattering,
-            anisotropy: self.anisotropy,
-            fields: Vec::new(),
-            emission: self.emission,
-            albedo: None,
-            material_shader: self.material_shader,
-        }
-    }
-}
-
 /// The emission of `nimbus:*` primvars; the fields by the names `named` resolves.
 fn emission(
     path: &str,
@@ -518,7 +488,7 @@ fn fog_medium(
     pv: &[ParamDesc],
     material: &Material,
     warnings: &mut Vec<String>,
-) -> Result<Option<Medium>> {
+) -> Result<Option<FogParams>> {
     if has_volume_api(pv) {
         return api_medium(path, pv).map(Some);
     }
@@ -531,7 +501,7 @@ fn fog_medium(
             material.shader_path
         ));
     }
-    Ok(Some(Medium {
+    Ok(Some(FogParams {
         density_scale: m.density_scale,
         absorption: m.absorption,
         scattering: m.scattering,
@@ -543,7 +513,7 @@ fn fog_medium(
 
 /// NimbusVolumeAPI's medium of fog from the `nimbus:*` primvars, schema fallbacks for
 /// those absent (as the USD reader reads a gprim with the API).
-fn api_medium(path: &str, pv: &[ParamDesc]) -> Result<Medium> {
+fn api_medium(path: &str, pv: &[ParamDesc]) -> Result<FogParams> {
     for attr in [
         tokens::TEMPERATURE_FIELD,
         tokens::EMISSION_FIELD,
@@ -555,7 +525,7 @@ fn api_medium(path: &str, pv: &[ParamDesc]) -> Result<Medium> {
             );
         }
     }
-    Ok(Medium {
+    Ok(FogParams {
         density_scale: scalar(path, pv, tokens::DENSITY_SCALE)?.unwrap_or(1.0),
         absorption: color3(path, pv, tokens::ABSORPTION)?.unwrap_or([0.1; 3]),
         scattering: color3(path, pv, tokens::SCATTERING)?.unwrap_or([0.9; 3]),
