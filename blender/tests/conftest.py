@@ -215,8 +215,101 @@ def cube_scene(res=(64, 64), density=20.0, on="mesh", lens=50.0, sensor=36.0):
     return scene, obj, camera
 
 
+def t_quantile(p, dof):
+    """The upper-tail-p quantile of Student's t with `dof` degrees of freedom: the
+    normal quantile z corrected by the Cornish-Fisher series in 1/dof (Abramowitz and
+    Stegun 26.7.5, four terms). Checked against the integrated t density at upper
+    tails 7.8e-6 (alpha 1e-3 over 64 comparisons): the quantile's true tail is the
+    asked one within 0.1 % for dof >= 20, 2 % at 10, 20 % at 5."""
+    from statistics import NormalDist
+
+    z = NormalDist().inv_cdf(1.0 - p)
+    if not math.isfinite(dof):
+        return z
+    g = ((z**3 + z) / 4,
+         (5 * z**5 + 16 * z**3 + 3 * z) / 96,
+         (3 * z**7 + 19 * z**5 + 17 * z**3 - 15 * z) / 384,
+         (79 * z**9 + 776 * z**7 + 1482 * z**5 - 1920 * z**3 - 945 * z) / 92160)
+    return z + sum(gi / dof ** (i + 1) for i, gi in enumerate(g))
+
+
+# Family-wise false-failure probability of the block comparison (Bonferroni over the
+# blocks x channels compared) and the fewest mask pixels a block needs to be compared.
+BLOCK_ALPHA = 1e-3
+BLOCK_MIN_PIXELS = 16
+
+
+def block_means(stacks, mask, block, bias, alpha=BLOCK_ALPHA, min_pixels=BLOCK_MIN_PIXELS):
+    """The block-mean comparison of against_cycles: the image cut into block x block
+    pixel squares; a square with fewer than `min_pixels` pixels of `mask` is left out
+    (its se would rest on a few pixels' variances; its pixels stay in the image mean).
+    Per square b and channel c, each renderer's mean over its masked pixels and se_b^2
+    = sum_p s_p^2 / (K n_b^2) (s_p^2 the pixel's variance over the K seeds), as for the
+    image mean. The test: |N_b - C_b| <= t se + bias |C_b| with se = sqrt(se_N^2 +
+    se_C^2) and t the Student-t quantile of upper tail alpha / (2 M) (two-sided,
+    Bonferroni over the M = squares x channels compared: the whole family falsely fails
+    with probability <= alpha when both renderers converge to the same image) for the
+    block's Welch-Satterthwaite degrees of freedom (each renderer's sum_p s_p^2 has
+    (sum s_p^2)^2 / sum (s_p^4 / (K - 1)) of them). A block and channel where both
+    renderers' pixels have no variance (Cycles' exact 0 inside world fog under a sun,
+    alpha 1 on an opaque film) has tolerance bias |C_b|. Returns (ok, report lines)."""
+    import numpy as np
+
+    k = next(iter(stacks.values())).shape[0]
+    h, w = mask.shape
+    squares, left_out = [], 0
+    for y in range(0, h, block):
+        for x in range(0, w, block):
+            m = np.zeros_like(mask)
+            m[y:y + block, x:x + block] = mask[y:y + block, x:x + block]
+            if m.sum() >= min_pixels:
+                squares.append(((y, x), m))
+            else:
+                left_out += 1
+    comparisons = len(squares) * 4
+    p = alpha / (2 * max(comparisons, 1))
+    ok, worst, failed, dofs, ts = True, {}, [], [], []
+    for (y, x), m in squares:
+        n = int(m.sum())
+        for ci, name in enumerate("RGBA"):
+            stat = {}
+            for r, s in stacks.items():
+                px = s[:, m, ci]
+                v = px.var(axis=0, ddof=1)
+                sv, sv2 = v.sum(), (v * v).sum()
+                dof = sv * sv / (sv2 / (k - 1)) if sv2 > 0 else math.inf
+                stat[r] = (px.mean(), sv / (k * n * n), dof)
+            (mn, vn, dn), (mc, vc, dc) = stat["nimbus"], stat["cycles"]
+            var = vn + vc
+            if var > 0:
+                dof = var * var / sum(v * v / d for v, d in ((vn, dn), (vc, dc))
+                                      if v > 0)
+                t = t_quantile(p, dof)
+                dofs.append(dof)
+                ts.append(t)
+            else:
+                t = 0.0
+            tol = t * math.sqrt(var) + bias * abs(mc)
+            d = abs(mn - mc)
+            q = d / tol if tol > 0 else (0.0 if d == 0 else math.inf)
+            if q > worst.get(name, (-1,))[0]:
+                worst[name] = (q, (y, x), mn, mc, tol)
+            if d > tol:
+                ok = False
+                failed.append(f"  block at row {y}, column {x} ({n} px) {name}: nimbus "
+                              f"{mn:.5f}, cycles {mc:.5f}, |diff| {d:.5f} > {tol:.5f}")
+    report = [f"{block}x{block} blocks: {len(squares)} compared, {left_out} left out "
+              f"(< {min_pixels} px); Bonferroni alpha {alpha:g} over {comparisons}: "
+              + (f"t {min(ts):.2f}-{max(ts):.2f} (dof >= {min(dofs):.0f})" if ts else
+                 "no variance")]
+    for name, (q, (y, x), mn, mc, tol) in worst.items():
+        report.append(f"  {name}: worst block (row {y}, column {x}) |diff| / tol {q:.2f} "
+                      f"(nimbus {mn:.5f}, cycles {mc:.5f}, tol {tol:.5f})")
+    return ok and bool(squares), report + failed
+
+
 def against_cycles(scene, tmp_path, seeds=(0, 1, 2, 3), spp=32, max_depth=8, z=5.0,
-                   bias=0.005, erode=0):
+                   bias=0.005, erode=0, block=0, exclude=None):
     """test_addon.py's comparison with Cycles as a function: `scene` (set up for
     Nimbus) rendered through the add-on and by Cycles (blender_export_scene.set_cycles:
     the peer harness' settings), len(seeds) x spp each. Over the pixels where either's
@@ -225,7 +318,9 @@ def against_cycles(scene, tmp_path, seeds=(0, 1, 2, 3), spp=32, max_depth=8, z=5
     (ok, report lines, pixel count): ok when every |N - C| <= z sqrt(se_N^2 + se_C^2)
     + bias |C| (bias: Cycles' null-scattering volumes measured 0.2-0.5 % bright).
     erode > 0 keeps only pixels whose (2 erode + 1)^2 neighbourhood is all in the mask
-    (the volume's inside, away from its silhouette)."""
+    (the volume's inside, away from its silhouette). block > 0 also compares the means
+    of block x block pixel squares (block_means; ok then needs both). exclude: an (H, W)
+    boolean array of pixels left out of every comparison (row 0 at the top)."""
     import numpy as np
     from blender_export_scene import set_cycles
 
@@ -256,6 +351,8 @@ def against_cycles(scene, tmp_path, seeds=(0, 1, 2, 3), spp=32, max_depth=8, z=5
         m[:, :-1] &= mask[:, 1:]
         m[0], m[-1], m[:, 0], m[:, -1] = False, False, False, False
         mask = m
+    if exclude is not None:
+        mask &= ~exclude
     n = int(mask.sum())
     k = len(seeds)
     report, ok = [], n > 0
@@ -270,4 +367,8 @@ def against_cycles(scene, tmp_path, seeds=(0, 1, 2, 3), spp=32, max_depth=8, z=5
         report.append(f"{name}: nimbus {mn:.5f} +- {sn:.5f}, cycles {mc:.5f} +- {sc:.5f}, "
                       f"ratio {ratio}, |diff| {abs(mn - mc):.5f} <= {tol:.5f}")
         ok &= bool(abs(mn - mc) <= tol)
+    if block:
+        block_ok, lines = block_means(stacks, mask, block, bias)
+        ok &= block_ok
+        report += lines
     return ok, report, n
