@@ -197,6 +197,7 @@ fn full_path(c: &mut Criterion) {
             qmc_dims: 0,
             extras: Default::default(),
             select_segments: SelectSegments::Off,
+            locals: Vec::new(),
         };
         let mut rng = pixel_sampler(5, 6);
         let mut counters = Counters::default();

@@ -1010,6 +1010,7 @@ fn check_grey_emission<F: FreePathSampler, E: TransmittanceEstimator>(
         qmc_dims: 0,
         extras: Default::default(),
         select_segments,
+        locals: Vec::new(),
     };
     let mut rng = pixel_sampler(5, 0);
     let mut c = Counters::default();

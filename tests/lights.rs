@@ -352,6 +352,20 @@ fn samples(
     samples_select(medium, lights, cam, max_depth, n, seed, SelectSegments::Off)
 }
 
+/// [`samples`] by each way of sampling scattering points near local lights: the
+/// trackers' collisions alone, then with equiangular samples by MIS.
+fn samples_each(
+    medium: &Medium,
+    lights: &Lights,
+    cam: &CameraRays,
+    n: usize,
+    seed: u64,
+) -> [Vec<[f64; 3]>; 2] {
+    let select = SelectSegments::Off;
+    [Vec::new(), lights.locals()]
+        .map(|locals| samples_with_locals(medium, lights, cam, 1, n, seed, select, locals))
+}
+
 /// [`samples`], with `ratio-select`'s walks for every segment when `select` says so.
 fn samples_select(
     medium: &Medium,
@@ -361,6 +375,21 @@ fn samples_select(
     n: usize,
     seed: u64,
     select: SelectSegments,
+) -> Vec<[f64; 3]> {
+    samples_with_locals(medium, lights, cam, max_depth, n, seed, select, Vec::new())
+}
+
+/// [`samples_select`], also sampling scattering points towards `locals`.
+#[allow(clippy::too_many_arguments)]
+fn samples_with_locals(
+    medium: &Medium,
+    lights: &Lights,
+    cam: &CameraRays,
+    max_depth: u32,
+    n: usize,
+    seed: u64,
+    select: SelectSegments,
+    locals: Vec<nimbus::render::equiangular::LocalLight>,
 ) -> Vec<[f64; 3]> {
     let it = Integrator {
         free_path: Delta,
@@ -380,6 +409,7 @@ fn samples_select(
         qmc_dims: 0,
         extras: Default::default(),
         select_segments: select,
+        locals,
     };
     let mut rng = pixel_sampler(seed, 40);
     let mut c = Counters::default();
@@ -473,12 +503,13 @@ fn point_light_single_scattering_matches_quadrature() {
         let f = hg(0.4, DVec3::NEG_Z.dot(v / d));
         intensity.map(|i| f * i * (-SIGMA_T * d).exp() / (d * d))
     });
-    let s = samples(&setup.medium, &lights, &setup.cam, 1, 4_000_000, 11);
-    let z = z_scores(&s, expected);
-    assert!(
-        z.iter().all(|z| z.abs() < 4.0),
-        "z = {z:?}, expected {expected:?}"
-    );
+    for s in samples_each(&setup.medium, &lights, &setup.cam, 4_000_000, 11) {
+        let z = z_scores(&s, expected);
+        assert!(
+            z.iter().all(|z| z.abs() < 4.0),
+            "z = {z:?}, expected {expected:?}"
+        );
+    }
 }
 
 /// A sphere light of radius 0.6: S = (1/4π) · 2π L ∫₀^θmax e^{−σt s(θ)} sin θ dθ with
@@ -507,12 +538,13 @@ fn sphere_light_single_scattering_matches_quadrature() {
         });
         radiance.map(|l| l * 2.0 * PI * integral / (4.0 * PI))
     });
-    let s = samples(&setup.medium, &lights, &setup.cam, 1, 4_000_000, 12);
-    let z = z_scores(&s, expected);
-    assert!(
-        z.iter().all(|z| z.abs() < 4.0),
-        "z = {z:?}, expected {expected:?}"
-    );
+    for s in samples_each(&setup.medium, &lights, &setup.cam, 4_000_000, 12) {
+        let z = z_scores(&s, expected);
+        assert!(
+            z.iter().all(|z| z.abs() < 4.0),
+            "z = {z:?}, expected {expected:?}"
+        );
+    }
 }
 
 fn rect_facing(normal: DVec3) -> RectEmitter {
@@ -553,12 +585,13 @@ fn rect_light_single_scattering_matches_quadrature_and_is_one_sided() {
         rects: vec![rect],
         ..Default::default()
     };
-    let s = samples(&setup.medium, &lights, &setup.cam, 1, 4_000_000, 13);
-    let z = z_scores(&s, expected);
-    assert!(
-        z.iter().all(|z| z.abs() < 4.0),
-        "z = {z:?}, expected {expected:?}"
-    );
+    for s in samples_each(&setup.medium, &lights, &setup.cam, 4_000_000, 13) {
+        let z = z_scores(&s, expected);
+        assert!(
+            z.iter().all(|z| z.abs() < 4.0),
+            "z = {z:?}, expected {expected:?}"
+        );
+    }
 
     let away = Lights {
         rects: vec![rect_facing(DVec3::Y)],

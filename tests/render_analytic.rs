@@ -76,6 +76,7 @@ fn integrator_with<'a, F: FreePathSampler>(
         qmc_dims: 0,
         extras: Default::default(),
         select_segments: SelectSegments::Off,
+        locals: Vec::new(),
     }
 }
 

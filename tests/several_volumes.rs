@@ -410,6 +410,7 @@ fn render(
                 qmc_dims: 0,
                 extras: Default::default(),
                 select_segments: SelectSegments::Off,
+                locals: Vec::new(),
             };
             let mut rng = nimbus::render::sampler::pixel_sampler(self.seed, 0);
             let mut out: [Vec<f64>; 3] = Default::default();

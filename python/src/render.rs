@@ -135,6 +135,7 @@ pub fn render(
         grid,
         strict,
         no_default_lights,
+        ..Overrides::default()
     };
     let (aov_list, requested_layers) = requested_aovs_and_layers(aovs)?;
     let (path, tmp) = stage_file(stage, stage_text, base_dir)?;

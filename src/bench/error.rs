@@ -12,7 +12,9 @@ use crate::render::job::RenderJob;
 use crate::render::progressive::{render_progressive, Budget, Clock};
 use crate::render::session::Session;
 use crate::track::select::Choice;
-use crate::track::select::{SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
+use crate::track::select::{
+    LightSampling, SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind,
+};
 use anyhow::{bail, Result};
 use std::sync::atomic::AtomicBool;
 
@@ -76,9 +78,13 @@ pub fn parse_tracker(item: &str) -> Result<TrackerSpec> {
         tracker,
         ..TrackerSettings::default()
     };
-    let (mut scheme, mut transmittance) = (None, None);
+    let (mut scheme, mut transmittance, mut lights) = (None, None, None);
     for p in parts.map(str::trim) {
-        if let Some(k) = SchemeKind::from_name(p) {
+        if let Some(k) = LightSampling::from_name(p) {
+            if lights.replace(k).is_some() {
+                bail!("'{item}' names two ways of sampling near local lights");
+            }
+        } else if let Some(k) = SchemeKind::from_name(p) {
             if !tracker.uses_scheme() {
                 bail!("tracker '{name}' takes no scheme, got '{item}'");
             }
@@ -106,14 +112,16 @@ pub fn parse_tracker(item: &str) -> Result<TrackerSpec> {
             }
         } else {
             bail!(
-                "'{p}' in '{item}' is neither a scheme ({}), a shadow-ray estimator ({}) nor an option ({NO_ABSORPTION_EVENTS}, {REDUCED_TERMINATION})",
+                "'{p}' in '{item}' is neither a scheme ({}), a shadow-ray estimator ({}), a light sampling ({}) nor an option ({NO_ABSORPTION_EVENTS}, {REDUCED_TERMINATION})",
                 SchemeKind::names(),
-                TransmittanceKind::names()
+                TransmittanceKind::names(),
+                LightSampling::names()
             );
         }
     }
     s.scheme = scheme.unwrap_or(s.scheme);
     s.transmittance = transmittance.unwrap_or(s.transmittance);
+    s.light_sampling = lights.unwrap_or(s.light_sampling);
     Ok(TrackerSpec {
         label: label_of(&s),
         settings: s,
@@ -136,6 +144,9 @@ pub fn label_of(s: &TrackerSettings) -> String {
     }
     if s.options.reduced_termination {
         label = format!("{label}:{REDUCED_TERMINATION}");
+    }
+    if s.light_sampling != LightSampling::Auto {
+        label = format!("{label}:{}", s.light_sampling.name());
     }
     label
 }

@@ -10,7 +10,7 @@ use crate::render::progressive::Clock;
 use crate::render::sampler::SamplerKind;
 use crate::render::session::{Overrides, Session, DEFAULT_OCTREE_PRUNE};
 use crate::render::tiles::{parse_region, Tile};
-use crate::track::select::{SchemeKind, TrackerKind, TransmittanceKind};
+use crate::track::select::{LightSampling, SchemeKind, TrackerKind, TransmittanceKind};
 use anyhow::{bail, Result};
 use clap::Args;
 use std::path::PathBuf;
@@ -102,6 +102,13 @@ pub struct RenderArgs {
     /// weighted trackers: others report `majorant_violations`).
     #[arg(long, default_value_t = 1.0)]
     pub majorant_scale: f32,
+    /// Scattering points near local lights: the trackers' collisions alone, or plus one
+    /// per path segment sampled equiangularly towards a light, combined by MIS; `auto`
+    /// (default) takes the second where every medium is homogeneous (fog boxes, world
+    /// fog), where it pays (docs/trackers.md). Stages with only distant and dome lights
+    /// render the same either way.
+    #[arg(long, value_parser = choice::parser::<LightSampling>())]
+    pub light_sampling: Option<LightSampling>,
     /// Time density lookups, majorant traversal and the rest of the trackers (stats
     /// keys lookup_seconds, traversal_seconds, other_tracker_seconds). Costs a clock
     /// read pair per lookup and per cell, which `nimbus bench octree` measures.
@@ -253,6 +260,7 @@ impl RenderArgs {
             reduced_termination: self.reduced_termination,
             no_absorption_events: self.no_absorption_events,
             majorant_scale: Some(self.majorant_scale),
+            light_sampling: self.light_sampling,
             profile: self.profile,
             no_specialise: self.no_specialise,
             time_limit: self.time_limit,

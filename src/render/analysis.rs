@@ -275,8 +275,9 @@ fn visible(m: &Medium, camera: &CameraRays, (w, h): (u32, u32)) -> bool {
         let fy = (i / N) as f64 + 0.5;
         let r = camera.ray(fx / N as f64 * w as f64, fy / N as f64 * h as f64);
         let ray = m.index_ray(r.origin, r.dir);
-        m.majorants
-            .walk(ray.o, ray.d, r.tmin as f32, r.tmax as f32)
+        // The medium's own walk: clipped to a fog box's inside, everywhere for world
+        // fog (whose constant brick covers only a box around the scene).
+        m.walk(&ray, r.tmin as f32, r.tmax as f32)
             .any(|s| s.dmax > 0.0)
     })
 }

@@ -9,6 +9,7 @@
 
 use crate::color::Spectrum;
 use crate::render::camera::CameraRays;
+use crate::render::equiangular::{balance, tracker_density, Equiangular, LocalLight};
 use crate::render::film::{DepthBins, Film, Pixel};
 use crate::render::holdouts::Holdouts;
 use crate::render::lights::in_mask;
@@ -163,6 +164,23 @@ pub struct Integrator<'a, F: FreePathSampler, E: TransmittanceEstimator> {
     /// scatters at ([`ratio_select`]); `free_path` runs where several volumes overlap
     /// along a ray.
     pub select_segments: SelectSegments,
+    /// The local lights scattering points are also sampled towards, one equiangular
+    /// sample per path segment combined with the trackers' collisions by MIS
+    /// ([`crate::render::equiangular`]); empty: the collisions alone.
+    pub locals: Vec<LocalLight>,
+}
+
+/// A path segment's equiangular side: its unit-speed line `o + s·ω` (s = t·speed),
+/// the stretch `[a, b]` of it the media's boxes cover, and the local lights' total
+/// mass M = Σ Φ_k ∫_a^b ds / r_k².
+struct LightSegment {
+    o: DVec3,
+    omega: DVec3,
+    /// World length per unit of the segment's `t`.
+    speed: f64,
+    a: f64,
+    b: f64,
+    total: f64,
 }
 
 /// Whether path segments are walked by [`ratio_select`] (`ratio-select`), and with
@@ -390,6 +408,12 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         let mut alpha = 0.0;
         let mut depth = f64::NAN;
         loop {
+            // Scattering points towards the local lights, beside the tracker's: drawn
+            // before the walk, with the throughput the segment starts with.
+            let segment = self.light_segment(origin, dir, tmin, tmax);
+            if let Some(seg) = &segment {
+                self.add_equiangular(seg, &path, &mut radiance, rng, counters);
+            }
             let t0 = counters.tracker_start();
             // The outputs asked for (deep bins among them) never change which walk
             // runs: the samples, and so the beauty, are the same with or without them.
@@ -497,7 +521,8 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                     }
                     path.g = medium.g as f64;
                     let last = path.depth >= self.max_depth;
-                    self.next_event(p, id, dir, &path, last, &mut radiance, rng, counters);
+                    let seg = segment.as_ref();
+                    self.next_event(p, id, dir, &path, last, seg, &mut radiance, rng, counters);
                     if last {
                         break;
                     }
@@ -642,7 +667,9 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
     /// `dir`; the path's phase function, tracked channels and throughput); `last`: the
     /// path ends here (maximum depth), so no phase-sampled ray will reach the
     /// environment. A light whose `collection:lightLink` leaves medium `id` out adds
-    /// nothing here (its [`Link`]).
+    /// nothing here (its [`Link`]). On a `segment` that also sampled a scattering
+    /// point towards the local lights, each local light's estimate here carries the
+    /// tracker's MIS weight.
     #[allow(clippy::too_many_arguments)]
     fn next_event<C: Tally>(
         &self,
@@ -651,12 +678,33 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         dir: DVec3,
         path: &PathState,
         last: bool,
+        segment: Option<&LightSegment>,
         radiance: &mut Radiance,
         rng: &mut Sampler,
         counters: &mut C,
     ) {
         let (g, tracked, throughput) = (path.g, path.tracked, path.throughput);
         let (events, sources) = (path.depth, &self.lights.sources);
+        // The tracker's collision density here (its stand-in) against each light's
+        // equiangular one: the balance heuristic.
+        // Outside the stretch [a, b] equiangular sampling never lands: the collision
+        // keeps its whole weight there (the weights must sum to 1 at every point).
+        let collision = segment
+            .map(|seg| (seg, (p - seg.o).dot(seg.omega)))
+            .filter(|&(seg, s)| s >= seg.a && s <= seg.b)
+            .map(|(seg, s)| {
+                let sigma_t = self.extinction_at(p, seg.omega, id, tracked, counters);
+                (seg, tracker_density(sigma_t, s - seg.a))
+            });
+        let weight = |k: usize| match collision {
+            // A light never sampled equiangularly (power 0: shaped) keeps weight 1.
+            Some((seg, pd)) if self.locals[k].power > 0.0 => {
+                let l = &self.locals[k];
+                balance(pd, l.power / (seg.total * (p - l.center).length_squared()))
+            }
+            _ => 1.0,
+        };
+        let mut k = 0;
         for (i, sun) in self.lights.suns.iter().enumerate() {
             if !sun.link.lights(id) {
                 continue;
@@ -681,42 +729,35 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                 continue;
             }
             let s = sphere.sample(p, rng.gen(), rng.gen());
-            let source = sources.sphere(i);
-            self.add_light_sample(
-                s,
-                source,
-                &sphere.link,
-                p,
-                dir,
-                path,
-                radiance,
-                rng,
-                counters,
-            );
+            let light = (sources.sphere(i), &sphere.link, weight(k + i));
+            self.add_light_sample(s, light, p, dir, path, radiance, rng, counters);
         }
+        k += self.lights.spheres.len();
         for (i, rect) in self.lights.rects.iter().enumerate() {
             if !rect.link.lights(id) {
                 continue;
             }
             let s = rect.sample(p, rng.gen(), rng.gen());
-            let source = sources.rect(i);
-            self.add_light_sample(s, source, &rect.link, p, dir, path, radiance, rng, counters);
+            let light = (sources.rect(i), &rect.link, weight(k + i));
+            self.add_light_sample(s, light, p, dir, path, radiance, rng, counters);
         }
+        k += self.lights.rects.len();
         for (i, disk) in self.lights.disks.iter().enumerate() {
             if !disk.link.lights(id) {
                 continue;
             }
             let s = disk.sample(p, rng.gen(), rng.gen());
-            let source = sources.disk(i);
-            self.add_light_sample(s, source, &disk.link, p, dir, path, radiance, rng, counters);
+            let light = (sources.disk(i), &disk.link, weight(k + i));
+            self.add_light_sample(s, light, p, dir, path, radiance, rng, counters);
         }
+        k += self.lights.disks.len();
         for (i, cylinder) in self.lights.cylinders.iter().enumerate() {
             if !cylinder.link.lights(id) {
                 continue;
             }
             let s = cylinder.sample(p, rng.gen(), rng.gen());
-            let (source, link) = (sources.cylinder(i), &cylinder.link);
-            self.add_light_sample(s, source, link, p, dir, path, radiance, rng, counters);
+            let light = (sources.cylinder(i), &cylinder.link, weight(k + i));
+            self.add_light_sample(s, light, p, dir, path, radiance, rng, counters);
         }
         // A constant environment is reached by the phase-sampled continuation, whose
         // density is the phase function itself: the ideal strategy for light of the
@@ -760,15 +801,14 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         }
     }
 
-    /// Adds a sphere, rect, disk or cylinder light sample (no MIS: scattered rays never
-    /// hit these lights), its shadow ray stopping at the light and shadowed as `link`
-    /// says.
+    /// Adds a sphere, rect, disk or cylinder light sample (scattered rays never hit
+    /// these lights) of `light` = (source, link, MIS weight against equiangular
+    /// sampling), its shadow ray stopping at the light and shadowed as `link` says.
     #[allow(clippy::too_many_arguments)]
     fn add_light_sample<C: Tally>(
         &self,
         sample: Option<LightSample>,
-        source: usize,
-        link: &Link,
+        light: (usize, &Link, f64),
         p: DVec3,
         dir: DVec3,
         path: &PathState,
@@ -779,6 +819,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         let Some(s) = sample else {
             return;
         };
+        let (source, link, w) = light;
         let (g, throughput) = (path.g, path.throughput);
         let f = hg(g, dir.dot(s.wi));
         let tr = self.shadow(
@@ -790,8 +831,202 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             rng,
             counters,
         );
-        let v = std::array::from_fn(|c| (throughput[c] * tr[c]) as f64 * s.weight[c] * f);
+        let v = std::array::from_fn(|c| (throughput[c] * tr[c]) as f64 * s.weight[c] * f * w);
         radiance.add(source, path.depth, v);
+    }
+
+    /// The equiangular side of the segment `origin + t·dir`, `t` in [`tmin`, `tmax`]:
+    /// `None` on a stage without local lights (nothing is drawn: such renders are
+    /// unchanged) and where the ray meets no medium's box.
+    #[inline(always)]
+    fn light_segment(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        tmin: f32,
+        tmax: f32,
+    ) -> Option<LightSegment> {
+        if self.locals.is_empty() {
+            return None;
+        }
+        self.light_segment_of_media(origin, dir, tmin, tmax)
+    }
+
+    #[inline(never)]
+    fn light_segment_of_media(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        tmin: f32,
+        tmax: f32,
+    ) -> Option<LightSegment> {
+        let speed = dir.length();
+        if !(speed > 0.0) {
+            return None;
+        }
+        let (mut a, mut b) = (f64::INFINITY, f64::NEG_INFINITY);
+        self.media_met(origin, dir, tmin, tmax, u64::MAX, |_, (t0, t1)| {
+            a = a.min(t0);
+            b = b.max(t1);
+        });
+        if !(a < b) {
+            return None;
+        }
+        let omega = dir / speed;
+        let (a, b) = (a * speed, b * speed);
+        let total: f64 = self
+            .locals
+            .iter()
+            .map(|l| {
+                Equiangular::new(origin, omega, l.center, a, b).map_or(0.0, |e| l.power * e.mass())
+            })
+            .sum();
+        (total > 0.0 && total.is_finite()).then_some(LightSegment {
+            o: origin,
+            omega,
+            speed,
+            a,
+            b,
+            total,
+        })
+    }
+
+    /// One scattering point of `seg` sampled towards a local light (chosen by its
+    /// share of the mass), its next-event estimate weighted against the tracker's
+    /// collisions ([`crate::render::equiangular`]): T̂(a, s) · σs(s) · phase · light /
+    /// (Q_ℓ p_ℓ(s)), T̂ by the transmittance estimator.
+    #[inline(never)]
+    fn add_equiangular<C: Tally>(
+        &self,
+        seg: &LightSegment,
+        path: &PathState,
+        radiance: &mut Radiance,
+        rng: &mut Sampler,
+        counters: &mut C,
+    ) {
+        let (u, v): (f64, f64) = (rng.gen(), rng.gen());
+        let (u1, u2): (f64, f64) = (rng.gen(), rng.gen());
+        // The light whose cumulative share of M passes u·M.
+        let target = u * seg.total;
+        let mut acc = 0.0;
+        let mut chosen = None;
+        for (k, l) in self.locals.iter().enumerate() {
+            if let Some(e) = Equiangular::new(seg.o, seg.omega, l.center, seg.a, seg.b) {
+                acc += l.power * e.mass();
+                chosen = Some((k, e));
+                if acc > target {
+                    break;
+                }
+            }
+        }
+        let Some((k, e)) = chosen else {
+            return;
+        };
+        let s = e.sample(v);
+        if !(s > seg.a && s < seg.b) {
+            return;
+        }
+        let x = seg.o + seg.omega * s;
+        let light = &self.locals[k];
+        let pdf = light.power / (seg.total * (x - light.center).length_squared());
+        let (sample, link, source) = self.lights.sample_local(k, x, u1, u2);
+        let Some(ls) = sample else {
+            return;
+        };
+        // σs × phase of the media light k lights at x, and the extinction there.
+        let mut f = [0f64; 3];
+        let mut sigma_t = 0.0;
+        let cos = seg.omega.dot(ls.wi);
+        self.media_at(x, seg.omega, None, counters, |id, m, d, counters| {
+            sigma_t += d * crate::track::free_path::avg(path.tracked.sigma(m).t) as f64;
+            if link.lights(id) {
+                let phase = hg(m.g as f64, cos);
+                let c = m
+                    .albedo
+                    .as_ref()
+                    .map_or([1.0; 3], |a| a.sample(x, counters));
+                for ch in 0..3 {
+                    f[ch] += d * m.sigma.s[ch] as f64 * c[ch] as f64 * phase;
+                }
+            }
+        });
+        if f == [0.0; 3] {
+            return;
+        }
+        let w = balance(pdf, tracker_density(sigma_t, s - seg.a));
+        // Transmittance from where the media begin to x, then from x to the light.
+        let (ta, tx) = (seg.a / seg.speed, s / seg.speed);
+        let dir = seg.omega * seg.speed;
+        let start = seg.o + dir * ta;
+        let tr_in = self.shadow(
+            start,
+            dir,
+            (tx - ta) as f32,
+            path.tracked,
+            &Link::ALL,
+            rng,
+            counters,
+        );
+        if tr_in == [0.0; 3] {
+            return;
+        }
+        let tr_out = self.shadow(
+            x,
+            ls.wi,
+            ls.distance as f32,
+            path.tracked,
+            link,
+            rng,
+            counters,
+        );
+        let value = std::array::from_fn(|c| {
+            (path.throughput[c] * tr_in[c] * tr_out[c]) as f64 * f[c] * ls.weight[c] * w / pdf
+        });
+        radiance.add(source, path.depth + 1, value);
+    }
+
+    /// The extinction (mean over the tracked channels) of every medium at `p`, a
+    /// collision of medium `known` (which holds it: no boundary query for it).
+    fn extinction_at<C: Tally>(
+        &self,
+        p: DVec3,
+        dir: DVec3,
+        known: usize,
+        tracked: Tracked,
+        counters: &mut C,
+    ) -> f64 {
+        let mut sigma_t = 0.0;
+        self.media_at(p, dir, Some(known), counters, |_, m, d, _| {
+            sigma_t += d * crate::track::free_path::avg(tracked.sigma(m).t) as f64;
+        });
+        sigma_t
+    }
+
+    /// Calls `f(id, medium, density, counters)` for every medium whose region holds
+    /// `p` with a positive density there (one lookup per medium whose box holds `p`;
+    /// a fog box's region asks its boundary, with a ray along `dir`, unless it is
+    /// `known` to hold `p`).
+    fn media_at<C: Tally>(
+        &self,
+        p: DVec3,
+        dir: DVec3,
+        known: Option<usize>,
+        counters: &mut C,
+        mut f: impl FnMut(usize, &Medium, f64, &mut C),
+    ) {
+        let mut take = |i: usize| {
+            let m = &self.media[i];
+            if known == Some(i) || m.contains(p, dir) {
+                let d = m.density_at_world(p, counters) as f64;
+                if d > 0.0 {
+                    f(i, m, d, counters);
+                }
+            }
+        };
+        match self.media {
+            [_] => take(0),
+            _ => self.media_met(p, dir, 0.0, 0.0, u64::MAX, |i, _| take(i)),
+        }
     }
 
     /// The transmittance estimate along the shadow ray `p + t·wi`, t < `tmax`, through

@@ -11,7 +11,7 @@ use crate::render::sampler::SamplerKind;
 use crate::scene::schema::tokens;
 use crate::scene::{Field, Scene, Volume, VolumeShape};
 use crate::track::free_path::{FreePathSampler, TransmittanceEstimator};
-use crate::track::select::{Dispatch, TrackerKind, TrackerSettings};
+use crate::track::select::{Dispatch, LightSampling, TrackerKind, TrackerSettings};
 use crate::volume::albedo::AlbedoGrid;
 use crate::volume::boundary::{InsideRule, MediumRegion};
 use crate::volume::emission::{Emission, EmissionGrid};
@@ -55,6 +55,16 @@ impl RenderJob<'_> {
     /// cross-sections of every medium).
     fn grey(&self) -> bool {
         self.paths.specialise && self.media.iter().all(|m| m.sigma.is_grey())
+    }
+
+    /// Whether path segments also sample scattering points towards the local lights
+    /// (`--light-sampling`; `auto`: where every medium is homogeneous).
+    pub fn equiangular(&self) -> bool {
+        match self.tracking.light_sampling {
+            LightSampling::EquiangularMis => true,
+            LightSampling::Collisions => false,
+            LightSampling::Auto => self.media.iter().all(|m| m.constant),
+        }
     }
 
     /// Whether the render runs the single-channel trackers of grey media.
@@ -108,6 +118,10 @@ impl RenderJob<'_> {
                         TrackerKind::RatioSelect if j.grey_tracking() => SelectSegments::Grey,
                         TrackerKind::RatioSelect => SelectSegments::Rgb,
                         _ => SelectSegments::Off,
+                    },
+                    locals: match j.equiangular() {
+                        true => j.lights.locals(),
+                        false => Vec::new(),
                     },
                 }
                 .render_pass(self.film, self.n, self.progress)

@@ -33,6 +33,7 @@
 
 use crate::color::{emission_scale, luminance, usd_blackbody_rgb};
 pub use crate::render::dome::EnvMap;
+use crate::render::equiangular::LocalLight;
 use crate::render::holdouts::Holdouts;
 use crate::render::phase::{azimuth, orthonormal_basis, sample_sphere, INV_4PI};
 use crate::scene::{Collection, LightControls, Scene};
@@ -786,6 +787,89 @@ impl Lights {
             })
             .collect();
         Ok(lights)
+    }
+
+    /// The sphere, rect, disk and cylinder lights (next-event estimation's order) as
+    /// equiangular sampling sees them: their centres and powers (mean over channels;
+    /// shaping left out). Index k of this list is the one [`Self::sample_local`] takes.
+    pub fn locals(&self) -> Vec<LocalLight> {
+        let mean = |v: &[f64; 3]| (v[0] + v[1] + v[2]) / 3.0;
+        // A shaped light (a spot's cone, focus) gets no equiangular samples yet: most of
+        // a segment lies outside its cone, where they would be wasted (measured on
+        // benches/local_lights/spot_fog.usda); power 0 leaves it to the collisions,
+        // whose weight is then 1.
+        let unshaped = |shaping: &Option<Shaping>| shaping.is_none() as u8 as f64;
+        let mut out = Vec::new();
+        for e in &self.spheres {
+            // A point's intensity over the sphere of directions; a sphere's π L from
+            // each of its 4π r² of surface.
+            let r = e.radius;
+            let power = match r > 0.0 {
+                false => 4.0 * PI * mean(&e.radiance),
+                true => 4.0 * PI * PI * r * r * mean(&e.radiance),
+            };
+            out.push(LocalLight {
+                center: e.center,
+                power: power * unshaped(&e.shaping),
+            });
+        }
+        for (center, area, radiance, shaping) in self
+            .rects
+            .iter()
+            .map(|e| (e.center, e.area, &e.radiance, &e.shaping))
+            .chain(
+                self.disks
+                    .iter()
+                    .map(|e| (e.center, e.area, &e.radiance, &e.shaping)),
+            )
+        {
+            out.push(LocalLight {
+                center,
+                power: PI * area * mean(radiance) * unshaped(shaping),
+            });
+        }
+        for e in &self.cylinders {
+            let power = match e.line {
+                // ∫ sin θ dΩ = π² over the sphere of directions.
+                true => PI * PI * mean(&e.line_intensity),
+                false => PI * e.area * mean(&e.radiance),
+            };
+            out.push(LocalLight {
+                center: e.center,
+                power: power * unshaped(&e.shaping),
+            });
+        }
+        out
+    }
+
+    /// Samples local light `k` ([`Self::locals`]' order) from `p`: the sample, the
+    /// light's link and its source (for the split layers).
+    #[inline]
+    pub fn sample_local(
+        &self,
+        k: usize,
+        p: DVec3,
+        u1: f64,
+        u2: f64,
+    ) -> (Option<LightSample>, &Link, usize) {
+        let mut k = k;
+        if k < self.spheres.len() {
+            let e = &self.spheres[k];
+            return (e.sample(p, u1, u2), &e.link, self.sources.sphere(k));
+        }
+        k -= self.spheres.len();
+        if k < self.rects.len() {
+            let e = &self.rects[k];
+            return (e.sample(p, u1, u2), &e.link, self.sources.rect(k));
+        }
+        k -= self.rects.len();
+        if k < self.disks.len() {
+            let e = &self.disks[k];
+            return (e.sample(p, u1, u2), &e.link, self.sources.disk(k));
+        }
+        k -= self.disks.len();
+        let e = &self.cylinders[k];
+        (e.sample(p, u1, u2), &e.link, self.sources.cylinder(k))
     }
 
     /// Whether any light has linking (its media masks or holdout sets differ from

@@ -5,6 +5,7 @@
 pub mod analysis;
 pub mod camera;
 pub mod dome;
+pub mod equiangular;
 pub mod film;
 pub mod holdouts;
 pub mod integrator;

@@ -24,7 +24,9 @@ use crate::scene::{
 };
 use crate::track::race::MAX_MEDIA;
 use crate::track::scheme::SchemeOptions;
-use crate::track::select::{Choice, SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind};
+use crate::track::select::{
+    Choice, LightSampling, SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind,
+};
 use crate::volume::asset::AssetLocation;
 use crate::volume::grid::Grid;
 use crate::volume::majorant::{MajorantSpec, MajorantTree, MAX_DEPTH};
@@ -100,6 +102,8 @@ pub struct Overrides {
     pub no_absorption_events: bool,
     /// Multiplies every majorant (default 1).
     pub majorant_scale: Option<f32>,
+    /// Scattering points towards local lights (default `auto`).
+    pub light_sampling: Option<LightSampling>,
     /// Time lookups, traversal and the rest of the trackers.
     pub profile: bool,
     /// Run the general RGB trackers even where a specialised one applies.
@@ -710,6 +714,7 @@ fn tracker_request(o: &Overrides, stage: &RenderSettings) -> Result<TrackerReque
         },
         majorant_scale,
         profile: o.profile,
+        light_sampling: o.light_sampling.unwrap_or(d.light_sampling),
     };
     Ok(TrackerRequest {
         settings,

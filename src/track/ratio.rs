@@ -12,7 +12,8 @@
 //! probability [`RR_SURVIVAL`] and is divided by it, which keeps it unbiased.
 
 use crate::track::free_path::{
-    prefetch_next, walk_collisions, with_walk, OpticalDepth, Query, TransmittanceEstimator,
+    majorant, prefetch_next, walk_collisions, with_walk, OpticalDepth, Query,
+    TransmittanceEstimator,
 };
 
 use crate::color::Spectrum;
@@ -110,6 +111,13 @@ fn roulette<T: Estimate, R: Rng>(tr: &mut T, rng: &mut R) -> bool {
 /// of the trilinear stencil ([`Medium::density_estimate`]), which keeps the estimate
 /// unbiased because every factor is linear in the density.
 ///
+/// A segment whose density is constant (its bounds equal: inside a fog box, world
+/// fog, a uniform cell of a grid) attenuates in closed form, exp(−d·σt·Δt), with no
+/// lookup: there every tentative collision under the tight majorant would be real and
+/// the estimate 0 or 1 (the track-length estimator's variance), where the exact factor
+/// has none. The walk goes on with a fresh optical depth, which the memoryless
+/// exponential allows.
+///
 /// [`Medium::density_estimate`]: crate::volume::medium::Medium::density_estimate
 #[inline(always)]
 pub(super) fn ratio<T: Estimate, R: Rng, C: Tally, const STOCHASTIC: bool>(
@@ -117,7 +125,44 @@ pub(super) fn ratio<T: Estimate, R: Rng, C: Tally, const STOCHASTIC: bool>(
     rng: &mut R,
     c: &mut C,
 ) -> T {
-    ratio_walk::<T, R, C, STOCHASTIC>(q, rng, c, |_, _, _, _, _, _| {})
+    let sg = q.sigma;
+    let mut tr = T::ONE;
+    with_walk!(q, |walk| {
+        let mut tau = OpticalDepth::sample(rng);
+        while let Some(seg) = c.next_segment(&mut walk) {
+            if seg.dmin == seg.dmax {
+                if seg.dmax > 0.0 {
+                    let len = seg.t1 - seg.t0;
+                    tr.attenuate(&sg.t, |st| (-seg.dmax * st * len).exp());
+                    if !roulette(&mut tr, rng) {
+                        return tr;
+                    }
+                }
+                continue;
+            }
+            let mu_bar = majorant(q, &seg);
+            if !(mu_bar > 0.0) {
+                continue;
+            }
+            let mut t = seg.t0;
+            while let Some(tc) = tau.collide(t, seg.t1, mu_bar) {
+                t = tc;
+                tau = OpticalDepth::sample(rng);
+                prefetch_next(q, tau, t, seg.t1, mu_bar);
+                let d = if STOCHASTIC {
+                    q.medium.density_estimate(q.ray.at(t), rng.gen::<u64>(), c)
+                } else {
+                    q.medium.density(q.ray.at(t), c)
+                };
+                c.null_collision();
+                tr.attenuate(&sg.t, |st| 1.0 - d * st / mu_bar);
+                if !roulette(&mut tr, rng) {
+                    return tr;
+                }
+            }
+        }
+        tr
+    })
 }
 
 /// [`ratio`], calling `at(t, d, μ̄, T̂, rng, counters)` at each tentative collision with

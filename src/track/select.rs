@@ -201,6 +201,51 @@ impl TransmittanceKind {
     }
 }
 
+/// Where scattering points near local lights come from (`--light-sampling`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LightSampling {
+    /// `equiangular-mis` where every medium is homogeneous (fog boxes, world fog),
+    /// where it was measured to pay; `collisions` elsewhere (docs/trackers.md).
+    Auto,
+    /// The trackers' collisions, plus one point per path segment sampled
+    /// equiangularly towards a local light, combined by MIS.
+    EquiangularMis,
+    /// The trackers' collisions alone.
+    Collisions,
+}
+
+impl Choice for LightSampling {
+    const ALL: &'static [Self] = &[
+        LightSampling::Auto,
+        LightSampling::EquiangularMis,
+        LightSampling::Collisions,
+    ];
+
+    fn help(self) -> &'static str {
+        match self {
+            LightSampling::EquiangularMis => "Collisions plus one scattering point per path segment sampled equiangularly towards a point, spot, sphere, rect, disk or cylinder light, combined by MIS (Kulla and Fajardo 2012)",
+            LightSampling::Collisions => "The trackers' collisions alone",
+            LightSampling::Auto => "equiangular-mis where every medium is homogeneous (fog boxes, world fog), collisions elsewhere (the default)",
+        }
+    }
+
+    fn name(self) -> &'static str {
+        LightSampling::name(self)
+    }
+}
+
+impl LightSampling {
+    /// The option's name (a CLI value, a schema token, a stats string).
+    pub fn name(self) -> &'static str {
+        match self {
+            LightSampling::Auto => "auto",
+            LightSampling::EquiangularMis => "equiangular-mis",
+            LightSampling::Collisions => "collisions",
+        }
+    }
+}
+
 /// Everything that selects and parameterises the estimators of a render.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TrackerSettings {
@@ -213,6 +258,9 @@ pub struct TrackerSettings {
     pub majorant_scale: f32,
     /// Time density lookups, majorant traversal and tracker queries (`--profile`).
     pub profile: bool,
+    /// Scattering points towards local lights (only stages with local lights differ;
+    /// default `auto`).
+    pub light_sampling: LightSampling,
 }
 
 impl TrackerSettings {
@@ -238,6 +286,7 @@ impl Default for TrackerSettings {
             options: scheme::SchemeOptions::default(),
             majorant_scale: 1.0,
             profile: false,
+            light_sampling: LightSampling::Auto,
         }
     }
 }

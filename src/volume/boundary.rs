@@ -226,6 +226,9 @@ pub enum MediumWalk<'a> {
         inside: Inside<'a>,
         /// The rest of the cell segment being clipped.
         pending: Option<Segment>,
+        /// The density is constant inside the boundary (a fog box's): the clipped
+        /// segments carry it as both bounds, so estimators may use closed forms.
+        constant: bool,
     },
     /// The one segment left, if any.
     Everywhere(Option<Segment>),
@@ -243,7 +246,17 @@ impl Iterator for MediumWalk<'_> {
                 cells,
                 inside,
                 pending,
-            } => clipped_next(cells, inside, pending),
+                constant,
+            } => {
+                let seg = clipped_next(cells, inside, pending)?;
+                Some(match constant {
+                    true => Segment {
+                        dmin: seg.dmax,
+                        ..seg
+                    },
+                    false => seg,
+                })
+            }
         }
     }
 }

@@ -114,6 +114,9 @@ pub struct Medium {
     /// Where the medium is: where its grid is, inside a closed surface (a fog box;
     /// walks are clipped to it) or everywhere (world fog).
     pub region: MediumRegion,
+    /// The density is the same everywhere in the region ([`Medium::homogeneous`]):
+    /// a clipped walk's segments then have equal bounds.
+    pub constant: bool,
     /// Index → world, for mapping index rays back to the boundary's world space.
     index_to_world: DMat4,
     /// Whether trackers prefetch the next tentative collision's stencil
@@ -223,6 +226,7 @@ impl Medium {
             emission: None,
             albedo: None,
             region: MediumRegion::Grid,
+            constant: false,
             index_to_world: world_to_index.inverse(),
             prefetch: density.memory_bytes() > PREFETCH_BYTES,
             density,
@@ -278,6 +282,7 @@ impl Medium {
             medium.world_box = None;
         }
         medium.region = region;
+        medium.constant = true;
         Ok(medium)
     }
 
@@ -294,6 +299,7 @@ impl Medium {
                     cells: self.majorants.walk(ray.o, ray.d, tmin, tmax),
                     inside: Inside::new(boundary.as_ref(), origin, dir, tmin, tmax),
                     pending: None,
+                    constant: self.constant,
                 }
             }
             MediumRegion::Everywhere => {
@@ -305,6 +311,20 @@ impl Medium {
                     dmax: d,
                 }))
             }
+        }
+    }
+
+    /// Whether the world-space point `p` lies in the medium's region (for a fog box, by
+    /// the crossings of the ray from `p` along `dir`: one boundary query). A grid's
+    /// region is wherever its density is, so every point is in it.
+    pub fn contains(&self, p: DVec3, dir: DVec3) -> bool {
+        match &self.region {
+            MediumRegion::Inside(boundary) => {
+                Inside::new(boundary.as_ref(), p, dir, 0.0, f32::MIN_POSITIVE)
+                    .current()
+                    .is_some()
+            }
+            MediumRegion::Grid | MediumRegion::Everywhere => true,
         }
     }
 
@@ -369,6 +389,7 @@ impl Medium {
                 .map(|a| a.placed(prim_path, volume_to_world))
                 .transpose()?,
             region: MediumRegion::Grid,
+            constant: false,
             index_to_world: world_to_index.inverse(),
             prefetch: self.prefetch,
         })
@@ -398,7 +419,10 @@ impl Medium {
     /// medium) and hands back the structure it replaces.
     pub fn replace_majorants(&mut self, tree: Arc<MajorantTree>) -> Arc<MajorantTree> {
         let old = std::mem::replace(&mut self.majorants, tree);
-        self.world_box = world_box(&self.majorants, self.world_to_index);
+        // World fog has no box: its brick covers only the scene, the fog all space.
+        if !matches!(self.region, MediumRegion::Everywhere) {
+            self.world_box = world_box(&self.majorants, self.world_to_index);
+        }
         old
     }
 
@@ -521,5 +545,32 @@ fn lookup<C: Tally>(counters: &mut C, read: impl FnOnce() -> f32) -> f32 {
     } else {
         counters.density_lookup(0);
         read()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// World fog keeps no box when its majorants are rebuilt (as `auto` does for
+    /// homogeneous stages): rays far from the scene still meet it, and with several
+    /// media the culling does not leave it out there.
+    #[test]
+    fn world_fog_has_no_box_after_its_majorants_are_rebuilt() {
+        let mut fog = Medium::homogeneous(
+            "/fog",
+            MediumRegion::Everywhere,
+            (DVec3::splat(-1.0), DVec3::splat(1.0)),
+            0.1,
+            [0.0; 3],
+            [1.0; 3],
+            0.0,
+        )
+        .unwrap();
+        let far = DVec3::new(0.0, 1e3, 0.0);
+        assert_eq!(fog.span(far, DVec3::X, 0.0, 5.0), Some((0.0, 5.0)));
+        let tree = fog.build_majorants(MajorantSpec::Uniform { cell_voxels: 0 }, 0.0, false);
+        fog.replace_majorants(tree);
+        assert_eq!(fog.span(far, DVec3::X, 0.0, 5.0), Some((0.0, 5.0)));
     }
 }

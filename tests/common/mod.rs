@@ -19,7 +19,7 @@ use nimbus::render::sampler::pixel_sampler;
 use nimbus::scene::Camera;
 use nimbus::track::free_path::{FreePathSampler, TransmittanceEstimator};
 use nimbus::track::select::{
-    Dispatch, SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind,
+    Dispatch, LightSampling, SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind,
 };
 use nimbus::volume::counters::Counters;
 use nimbus::volume::grid::Grid;
@@ -191,6 +191,10 @@ impl Dispatch<Output> for Run<'_, '_> {
                 SelectSegments::Rgb
             } else {
                 SelectSegments::Off
+            },
+            locals: match self.settings.light_sampling {
+                LightSampling::EquiangularMis => s.lights.locals(),
+                LightSampling::Collisions | LightSampling::Auto => Vec::new(),
             },
         };
         match self.mode {
