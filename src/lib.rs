@@ -13,5 +13,6 @@ pub mod farm;
 pub mod output;
 pub mod render;
 pub mod scene;
+pub mod shader;
 pub mod track;
 pub mod volume;

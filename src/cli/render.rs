@@ -103,9 +103,10 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 1.0)]
     pub majorant_scale: f32,
     /// Scattering points near local lights: the trackers' collisions alone, or plus one
-    /// per path segment sampled equiangularly towards a light, combined by MIS; `auto`
-    /// (default) takes the second where every medium is homogeneous (fog boxes, world
-    /// fog), where it pays (docs/trackers.md). Stages with only distant and dome lights
+    /// per path segment sampled equiangularly towards a light (a spot's only inside its
+    /// cone), combined by MIS; `auto` (default) takes the second for every local light
+    /// where every medium is homogeneous (fog boxes, world fog) and for spots in grids,
+    /// where it pays (docs/trackers.md). Stages with only distant and dome lights
     /// render the same either way.
     #[arg(long, value_parser = choice::parser::<LightSampling>())]
     pub light_sampling: Option<LightSampling>,

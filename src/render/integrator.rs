@@ -9,7 +9,7 @@
 
 use crate::color::Spectrum;
 use crate::render::camera::CameraRays;
-use crate::render::equiangular::{balance, tracker_density, Equiangular, LocalLight};
+use crate::render::equiangular::{balance, tracker_density, LocalLight};
 use crate::render::film::{DepthBins, Film, Pixel};
 use crate::render::holdouts::Holdouts;
 use crate::render::lights::in_mask;
@@ -694,15 +694,17 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             .filter(|&(seg, s)| s >= seg.a && s <= seg.b)
             .map(|(seg, s)| {
                 let sigma_t = self.extinction_at(p, seg.omega, id, tracked, counters);
-                (seg, tracker_density(sigma_t, s - seg.a))
+                let tau = self.optical_depth_guess(seg, s, tracked);
+                (seg, s, tracker_density(sigma_t, tau))
             });
+        // A light never sampled equiangularly here (no power, or `p` outside its
+        // cone's stretch) keeps weight 1.
         let weight = |k: usize| match collision {
-            // A light never sampled equiangularly (power 0: shaped) keeps weight 1.
-            Some((seg, pd)) if self.locals[k].power > 0.0 => {
-                let l = &self.locals[k];
-                balance(pd, l.power / (seg.total * (p - l.center).length_squared()))
+            Some((seg, s, pd)) => {
+                let line = (seg.o, seg.omega, seg.a, seg.b);
+                balance(pd, self.locals[k].density_at(line, s, p, seg.total))
             }
-            _ => 1.0,
+            None => 1.0,
         };
         let mut k = 0;
         for (i, sun) in self.lights.suns.iter().enumerate() {
@@ -878,7 +880,8 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             .locals
             .iter()
             .map(|l| {
-                Equiangular::new(origin, omega, l.center, a, b).map_or(0.0, |e| l.power * e.mass())
+                l.equiangular(origin, omega, a, b)
+                    .map_or(0.0, |e| l.power * e.mass())
             })
             .sum();
         (total > 0.0 && total.is_finite()).then_some(LightSegment {
@@ -911,7 +914,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         let mut acc = 0.0;
         let mut chosen = None;
         for (k, l) in self.locals.iter().enumerate() {
-            if let Some(e) = Equiangular::new(seg.o, seg.omega, l.center, seg.a, seg.b) {
+            if let Some(e) = l.equiangular(seg.o, seg.omega, seg.a, seg.b) {
                 acc += l.power * e.mass();
                 chosen = Some((k, e));
                 if acc > target {
@@ -923,12 +926,14 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             return;
         };
         let s = e.sample(v);
-        if !(s > seg.a && s < seg.b) {
+        // Rounding can put s a hair outside the light's stretch, where the collision
+        // side would give it weight 0: drop it there too.
+        let line = (seg.o, seg.omega, seg.a, seg.b);
+        let x = seg.o + seg.omega * s;
+        let pdf = self.locals[k].density_at(line, s, x, seg.total);
+        if !(s > seg.a && s < seg.b && pdf > 0.0) {
             return;
         }
-        let x = seg.o + seg.omega * s;
-        let light = &self.locals[k];
-        let pdf = light.power / (seg.total * (x - light.center).length_squared());
         let (sample, link, source) = self.lights.sample_local(k, x, u1, u2);
         let Some(ls) = sample else {
             return;
@@ -953,7 +958,10 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         if f == [0.0; 3] {
             return;
         }
-        let w = balance(pdf, tracker_density(sigma_t, s - seg.a));
+        let w = balance(
+            pdf,
+            tracker_density(sigma_t, self.optical_depth_guess(seg, s, path.tracked)),
+        );
         // Transmittance from where the media begin to x, then from x to the light.
         let (ta, tx) = (seg.a / seg.speed, s / seg.speed);
         let dir = seg.omega * seg.speed;
@@ -983,6 +991,32 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             (path.throughput[c] * tr_in[c] * tr_out[c]) as f64 * f[c] * ls.weight[c] * w / pdf
         });
         radiance.add(source, path.depth + 1, value);
+    }
+
+    /// τ̃(a, s), the stand-in for the optical depth along `seg` from its start to `s`
+    /// (mean over the tracked channels) that the MIS weights use: each majorant
+    /// segment's length times the midpoint of its density bounds. Exact where the
+    /// bounds are equal (fog boxes, world fog); a deterministic function of `s`
+    /// everywhere, which is all the weights need to keep the sum unbiased.
+    fn optical_depth_guess(&self, seg: &LightSegment, s: f64, tracked: Tracked) -> f64 {
+        let dir = seg.omega * seg.speed;
+        let (t0, t1) = ((seg.a / seg.speed) as f32, (s / seg.speed) as f32);
+        let mut tau = 0.0;
+        self.media_met(seg.o, dir, t0, t1, u64::MAX, |i, (ta, tb)| {
+            let m = &self.media[i];
+            let depth = match m.everywhere_density() {
+                // World fog: no cells to walk.
+                Some(d) => d as f64 * (tb - ta),
+                None => {
+                    let ray = m.index_ray(seg.o, dir);
+                    m.walk(&ray, ta as f32, tb as f32)
+                        .map(|g| 0.5 * (g.dmin + g.dmax) as f64 * (g.t1 - g.t0) as f64)
+                        .sum()
+                }
+            };
+            tau += depth * crate::track::free_path::avg(tracked.sigma(m).t) as f64;
+        });
+        tau * seg.speed
     }
 
     /// The extinction (mean over the tracked channels) of every medium at `p`, a

@@ -3,6 +3,7 @@
 
 use crate::render::analysis::CodePaths;
 use crate::render::camera::CameraRays;
+use crate::render::equiangular::LocalLight;
 use crate::render::film::{Film, Region};
 use crate::render::holdouts::Holdouts;
 use crate::render::integrator::{Extras, Integrator, SelectSegments};
@@ -57,14 +58,28 @@ impl RenderJob<'_> {
         self.paths.specialise && self.media.iter().all(|m| m.sigma.is_grey())
     }
 
-    /// Whether path segments also sample scattering points towards the local lights
-    /// (`--light-sampling`; `auto`: where every medium is homogeneous).
-    pub fn equiangular(&self) -> bool {
-        match self.tracking.light_sampling {
-            LightSampling::EquiangularMis => true,
-            LightSampling::Collisions => false,
-            LightSampling::Auto => self.media.iter().all(|m| m.constant),
+    /// The local lights path segments also sample scattering points towards
+    /// (`--light-sampling`), in [`Lights::locals`]' order; a light left to the
+    /// collisions has power 0, and none at all is an empty list (nothing is drawn).
+    /// `auto`: every local light where every medium is homogeneous (fog boxes, world
+    /// fog); in a heterogeneous medium only spots, whose cones the collisions' light
+    /// samples mostly miss (measured: docs/trackers.md).
+    pub fn local_lights(&self) -> Vec<LocalLight> {
+        let mut locals = match self.tracking.light_sampling {
+            LightSampling::Collisions => return Vec::new(),
+            _ => self.lights.locals(),
+        };
+        if self.tracking.light_sampling == LightSampling::Auto
+            && !self.media.iter().all(|m| m.constant)
+        {
+            for l in locals.iter_mut().filter(|l| l.cone.is_none()) {
+                l.power = 0.0;
+            }
         }
+        if locals.iter().all(|l| l.power <= 0.0) {
+            locals.clear();
+        }
+        locals
     }
 
     /// Whether the render runs the single-channel trackers of grey media.
@@ -119,10 +134,7 @@ impl RenderJob<'_> {
                         TrackerKind::RatioSelect => SelectSegments::Rgb,
                         _ => SelectSegments::Off,
                     },
-                    locals: match j.equiangular() {
-                        true => j.lights.locals(),
-                        false => Vec::new(),
-                    },
+                    locals: j.local_lights(),
                 }
                 .render_pass(self.film, self.n, self.progress)
             }

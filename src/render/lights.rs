@@ -33,7 +33,7 @@
 
 use crate::color::{emission_scale, luminance, usd_blackbody_rgb};
 pub use crate::render::dome::EnvMap;
-use crate::render::equiangular::LocalLight;
+use crate::render::equiangular::{Cone, LocalLight};
 use crate::render::holdouts::Holdouts;
 use crate::render::phase::{azimuth, orthonormal_basis, sample_sphere, INV_4PI};
 use crate::scene::{Collection, LightControls, Scene};
@@ -790,15 +790,28 @@ impl Lights {
     }
 
     /// The sphere, rect, disk and cylinder lights (next-event estimation's order) as
-    /// equiangular sampling sees them: their centres and powers (mean over channels;
-    /// shaping left out). Index k of this list is the one [`Self::sample_local`] takes.
+    /// equiangular sampling sees them: their centres, powers (mean over channels) and
+    /// spots' cones. Index k of this list is the one [`Self::sample_local`] takes.
     pub fn locals(&self) -> Vec<LocalLight> {
         let mean = |v: &[f64; 3]| (v[0] + v[1] + v[2]) / 3.0;
-        // A shaped light (a spot's cone, focus) gets no equiangular samples yet: most of
-        // a segment lies outside its cone, where they would be wasted (measured on
-        // benches/local_lights/spot_fog.usda); power 0 leaves it to the collisions,
-        // whose weight is then 1.
-        let unshaped = |shaping: &Option<Shaping>| shaping.is_none() as u8 as f64;
+        // A spot lights only its cone: its equiangular samples are drawn on the
+        // stretch of a segment inside it, and its power is the share of the sphere of
+        // directions the cone passes. (Focus and softness are left out: the choice
+        // among lights only needs proportions.)
+        let local = |center: DVec3, radius: f64, power: f64, shaping: &Option<Shaping>| {
+            let cone = shaping
+                .as_ref()
+                .and_then(|s| Cone::new(center, s.axis, s.cutoff, radius));
+            let share = shaping
+                .as_ref()
+                .filter(|s| s.cutoff < PI)
+                .map_or(1.0, |s| 0.5 * (1.0 - s.cutoff.cos()));
+            LocalLight {
+                center,
+                power: power * share,
+                cone,
+            }
+        };
         let mut out = Vec::new();
         for e in &self.spheres {
             // A point's intensity over the sphere of directions; a sphere's π L from
@@ -808,25 +821,20 @@ impl Lights {
                 false => 4.0 * PI * mean(&e.radiance),
                 true => 4.0 * PI * PI * r * r * mean(&e.radiance),
             };
-            out.push(LocalLight {
-                center: e.center,
-                power: power * unshaped(&e.shaping),
-            });
+            out.push(local(e.center, r, power, &e.shaping));
         }
-        for (center, area, radiance, shaping) in self
-            .rects
-            .iter()
-            .map(|e| (e.center, e.area, &e.radiance, &e.shaping))
-            .chain(
-                self.disks
-                    .iter()
-                    .map(|e| (e.center, e.area, &e.radiance, &e.shaping)),
-            )
-        {
-            out.push(LocalLight {
-                center,
-                power: PI * area * mean(radiance) * unshaped(shaping),
-            });
+        for e in &self.rects {
+            let half_diagonal = 0.5
+                * (e.edge_u + e.edge_v)
+                    .length()
+                    .max((e.edge_u - e.edge_v).length());
+            let power = PI * e.area * mean(&e.radiance);
+            out.push(local(e.center, half_diagonal, power, &e.shaping));
+        }
+        for e in &self.disks {
+            let radius = e.a.length().max(e.b.length());
+            let power = PI * e.area * mean(&e.radiance);
+            out.push(local(e.center, radius, power, &e.shaping));
         }
         for e in &self.cylinders {
             let power = match e.line {
@@ -834,10 +842,8 @@ impl Lights {
                 true => PI * PI * mean(&e.line_intensity),
                 false => PI * e.area * mean(&e.radiance),
             };
-            out.push(LocalLight {
-                center: e.center,
-                power: power * unshaped(&e.shaping),
-            });
+            let reach = 0.5 * e.axis.length() + e.y.length().max(e.z.length());
+            out.push(local(e.center, reach, power, &e.shaping));
         }
         out
     }

@@ -205,8 +205,9 @@ impl TransmittanceKind {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum LightSampling {
-    /// `equiangular-mis` where every medium is homogeneous (fog boxes, world fog),
-    /// where it was measured to pay; `collisions` elsewhere (docs/trackers.md).
+    /// `equiangular-mis` towards every local light where every medium is homogeneous
+    /// (fog boxes, world fog), towards spots only in heterogeneous media: where it
+    /// was measured to pay; `collisions` elsewhere (docs/trackers.md).
     Auto,
     /// The trackers' collisions, plus one point per path segment sampled
     /// equiangularly towards a local light, combined by MIS.
@@ -226,7 +227,7 @@ impl Choice for LightSampling {
         match self {
             LightSampling::EquiangularMis => "Collisions plus one scattering point per path segment sampled equiangularly towards a point, spot, sphere, rect, disk or cylinder light, combined by MIS (Kulla and Fajardo 2012)",
             LightSampling::Collisions => "The trackers' collisions alone",
-            LightSampling::Auto => "equiangular-mis where every medium is homogeneous (fog boxes, world fog), collisions elsewhere (the default)",
+            LightSampling::Auto => "equiangular-mis towards every local light where every medium is homogeneous (fog boxes, world fog), towards spot lights only where a medium is a grid; collisions for the rest (the default)",
         }
     }
 

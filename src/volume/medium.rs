@@ -314,6 +314,16 @@ impl Medium {
         }
     }
 
+    /// The density of a medium that fills all space with one value (world fog), whose
+    /// optical depth along any stretch is that value times its length.
+    #[inline]
+    pub fn everywhere_density(&self) -> Option<f32> {
+        match self.region {
+            MediumRegion::Everywhere => Some(self.majorants.max_density()),
+            _ => None,
+        }
+    }
+
     /// Whether the world-space point `p` lies in the medium's region (for a fog box, by
     /// the crossings of the ray from `p` along `dir`: one boundary query). A grid's
     /// region is wherever its density is, so every point is in it.

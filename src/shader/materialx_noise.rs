@@ -1,0 +1,142 @@
+//! MaterialX's `noise3d` and `fractal3d` (float outputs), as the MaterialX standard
+//! library defines them (`libraries/stdlib/genglsl/lib/mx_noise.glsl`: Perlin noise with
+//! lookup3's 3-word hash, Perlin's 12 edge gradients, the quintic fade, trilinear
+//! interpolation in the nested `(1 - s) a + s b` form and the range constant 0.9820).
+//!
+//! It is the same lattice noise as Blender's ([`super::noise`]), written for Nimbus:
+//! the hash, gradients and range constant agree, so only [`MaterialX`]'s two groupings
+//! (the fade polynomial in float, the nested interpolation) and what MaterialX leaves out
+//! differ. MaterialX folds no coordinates into a period, adds no distortion, and its
+//! fractal is a plain sum of `octaves` whole octaves, without normalisation. Checked
+//! bit for bit against a numpy transcription of the published GLSL
+//! (`tests/fixtures/materialx_noise_values.py`, `tests/materialx_noise.rs`).
+
+use super::noise::{perlin_3d, Arithmetic, Blenlib};
+
+/// The float grouping of MaterialX's GLSL: `t t t (t (6t - 15) + 10)` in single
+/// precision, and the trilinear interpolation `mx_trilerp`, which is written as
+/// blenlib's is.
+#[derive(Clone, Copy, Debug)]
+pub struct MaterialX;
+
+impl Arithmetic for MaterialX {
+    #[inline(always)]
+    fn fade(t: f32) -> f32 {
+        t * t * t * (t * (t * 6.0 - 15.0) + 10.0)
+    }
+
+    #[inline(always)]
+    fn lerp(a: f32, b: f32, t: f32) -> f32 {
+        (1.0 - t) * a + t * b
+    }
+
+    #[inline(always)]
+    fn trilerp(lo: [f32; 4], hi: [f32; 4], u: f32, v: f32, w: f32) -> f32 {
+        Blenlib::trilerp(lo, hi, u, v, w)
+    }
+
+    /// MaterialX folds nothing (unused here).
+    #[inline(always)]
+    fn remainder(a: f32) -> f32 {
+        a
+    }
+}
+
+/// MaterialX's signed 3D Perlin noise, about [-1, 1] (`mx_perlin_noise_float`).
+/// Positions must stay below 2^31 in magnitude (MaterialX converts the floor to an
+/// `int`).
+#[inline]
+pub fn perlin_noise_3d(p: [f32; 3]) -> f32 {
+    0.9820 * perlin_3d::<MaterialX>(p[0], p[1], p[2])
+}
+
+/// `mx_fractal3d_noise_float`: `octaves` octaves of [`perlin_noise_3d`], each at
+/// `lacunarity` times the frequency and `diminish` times the amplitude of the last.
+#[inline]
+pub fn fractal_noise_3d(mut p: [f32; 3], octaves: i32, lacunarity: f32, diminish: f32) -> f32 {
+    let mut result = 0.0f32;
+    let mut amplitude = 1.0f32;
+    for _ in 0..octaves {
+        result += amplitude * perlin_noise_3d(p);
+        amplitude *= diminish;
+        p = p.map(|c| c * lacunarity);
+    }
+    result
+}
+
+/// The `ND_noise3d_float` node: `noise * amplitude + pivot`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Noise3d {
+    pub amplitude: f32,
+    pub pivot: f32,
+}
+
+impl Default for Noise3d {
+    /// The node definition's defaults.
+    fn default() -> Self {
+        Noise3d {
+            amplitude: 1.0,
+            pivot: 0.0,
+        }
+    }
+}
+
+impl Noise3d {
+    pub fn eval(&self, position: [f32; 3]) -> f32 {
+        perlin_noise_3d(position) * self.amplitude + self.pivot
+    }
+}
+
+/// The `ND_fractal3d_float` node: `fractal * amplitude`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Fractal3d {
+    pub amplitude: f32,
+    pub octaves: i32,
+    pub lacunarity: f32,
+    pub diminish: f32,
+}
+
+impl Default for Fractal3d {
+    /// The node definition's defaults.
+    fn default() -> Self {
+        Fractal3d {
+            amplitude: 1.0,
+            octaves: 3,
+            lacunarity: 2.0,
+            diminish: 0.5,
+        }
+    }
+}
+
+impl Fractal3d {
+    pub fn eval(&self, position: [f32; 3]) -> f32 {
+        fractal_noise_3d(position, self.octaves, self.lacunarity, self.diminish) * self.amplitude
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn zero_at_lattice_points_and_one_octave_is_noise() {
+        assert_eq!(perlin_noise_3d([1.0, -2.0, 7.0]), 0.0);
+        let p = [0.3, -1.7, 2.2];
+        assert_eq!(fractal_noise_3d(p, 1, 2.0, 0.5), perlin_noise_3d(p));
+        assert_eq!(fractal_noise_3d(p, 0, 2.0, 0.5), 0.0);
+    }
+
+    #[test]
+    fn close_to_blenders_unfolded_noise() {
+        // Same lattice, gradients and constant: equal up to the groupings' rounding.
+        for i in 0..1000 {
+            let p = [
+                i as f32 * 0.0137 - 5.0,
+                i as f32 * 0.0071 + 0.3,
+                2.0 - i as f32 * 0.003,
+            ];
+            let b = super::super::noise::perlin_signed_3d::<Blenlib>(p);
+            assert!((perlin_noise_3d(p) - b).abs() < 1e-6, "{p:?}");
+        }
+    }
+}
