@@ -20,6 +20,7 @@ AOV_PASSES = [
     ("use_pass_collisions", "Nimbus Null Collisions", "null_collisions"),
     ("use_pass_max_throughput", "Nimbus Max Throughput", "max_throughput"),
     ("use_pass_variance", "Nimbus Variance", "variance"),
+    ("use_pass_samples", "Nimbus Samples", "samples"),
 ]
 ALBEDO_PASS = "Denoising Albedo"
 # The layer of light the camera sees straight from the dome (subtracted for a
@@ -126,6 +127,11 @@ class NimbusRenderEngine(bpy.types.RenderEngine):
             transmittance=settings.transmittance,
             control=settings.control,
             time_limit=settings.time_limit if settings.time_limit > 0 else None,
+            noise_threshold=(settings.adaptive_threshold if settings.use_adaptive_sampling
+                             else None),
+            min_spp=(settings.adaptive_min_samples
+                     if settings.use_adaptive_sampling and settings.adaptive_min_samples > 0
+                     else None),
             octree_depth=settings.octree_depth if settings.octree_depth > 0 else None,
             threads=scene.render.threads,
             aovs=aovs,
@@ -207,8 +213,12 @@ class NimbusRenderEngine(bpy.types.RenderEngine):
             render_seconds=r.stats["wall_seconds"], total_seconds=end - start,
             lightgroup_layers=groups, transparent=t.transparent,
             world_subtracted=subtract_world)
+        noise = f"noise {r.stats['estimated_noise']:.4f}, "
+        if r.stats.get("converged_pixels") is not None:
+            noise = (f"mean {r.stats['mean_samples_per_pixel']:.1f} samples, " + noise +
+                     f"{100 * r.stats['converged_pixels']:.0f}% converged, ")
         self.update_stats("", f"Nimbus: {r.spp} samples in {r.stats['passes']} passes, "
-                              f"{end - start:.2f} s")
+                              f"{noise}{end - start:.2f} s")
 
 
 def _name_object(message, scene):

@@ -62,6 +62,19 @@ class NimbusRenderSettings(bpy.types.PropertyGroup):
     time_limit: FloatProperty(
         name="Time Limit", description="Seconds of rendering at most (0: none); with it the "
         "samples are a cap", default=0.0, min=0.0, subtype="TIME_ABSOLUTE", unit="TIME_ABSOLUTE")
+    # Cycles' names and defaults for the same settings (scene.cycles.*), off by default.
+    use_adaptive_sampling: BoolProperty(
+        name="Noise Threshold", description="Adaptive sampling: each pixel stops once its "
+        "noise estimate (Cycles' measure) is below the threshold (nimbus:noiseThreshold)",
+        default=False)
+    adaptive_threshold: FloatProperty(
+        name="Noise Threshold", description="Noise level at which a pixel stops taking "
+        "samples, as Cycles' Noise Threshold", default=0.01, min=0.0001, max=1.0,
+        precision=4)
+    adaptive_min_samples: IntProperty(
+        name="Min Samples", description="Samples every pixel takes before it may stop "
+        "(nimbus:minSamples; 0: the square root of the samples, at least 16)", default=0,
+        min=0)
     octree_depth: IntProperty(
         name="Octree Depth", description="Majorant octree depth (nimbus:octreeDepth; 0: chosen "
         "from the grid)", default=0, min=0, max=12)
@@ -82,6 +95,9 @@ class NimbusViewLayerSettings(bpy.types.PropertyGroup):
         name="Max Throughput", description="Largest path throughput per sample", default=False)
     use_pass_variance: BoolProperty(
         name="Variance", description="Sample variance of the luminance", default=False)
+    use_pass_samples: BoolProperty(
+        name="Samples", description="Samples each pixel took (adaptive sampling stops "
+        "pixels early)", default=False)
     use_pass_albedo: BoolProperty(
         name="Denoising Albedo", description="The volume's single-scattering albedo times "
         "alpha, for the Denoise node's Albedo input", default=False)

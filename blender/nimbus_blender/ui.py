@@ -22,6 +22,14 @@ class NIMBUS_PT_sampling(_NimbusPanel, bpy.types.Panel):
         col = self.layout.column()
         col.use_property_split = True
         col.prop(s, "samples")
+        row = col.row(heading="Noise Threshold", align=True)
+        row.prop(s, "use_adaptive_sampling", text="")
+        sub = row.row()
+        sub.active = s.use_adaptive_sampling
+        sub.prop(s, "adaptive_threshold", text="")
+        sub = col.row()
+        sub.active = s.use_adaptive_sampling
+        sub.prop(s, "adaptive_min_samples")
         col.prop(s, "time_limit")
         row = col.row(align=True)
         row.prop(s, "seed")
@@ -55,7 +63,7 @@ class NIMBUS_PT_passes(_NimbusPanel, bpy.types.Panel):
         col = self.layout.column(heading="Include")
         col.use_property_split = True
         for p in ("use_pass_lookups", "use_pass_collisions", "use_pass_max_throughput",
-                  "use_pass_variance", "use_pass_albedo"):
+                  "use_pass_variance", "use_pass_samples", "use_pass_albedo"):
             col.prop(vl, p)
         col.label(text="Light groups: View Layer > Light Groups (Combined_NAME passes)")
 

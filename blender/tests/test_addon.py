@@ -65,6 +65,36 @@ def test_the_image_is_nimbus_render_of_the_stage_bit_for_bit(addon, smoke_vdb, n
         assert same_bits(combined[..., i], cli[c]), f"channel {c} differs from nimbus render's"
 
 
+def test_adaptive_sampling_is_nimbus_render_with_the_same_threshold(addon, smoke_vdb, nimbus_bin,
+                                                                   tmp_path):
+    """Cycles' Noise Threshold and Min Samples (the same property names on scene.nimbus):
+    F12 with them on equals `nimbus render --noise-threshold T --min-spp N` bit for bit,
+    and the Samples pass shows pixels stopped between the minimum and the cap."""
+    scene, _, _ = smoke_scene(smoke_vdb, res=32, world=False, lights=("sun",))
+    s = scene.nimbus
+    assert not s.use_adaptive_sampling and s.adaptive_threshold == pytest.approx(0.01)
+    s.samples = 64
+    s.use_adaptive_sampling = True
+    s.adaptive_threshold = 0.05
+    s.adaptive_min_samples = 8
+    s.keep_files = True
+    scene.view_layers[0].nimbus.use_pass_samples = True
+    passes = render(scene, tmp_path / "addon.exr")
+    k = addon.last_render["kwargs"]
+    assert k["noise_threshold"] == pytest.approx(0.05) and k["min_spp"] == 8, k
+    taken = passes["Nimbus Samples"][..., 0]
+    assert taken.min() >= 8 and taken.max() <= 64 and taken.min() < 64, (taken.min(), taken.max())
+    exr = tmp_path / "cli.exr"
+    subprocess.run(
+        [str(nimbus_bin), "render", addon.last_render["stage"], "-o", str(exr), "--camera",
+         k["camera"], "--res", "32x32", "--spp", "64", "--seed", str(k["seed"]),
+         "--max-depth", str(k["max_depth"]), "--noise-threshold", str(k["noise_threshold"]),
+         "--min-spp", "8", "--threads", "1"], check=True, capture_output=True)
+    cli = nimbus.read_exr(str(exr))
+    for i, c in enumerate("RGBA"):
+        assert same_bits(passes["Combined"][..., i], cli[c]), f"channel {c} differs"
+
+
 def test_an_opaque_film_is_nimbus_render_with_alpha_one(addon, smoke_vdb, nimbus_bin, tmp_path):
     """Film not transparent, a world colour: R, G, B are `nimbus render`'s bit for bit
     (the dome seen behind the volume, as Cycles shows the world), alpha is 1."""

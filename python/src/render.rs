@@ -65,7 +65,7 @@ use std::time::Instant;
     tracker=None, scheme=None, transmittance=None, control=None,
     reduced_termination=false, no_absorption_events=false, majorant_scale=1.0,
     profile=false, no_specialise=false, aovs=None, time_limit=None,
-    strict=false, no_default_lights=false, grid=None, camera=None, frame=None, output=None, stats=None, preview=None,
+    noise_threshold=None, min_spp=None, strict=false, no_default_lights=false, grid=None, camera=None, frame=None, output=None, stats=None, preview=None,
     progress=None, on_pass=None, cancel=None
 ))]
 #[allow(clippy::too_many_arguments)]
@@ -95,6 +95,8 @@ pub fn render(
     no_specialise: bool,
     aovs: Option<Vec<String>>,
     time_limit: Option<f64>,
+    noise_threshold: Option<f64>,
+    min_spp: Option<u32>,
     strict: bool,
     no_default_lights: bool,
     grid: Option<String>,
@@ -132,6 +134,8 @@ pub fn render(
         profile,
         no_specialise,
         time_limit,
+        noise_threshold,
+        min_spp,
         grid,
         strict,
         no_default_lights,

@@ -174,6 +174,20 @@ def test_sampler_keyword_renders_like_the_cli(stage, nimbus_bin, tmp_path):
     assert not same_bits(sobol.rgba[..., 0], r.rgba[..., 0]), "the sampler changed nothing"
 
 
+def test_adaptive_sampling_keywords_render_like_the_cli(stage, nimbus_bin, tmp_path):
+    cli_exr = tmp_path / "cli.exr"
+    run_cli(nimbus_bin, "render", stage, "-o", cli_exr, "--seed", 3, "--spp", 32,
+            "--noise-threshold", 0.05, "--min-spp", 8, "--aovs", "samples")
+    r = nimbus.render(stage, seed=3, spp=32, noise_threshold=0.05, min_spp=8, aovs=["samples"])
+    cli = exr_channels(cli_exr)
+    for k, name in enumerate("RGBA"):
+        assert same_bits(r.rgba[..., k], cli[name]), f"channel {name} differs from the CLI's"
+    assert same_bits(r.aovs["samples"], cli["samples"])
+    assert r.stats["noise_threshold"] == 0.05 and r.stats["min_samples"] == 8
+    assert 8 <= r.aovs["samples"].min() < 32
+    assert r.stats["samples_taken"] == int(r.aovs["samples"].sum())
+
+
 def test_tracker_keywords(stage):
     names = nimbus.tracker_names()
     assert "spectral" in names or len(names) > 3

@@ -120,7 +120,8 @@ pub struct RenderArgs {
     #[arg(long)]
     pub no_specialise: bool,
     /// AOVs to write besides R, G, B, A (comma-separated): lookups, residual_lookups,
-    /// real_collisions, null_collisions, control_collisions, max_throughput, variance;
+    /// real_collisions, null_collisions, control_collisions, max_throughput, variance,
+    /// samples (per pixel: adaptive sampling stops pixels early);
     /// and the RGB splits of the beauty: emission (light reaching the camera unscattered),
     /// direct (scattered once), indirect (twice or more), lightgroup:GROUP (the lights,
     /// or emissive volumes, whose nimbus:lightGroup or prim path is GROUP).
@@ -139,6 +140,16 @@ pub struct RenderArgs {
     /// budget is kept to within one pass.
     #[arg(long, value_name = "SECONDS")]
     pub time_limit: Option<f64>,
+    /// Adaptive sampling: each pixel stops once its noise estimate (Cycles' measure:
+    /// the two halves of its samples compared; 0.01 is Cycles' default) is below T,
+    /// checked every 4 samples after --min-spp; 0 = off (overrides
+    /// nimbus:noiseThreshold). The `samples` AOV shows where samples went.
+    #[arg(long, value_name = "T")]
+    pub noise_threshold: Option<f64>,
+    /// Samples every pixel takes before adaptive sampling may stop it (default: the
+    /// square root of the sample count, at least 16; overrides nimbus:minSamples).
+    #[arg(long, value_name = "N")]
+    pub min_spp: Option<u32>,
     /// Write the EXR (and stats) every this many seconds of rendering, after the pass
     /// that crosses the interval, so a stopped render keeps its finished passes.
     #[arg(long, value_name = "SECONDS")]
@@ -265,6 +276,8 @@ impl RenderArgs {
             profile: self.profile,
             no_specialise: self.no_specialise,
             time_limit: self.time_limit,
+            noise_threshold: self.noise_threshold,
+            min_spp: self.min_spp,
             grid: self.grid.clone(),
             strict: self.strict,
             no_default_lights: self.no_default_lights,
@@ -406,7 +419,12 @@ fn render_frame(
         interrupted,
         &|n| bar.inc(n as u64),
         |film, p| {
-            bar.set_message(format!("{} spp in {} passes", p.spp, p.passes));
+            bar.set_message(format!(
+                "{} spp in {} passes, {}",
+                p.spp,
+                p.passes,
+                p.convergence.describe()
+            ));
             if p.checkpoint_due {
                 use anyhow::Context;
                 outputs
@@ -425,7 +443,7 @@ fn render_frame(
         );
     }
     outputs.write(&session, &film, &facts(), &p)?;
-    let (totals, _samples, nonfinite) = film.totals();
+    let (totals, taken, nonfinite) = film.totals();
     let (first_dropped, overflowing) = film.out_of_range();
     if let (true, Some((x, y))) = (nonfinite > 0, first_dropped) {
         eprintln!(
@@ -451,7 +469,7 @@ fn render_frame(
     let lookups = match job.paths.count {
         true => format!(
             ", {:.1} lookups/sample",
-            totals.density_lookups as f64 / (film.width as f64 * film.height as f64 * p.spp as f64)
+            totals.density_lookups as f64 / taken.max(1) as f64
         ),
         false => String::new(),
     };
@@ -466,8 +484,16 @@ fn render_frame(
         ),
         _ => String::new(),
     };
+    let adaptive = match session.adaptive {
+        Some(_) => format!(
+            ", mean {:.1} spp, {}",
+            taken as f64 / (film.width as f64 * film.height as f64),
+            p.convergence.describe()
+        ),
+        None => String::new(),
+    };
     eprintln!(
-        "nimbus: wrote {} ({}x{}, {} spp in {} passes, {:.2} s{lookups}{tile})",
+        "nimbus: wrote {} ({}x{}, {} spp in {} passes, {:.2} s{lookups}{adaptive}{tile})",
         outputs.list(),
         film.width,
         film.height,

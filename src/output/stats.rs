@@ -6,8 +6,21 @@ use serde::Serialize;
 #[derive(Serialize, Debug, Clone)]
 pub struct RenderStats {
     pub stage: String,
-    /// Samples actually taken per pixel (every pixel has the same count).
+    /// Samples per pixel of the passes run (every pixel's count, or with adaptive
+    /// sampling the most any pixel took).
     pub samples_per_pixel: u32,
+    /// Samples taken over all pixels, and their mean per pixel (below
+    /// `samples_per_pixel` where adaptive sampling stopped pixels early).
+    pub samples_taken: u64,
+    pub mean_samples_per_pixel: f64,
+    /// Adaptive sampling's noise threshold and minimum samples (null: off).
+    pub noise_threshold: Option<f64>,
+    pub min_samples: Option<u32>,
+    /// The mean over pixels of the noise estimate adaptive sampling stops on (Cycles'
+    /// measure: docs/sampling.md), and the share of pixels adaptive sampling stopped
+    /// (null without it).
+    pub estimated_noise: f64,
+    pub converged_pixels: Option<f64>,
     /// Progressive passes the samples were taken in.
     pub passes: u32,
     pub max_pass_seconds: f64,
@@ -106,8 +119,8 @@ impl RenderStats {
         run: &RunFacts,
     ) -> RenderStats {
         use crate::volume::majorant::MajorantSpec;
-        let (totals, _samples, nonfinite) = film.totals();
-        let samples = film.width as f64 * film.height as f64 * p.spp as f64;
+        let (totals, taken, nonfinite) = film.totals();
+        let samples = (taken as f64).max(1.0);
         let media = session.media();
         // Instances share grids and majorant structures: each is counted once.
         let grids = distinct(media, |m| std::sync::Arc::as_ptr(&m.density) as usize);
@@ -119,6 +132,12 @@ impl RenderStats {
         RenderStats {
             stage: session.stage_path.display().to_string(),
             samples_per_pixel: p.spp,
+            samples_taken: taken,
+            mean_samples_per_pixel: taken as f64 / (film.width as f64 * film.height as f64),
+            noise_threshold: session.adaptive.map(|a| a.threshold),
+            min_samples: session.adaptive.map(|a| a.min_spp),
+            estimated_noise: p.convergence.mean_error,
+            converged_pixels: p.convergence.stopped,
             passes: p.passes,
             max_pass_seconds: p.max_pass_seconds,
             spp_cap: (session.spp != u32::MAX).then_some(session.spp),

@@ -16,6 +16,9 @@ pub struct Pixel {
     /// Samples whose estimate was NaN or infinite: dropped from the sums and counted.
     pub nonfinite: u32,
     pub counters: Counters,
+    /// Σ RGB over the even-numbered samples (0, 2, 4, …): adaptive sampling's error
+    /// estimate compares the two halves ([`crate::render::adaptive`]).
+    pub half: [f64; 3],
 }
 
 /// Rec. 709 luminance.
@@ -26,6 +29,7 @@ pub fn luminance(c: [f64; 3]) -> f64 {
 impl Pixel {
     /// Adds one sample; `false` when it was NaN or infinite (counted, not added).
     pub fn add_sample(&mut self, rgb: [f64; 3], alpha: f64) -> bool {
+        let even = self.samples % 2 == 0;
         self.samples += 1;
         if !(rgb.iter().all(|v| v.is_finite()) && alpha.is_finite()) {
             self.nonfinite += 1;
@@ -33,6 +37,11 @@ impl Pixel {
         }
         for c in 0..3 {
             self.rgb[c] += rgb[c];
+        }
+        if even {
+            for c in 0..3 {
+                self.half[c] += rgb[c];
+            }
         }
         self.alpha += alpha;
         let l = luminance(rgb);
@@ -77,16 +86,21 @@ pub enum Aov {
     MaxThroughput,
     /// Sample variance of the luminance estimate in this pixel.
     Variance,
+    /// Samples taken in this pixel (adaptive sampling stops pixels early).
+    Samples,
 }
 
 impl Aov {
     /// Whether this channel reads the per-pixel counters (a render writing none of
     /// them compiles the counting out).
     pub fn uses_counters(self) -> bool {
-        !matches!(self, Aov::R | Aov::G | Aov::B | Aov::A | Aov::Variance)
+        !matches!(
+            self,
+            Aov::R | Aov::G | Aov::B | Aov::A | Aov::Variance | Aov::Samples
+        )
     }
 
-    pub const ALL: [Aov; 11] = [
+    pub const ALL: [Aov; 12] = [
         Aov::R,
         Aov::G,
         Aov::B,
@@ -98,6 +112,7 @@ impl Aov {
         Aov::ControlCollisions,
         Aov::MaxThroughput,
         Aov::Variance,
+        Aov::Samples,
     ];
     /// What a render writes unless asked otherwise.
     pub const DEFAULT: [Aov; 5] = [Aov::R, Aov::G, Aov::B, Aov::A, Aov::Lookups];
@@ -116,6 +131,7 @@ impl Aov {
             Aov::ControlCollisions => "control_collisions",
             Aov::MaxThroughput => "max_throughput",
             Aov::Variance => "variance",
+            Aov::Samples => "samples",
         }
     }
 
@@ -136,6 +152,7 @@ impl Aov {
             Aov::ControlCollisions => p.per_sample(p.counters.control_collisions as f64),
             Aov::MaxThroughput => p.per_sample(p.counters.max_throughput),
             Aov::Variance => p.luminance_variance() as f32,
+            Aov::Samples => p.samples as f32,
         }
     }
 }

@@ -8,6 +8,7 @@
 //! collision to scatter at.
 
 use crate::color::Spectrum;
+use crate::render::adaptive::Adaptive;
 use crate::render::camera::CameraRays;
 use crate::render::equiangular::{balance, tracker_density, LocalLight};
 use crate::render::film::{DepthBins, Film, Pixel};
@@ -88,6 +89,9 @@ pub struct Extras<'a> {
     /// Which media a ray may meet, on stages with many ([`MediaIndex::build`]; `None`:
     /// every medium's box is tested).
     pub media_index: Option<&'a MediaIndex>,
+    /// Stop each pixel once its noise is below a threshold (`None`: every pixel takes
+    /// every sample).
+    pub adaptive: Option<Adaptive>,
 }
 
 /// Ray segments that met more than [`MAX_MEDIA`] volumes since the process started:
@@ -271,6 +275,11 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         let nl = extra.splits.as_ref().map_or(0, |(m, _)| m.len());
         let dims = self.sample_dims();
         for _ in 0..n {
+            // A converged pixel takes no more samples, in this pass or a later one
+            // (the check depends only on its own samples so far).
+            if self.extras.adaptive.is_some_and(|a| a.converged(px)) {
+                break;
+            }
             rng.start_sample(dims);
             let fx = x as f64 + rng.gen::<f64>();
             let fy = y as f64 + rng.gen::<f64>();

@@ -2,6 +2,7 @@
 //! function, lights, holdout geometry (ray queries), and the film that accumulates
 //! pixels and AOVs.
 
+pub mod adaptive;
 pub mod analysis;
 pub mod camera;
 pub mod dome;

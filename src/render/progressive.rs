@@ -2,6 +2,7 @@
 //! reached or a stop is requested, with checkpoints in between. Each pixel's random
 //! stream lives in the film, so the pass structure does not change the image.
 
+use crate::render::adaptive::Convergence;
 use crate::render::film::{Film, Region};
 use crate::render::job::RenderJob;
 use crate::track::select::Choice;
@@ -126,6 +127,7 @@ pub fn render_progressive<E>(
         schedule.finished(n, dt);
         p.spp += n;
         p.passes += 1;
+        p.convergence = Convergence::of(&film.pixels, job.extras.adaptive);
         p.max_pass_seconds = p.max_pass_seconds.max(dt);
         p.seconds = start.elapsed();
         p.checkpoint_due = budget
@@ -136,6 +138,11 @@ pub fn render_progressive<E>(
         after_pass(&film, &p)?;
         if p.checkpoint_due {
             last_checkpoint = start.elapsed();
+        }
+        // Adaptive sampling has stopped every pixel: later passes would take nothing
+        // (and a render bounded by a time limit alone would never end).
+        if p.convergence.done() {
+            break;
         }
     }
     p.checkpoint_due = false;
@@ -158,6 +165,9 @@ pub struct Progress {
     /// Set when the pass just finished crossed a checkpoint interval (and the render
     /// goes on): the caller should write its outputs.
     pub checkpoint_due: bool,
+    /// The pixels' estimated noise after the last pass (and with adaptive sampling the
+    /// share of pixels stopped).
+    pub convergence: Convergence,
 }
 
 /// Longest pass Nimbus plans when nothing else bounds it: a stop request waits for the

@@ -7,6 +7,7 @@
 //! Precedence lives here, once: an override (a CLI flag, a keyword argument) beats what
 //! the stage authors, which beats the schema fallback.
 
+use crate::render::adaptive::Adaptive;
 use crate::render::analysis::{Analysis, CodePaths, Given};
 use crate::render::camera::CameraRays;
 use crate::render::film::{DepthBins, Film, Region};
@@ -104,6 +105,11 @@ pub struct Overrides {
     pub majorant_scale: Option<f32>,
     /// Scattering points towards local lights (default `auto`).
     pub light_sampling: Option<LightSampling>,
+    /// Adaptive sampling's noise threshold (`nimbus:noiseThreshold`; 0: off).
+    pub noise_threshold: Option<f64>,
+    /// Samples every pixel takes before adaptive sampling may stop it
+    /// (`nimbus:minSamples`; 0: the default minimum).
+    pub min_spp: Option<u32>,
     /// Time lookups, traversal and the rest of the trackers.
     pub profile: bool,
     /// Run the general RGB trackers even where a specialised one applies.
@@ -137,6 +143,8 @@ pub struct Session {
     pub seed: u64,
     pub sampler: SamplerKind,
     pub time_limit: Option<f64>,
+    /// Adaptive sampling (`None`: every pixel takes `spp` samples).
+    pub adaptive: Option<Adaptive>,
     pub tracking: TrackerSettings,
     /// The majorant structure the media carry (after `auto`).
     pub spec: MajorantSpec,
@@ -234,6 +242,14 @@ impl Session {
                 bail!("--time-limit must be a positive number of seconds, got {v}");
             }
         }
+        let threshold = o.noise_threshold.unwrap_or(settings.noise_threshold);
+        if !(threshold.is_finite() && threshold >= 0.0) {
+            bail!("--noise-threshold must be 0 (off) or a positive number, got {threshold}");
+        }
+        let min_spp = o.min_spp.unwrap_or(settings.min_samples);
+        // The default minimum follows the sample count asked for (the stage's, also
+        // under a time budget).
+        let adaptive = (threshold > 0.0).then(|| Adaptive::new(threshold, min_spp, spp));
         // With a time budget and no explicit spp, the budget alone decides.
         let spp = match (o.time_limit, o.spp) {
             (Some(_), None) => u32::MAX,
@@ -323,6 +339,7 @@ impl Session {
             seed: o.seed.unwrap_or(settings.seed),
             sampler: o.sampler.unwrap_or_default(),
             time_limit: o.time_limit,
+            adaptive,
             scene,
             media,
             lights,
@@ -476,6 +493,7 @@ impl Session {
             extras: Extras {
                 holdouts: (!self.holdouts.is_empty()).then_some(&self.holdouts),
                 media_index: self.media_index.as_ref(),
+                adaptive: self.adaptive,
                 ..Extras::default()
             },
         }
@@ -585,10 +603,11 @@ impl Session {
         }
         put(&format!("{:?}", self.scene));
         put(&format!(
-            "{}x{} spp {} depth {} seed {} sampler {:?} time limit {:?} {:?} {:?} prune {} specialise {} nimbus {}",
+            "{}x{} spp {} adaptive {:?} depth {} seed {} sampler {:?} time limit {:?} {:?} {:?} prune {} specialise {} nimbus {}",
             self.width,
             self.height,
             self.spp,
+            self.adaptive,
             self.max_depth,
             self.seed,
             self.sampler,

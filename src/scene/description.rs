@@ -586,6 +586,10 @@ pub struct RenderSettings {
     pub resolution: (u32, u32),
     /// Samples per pixel (`nimbus:samples`).
     pub samples: u32,
+    /// Adaptive sampling (`nimbus:noiseThreshold`, 0 = off; `nimbus:minSamples`, 0 =
+    /// the default minimum).
+    pub noise_threshold: f64,
+    pub min_samples: u32,
     /// Maximum scattering depth (`nimbus:maxDepth`).
     pub max_depth: u32,
     /// Random seed (`nimbus:seed`).
@@ -610,6 +614,8 @@ impl Default for RenderSettings {
             prim_path: None,
             resolution: (640, 480),
             samples: 16,
+            noise_threshold: 0.0,
+            min_samples: 0,
             max_depth: 64,
             seed: 0,
             products: Vec::new(),

@@ -53,6 +53,8 @@ pub mod tokens {
     pub const EMISSION_KIND: &str = "nimbus:emissionKind";
     pub const ALBEDO_FIELD: &str = "nimbus:albedoField";
     pub const SAMPLES: &str = "nimbus:samples";
+    pub const MIN_SAMPLES: &str = "nimbus:minSamples";
+    pub const NOISE_THRESHOLD: &str = "nimbus:noiseThreshold";
     pub const MAX_DEPTH: &str = "nimbus:maxDepth";
     pub const SEED: &str = "nimbus:seed";
     pub const TRACKER: &str = "nimbus:tracker";

@@ -923,6 +923,17 @@ impl Loader<'_> {
             None => defaults.resolution,
         };
         let samples = read_i64(prim, tokens::SAMPLES, t)?;
+        let min_samples = read_i64(prim, tokens::MIN_SAMPLES, t)?;
+        let noise_threshold = read_f64(prim, tokens::NOISE_THRESHOLD, t)?;
+        if let Some(v) = noise_threshold.filter(|v| !(v.is_finite() && *v >= 0.0)) {
+            return Err(prim_error(
+                prim.path(),
+                format!(
+                    "{} = {v}: must be 0 (off) or positive",
+                    tokens::NOISE_THRESHOLD
+                ),
+            ));
+        }
         let max_depth = read_i64(prim, tokens::MAX_DEPTH, t)?;
         let seed = read_i64(prim, tokens::SEED, t)?;
         Ok(RenderSettings {
@@ -932,6 +943,11 @@ impl Loader<'_> {
                 .map(|v| to_u32(prim, tokens::SAMPLES, v))
                 .transpose()?
                 .unwrap_or(defaults.samples),
+            min_samples: min_samples
+                .map(|v| to_u32(prim, tokens::MIN_SAMPLES, v))
+                .transpose()?
+                .unwrap_or(defaults.min_samples),
+            noise_threshold: noise_threshold.unwrap_or(defaults.noise_threshold),
             max_depth: max_depth
                 .map(|v| to_u32(prim, tokens::MAX_DEPTH, v))
                 .transpose()?
