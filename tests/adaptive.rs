@@ -146,6 +146,78 @@ fn adaptive_sampling_is_the_same_whatever_the_passes_threads_and_region() {
     }
 }
 
+/// Farm tiles: an adaptive render as 4 tiles merges bit for bit into the one-machine
+/// frame (every channel, `samples` included), both where some pixels take the whole
+/// cap (threshold 0.02) and where every pixel stops early and the render ends before
+/// the cap (threshold 0.5: the tiles are complete, not partial).
+#[test]
+fn adaptive_tiles_merge_into_the_one_machine_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let stage = root().join(CLOUD).display().to_string();
+    for threshold in ["0.02", "0.5"] {
+        let flags = |out: &std::path::Path, stats: &std::path::Path, extra: &[&str]| {
+            let (out, stats) = (out.display().to_string(), stats.display().to_string());
+            let mut a = vec![
+                "render",
+                &stage,
+                "-o",
+                &out,
+                "--res",
+                "37x23",
+                "--spp",
+                "64",
+                "--noise-threshold",
+                threshold,
+                "--min-spp",
+                "8",
+                "--aovs",
+                "samples",
+                "--stats",
+                &stats,
+            ]
+            .into_iter()
+            .map(String::from)
+            .collect::<Vec<_>>();
+            a.extend(extra.iter().map(|s| s.to_string()));
+            let o = nimbus(&a.iter().map(String::as_str).collect::<Vec<_>>());
+            assert!(o.status.success(), "{}", common::cli::stderr(&o));
+        };
+        let full = d.join("full.exr");
+        flags(&full, &d.join("full.json"), &[]);
+        let js = stats_json(&d.join("full.json"));
+        eprintln!(
+            "threshold {threshold}: converged {}, samples_per_pixel {}",
+            js["converged_pixels"], js["samples_per_pixel"]
+        );
+        assert_eq!(js["samples_per_pixel"], 64);
+        if threshold == "0.5" {
+            assert_eq!(js["converged_pixels"], 1.0, "{js}");
+            assert!(js["samples_taken"].as_u64().unwrap() < 64 * 37 * 23);
+        }
+        let mut parts = Vec::new();
+        for i in 0..4 {
+            flags(
+                &d.join("t.exr"),
+                &d.join("t.json"),
+                &["--tile", &format!("{i}/4")],
+            );
+            parts.push(d.join(format!("t.tile{i}.exr")).display().to_string());
+        }
+        let merged = d.join("merged.exr").display().to_string();
+        let mut args = vec!["merge", merged.as_str()];
+        args.extend(parts.iter().map(String::as_str));
+        let m = nimbus(&args);
+        assert!(m.status.success(), "{}", common::cli::stderr(&m));
+        let (a, b) = (channels(&full), channels(std::path::Path::new(&merged)));
+        assert_eq!(a.len(), b.len());
+        for ((name, x), (_, y)) in a.iter().zip(&b) {
+            let bits = |v: &[f32]| v.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(x), bits(y), "threshold {threshold}: channel {name}");
+        }
+    }
+}
+
 #[test]
 fn background_pixels_stop_at_the_minimum() {
     let film = render(&session(128, Some(0.01), 2), None);

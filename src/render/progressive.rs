@@ -140,8 +140,13 @@ pub fn render_progressive<E>(
             last_checkpoint = start.elapsed();
         }
         // Adaptive sampling has stopped every pixel: later passes would take nothing
-        // (and a render bounded by a time limit alone would never end).
+        // (and a render bounded by a time limit alone would never end). The film is
+        // then exactly the film of the whole cap, so it counts as the cap's: a farm
+        // tile that converged early is complete, not partial.
         if p.convergence.done() {
+            if budget.spp_cap != u32::MAX {
+                p.spp = budget.spp_cap;
+            }
             break;
         }
     }
