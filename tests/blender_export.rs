@@ -54,41 +54,6 @@ const Z: f64 = 5.0;
 /// Relative bias of Cycles allowed (see the module doc).
 const BIAS: f64 = 0.005;
 
-/// The Python that imports bpy 5.0.1, or `None` (skip; fails under
-/// `NIMBUS_REQUIRE_DATA=1`).
-fn bpy_python() -> Option<PathBuf> {
-    let Some(python) = std::env::var_os("NIMBUS_BPY_PYTHON") else {
-        return common::missing(
-            "NIMBUS_BPY_PYTHON is not set (a CPython 3.11 with `pip install bpy==5.0.1`)",
-        );
-    };
-    let o = Command::new(&python)
-        .args(["-c", "import bpy; print(bpy.app.version_string)"])
-        .output();
-    match o {
-        Ok(o) if o.status.success() => {
-            let version = String::from_utf8_lossy(&o.stdout).trim().to_string();
-            if version.lines().last() == Some("5.0.1") {
-                Some(PathBuf::from(python))
-            } else {
-                common::missing(&format!(
-                    "NIMBUS_BPY_PYTHON={} has bpy {version:?}, not 5.0.1",
-                    Path::new(&python).display()
-                ))
-            }
-        }
-        Ok(o) => common::missing(&format!(
-            "NIMBUS_BPY_PYTHON={} does not import bpy: {}",
-            Path::new(&python).display(),
-            String::from_utf8_lossy(&o.stderr).trim()
-        )),
-        Err(e) => common::missing(&format!(
-            "NIMBUS_BPY_PYTHON={} does not run: {e}",
-            Path::new(&python).display()
-        )),
-    }
-}
-
 /// RGB of an EXR, row 0 at the top: `[channel][y * RES + x]`.
 fn read_rgb(path: &Path) -> [Vec<f64>; 3] {
     let (w, h, chans) =
@@ -140,7 +105,7 @@ fn region(s: &SeedStats, c: usize, pixels: &[usize]) -> (f64, f64) {
 /// Runs the scene script for `case`, renders its corrected overlay with Nimbus and
 /// compares (see the module doc).
 fn against_cycles(case: &str) {
-    let Some(python) = bpy_python() else {
+    let Some(python) = common::data::bpy_python("bpy") else {
         return;
     };
     let Some(vdb) = common::shared_file("openusd_blender_smoke/smoke_000002.vdb") else {

@@ -206,41 +206,6 @@ fn cases() -> Vec<Case> {
     ]
 }
 
-/// The Python that imports bpy 5.0.1, or `None` (skip; fails under
-/// `NIMBUS_REQUIRE_DATA=1`).
-fn bpy_python() -> Option<PathBuf> {
-    let Some(python) = std::env::var_os("NIMBUS_BPY_PYTHON") else {
-        return common::missing(
-            "NIMBUS_BPY_PYTHON is not set (a CPython 3.11 with `pip install bpy==5.0.1`)",
-        );
-    };
-    let o = Command::new(&python)
-        .args(["-c", "import bpy, numpy; print(bpy.app.version_string)"])
-        .output();
-    match o {
-        Ok(o) if o.status.success() => {
-            let version = String::from_utf8_lossy(&o.stdout).trim().to_string();
-            if version.lines().last() == Some("5.0.1") {
-                Some(PathBuf::from(python))
-            } else {
-                common::missing(&format!(
-                    "NIMBUS_BPY_PYTHON={} has bpy {version:?}, not 5.0.1",
-                    Path::new(&python).display()
-                ))
-            }
-        }
-        Ok(o) => common::missing(&format!(
-            "NIMBUS_BPY_PYTHON={} does not import bpy and numpy: {}",
-            Path::new(&python).display(),
-            String::from_utf8_lossy(&o.stderr).trim()
-        )),
-        Err(e) => common::missing(&format!(
-            "NIMBUS_BPY_PYTHON={} does not run: {e}",
-            Path::new(&python).display()
-        )),
-    }
-}
-
 /// The cases as the fixture's JSON (written by hand: every field is a number, a bool or
 /// a plain identifier).
 fn cases_json(cases: &[Case]) -> String {
@@ -411,7 +376,9 @@ const OUTPUTS: [&str; 4] = ["Fac", "Color.r", "Color.g", "Color.b"];
 
 #[test]
 fn noise_texture_matches_blender() {
-    let Some(python) = bpy_python() else { return };
+    let Some(python) = common::data::bpy_python("bpy, numpy") else {
+        return;
+    };
     let cases = cases();
     // Kept for a look: the cases, Blender's values, Cycles' EXRs.
     let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("blender_noise");

@@ -205,3 +205,43 @@ pub fn openvdb_bridge(part: &str) -> bool {
     ));
     false
 }
+
+/// The Python that imports bpy 5.0.1 and the modules `imports` names (e.g.
+/// `"bpy, numpy"`), from `NIMBUS_BPY_PYTHON`, or `None` (skip; fails under
+/// `NIMBUS_REQUIRE_DATA=1`).
+pub fn bpy_python(imports: &str) -> Option<std::path::PathBuf> {
+    use std::path::Path;
+    let Some(python) = std::env::var_os("NIMBUS_BPY_PYTHON") else {
+        return missing(
+            "NIMBUS_BPY_PYTHON is not set (a CPython 3.11 with `pip install bpy==5.0.1`)",
+        );
+    };
+    let o = std::process::Command::new(&python)
+        .args([
+            "-c",
+            &format!("import {imports}; print(bpy.app.version_string)"),
+        ])
+        .output();
+    match o {
+        Ok(o) if o.status.success() => {
+            let version = String::from_utf8_lossy(&o.stdout).trim().to_string();
+            if version.lines().last() == Some("5.0.1") {
+                Some(std::path::PathBuf::from(python))
+            } else {
+                missing(&format!(
+                    "NIMBUS_BPY_PYTHON={} has bpy {version:?}, not 5.0.1",
+                    Path::new(&python).display()
+                ))
+            }
+        }
+        Ok(o) => missing(&format!(
+            "NIMBUS_BPY_PYTHON={} does not import {imports}: {}",
+            Path::new(&python).display(),
+            String::from_utf8_lossy(&o.stderr).trim()
+        )),
+        Err(e) => missing(&format!(
+            "NIMBUS_BPY_PYTHON={} does not run: {e}",
+            Path::new(&python).display()
+        )),
+    }
+}
