@@ -261,6 +261,10 @@ fn count_lights(l: &Lights) -> (usize, usize) {
 }
 
 fn homogeneous(m: &Medium) -> bool {
+    // A shader graph varies over the grid, whatever the grid holds.
+    if m.shader.is_some() {
+        return false;
+    }
     let Some((lo, hi)) = m.density.index_bounds else {
         return false;
     };

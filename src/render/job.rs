@@ -16,6 +16,7 @@ use crate::track::select::{Dispatch, LightSampling, TrackerKind, TrackerSettings
 use crate::volume::albedo::AlbedoGrid;
 use crate::volume::boundary::{InsideRule, MediumRegion};
 use crate::volume::emission::{Emission, EmissionGrid};
+use crate::volume::graph_density::DensityShader;
 use crate::volume::grid::Grid;
 use crate::volume::majorant::MajorantSpec;
 use crate::volume::medium::Medium;
@@ -210,6 +211,8 @@ fn same_medium(a: &Volume, b: &Volume) -> bool {
         && same_named(&ea.temperature, &eb.temperature)
         && same_named(&ea.emission, &eb.emission)
         && same_named(&a.albedo, &b.albedo)
+        && a.density_graph.as_ref().map(|g| &g.program)
+            == b.density_graph.as_ref().map(|g| &g.program)
 }
 
 /// Whether two fields read the same grid: the same file, grid name and index, whichever
@@ -262,7 +265,11 @@ fn medium_for_volume(volume: &Volume, spec: MajorantSpec) -> anyhow::Result<Medi
                     volume.prim_path
                 );
             };
-            return fog_medium(volume, MediumRegion::Inside(Arc::new(surface)), bounds);
+            let region = MediumRegion::Inside(Arc::new(surface));
+            return match &volume.density_graph {
+                None => fog_medium(volume, region, bounds),
+                Some(graph) => graph_fog_medium(volume, graph, region, bounds, spec),
+            };
         }
         VolumeShape::World => unreachable!("world fog is built after the other media"),
     };
@@ -277,8 +284,55 @@ fn medium_for_volume(volume: &Volume, spec: MajorantSpec) -> anyhow::Result<Medi
         volume.anisotropy,
         spec,
     )?;
+    if let Some(graph) = &volume.density_graph {
+        // The grid's index space → the volume's local space (the graph's positions):
+        // the VDB's own transform.
+        let index_to_object = medium.density.index_to_world;
+        let shading_to_object = volume.volume_to_world.inverse() * graph.shading_to_world;
+        let shader = DensityShader::new(
+            graph.program.clone(),
+            shading_to_object.inverse() * index_to_object,
+            &graph.source,
+        );
+        medium.set_shader(shader, spec)?;
+    }
     medium.set_emission(emission_for_volume(volume)?);
     medium.set_albedo(albedo_for_volume(volume)?);
+    Ok(medium)
+}
+
+/// Voxels along each side of the box of a fog box whose density is a shader graph: the
+/// majorant cells are cut from them (the graph's range analysis bounds each cell), and a
+/// box of constant density needs one brick where a graph needs finer cells.
+const GRAPH_FOG_EDGE: i32 = 64;
+
+/// A fog box whose density is a shader graph over its box.
+fn graph_fog_medium(
+    volume: &Volume,
+    graph: &crate::scene::DensityGraph,
+    region: MediumRegion,
+    bounds: (DVec3, DVec3),
+    spec: MajorantSpec,
+) -> anyhow::Result<Medium> {
+    let mut medium = Medium::homogeneous_with(
+        &volume.prim_path,
+        region,
+        bounds,
+        GRAPH_FOG_EDGE,
+        (
+            volume.density_scale,
+            volume.absorption,
+            volume.scattering,
+            volume.anisotropy,
+        ),
+    )?;
+    // The constant grid sits in world space.
+    let index_to_shading = graph.shading_to_world.inverse() * medium.density.index_to_world;
+    medium.set_shader(
+        DensityShader::new(graph.program.clone(), index_to_shading, &graph.source),
+        spec,
+    )?;
+    medium.set_emission(emission_for_volume(volume)?);
     Ok(medium)
 }
 

@@ -911,6 +911,7 @@ fn scene_for_vdb(path: &Path, grid: Option<&str>) -> Result<Scene> {
         emission: VolumeEmission::default(),
         albedo: None,
         material_shader: None,
+        density_graph: None,
     };
     Ok(Scene {
         stage_path: path.to_path_buf(),

@@ -406,6 +406,19 @@ pub struct Volume {
     /// When the parameters come from a bound material (no `NimbusVolumeAPI`): the
     /// volume shader read, as "prim path (info:id)".
     pub material_shader: Option<String>,
+    /// A shader graph the density goes through (issue 47): the medium's density is the
+    /// graph's value, reading the density field (or 1 in fog) as its attribute.
+    pub density_graph: Option<DensityGraph>,
+}
+
+/// A compiled shader graph for a volume's density, as a reader found it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DensityGraph {
+    pub program: crate::shader::graph::Program,
+    /// The graph's position space (object space: the prim's local space) → world.
+    pub shading_to_world: DMat4,
+    /// The shader it was read from, "prim path (info:id)".
+    pub source: String,
 }
 
 /// What a volume's density is and where it is.
@@ -441,6 +454,7 @@ pub struct FogParams {
     pub anisotropy: f64,
     pub emission: VolumeEmission,
     pub material_shader: Option<String>,
+    pub density_graph: Option<DensityGraph>,
 }
 
 impl FogParams {
@@ -465,6 +479,7 @@ impl FogParams {
             emission: self.emission,
             albedo: None,
             material_shader: self.material_shader,
+            density_graph: self.density_graph,
         }
     }
 }

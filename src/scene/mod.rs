@@ -16,6 +16,7 @@ pub mod fog;
 pub mod geometry;
 mod instancer;
 mod lights;
+pub mod materialx_graph;
 mod motion;
 pub mod schema;
 pub mod shading;

@@ -30,6 +30,9 @@ pub struct MaterialVolume {
     pub absorption: [f64; 3],
     pub scattering: [f64; 3],
     pub anisotropy: f64,
+    /// A MaterialX graph driving the coefficients: the density is its value, the
+    /// coefficients above are per unit of it.
+    pub density_graph: Option<super::materialx_graph::MaterialXDensity>,
 }
 
 /// Material outputs a volume shader hangs from, by renderer context, most specific
@@ -181,6 +184,7 @@ fn read_shader(shader: &Prim, time: Option<TimeCode>) -> Result<MaterialVolume, 
             absorption,
             scattering,
             anisotropy,
+            density_graph: None,
         };
     if id == "PxrVolume" {
         // RenderMan: extinction `densityFloat` (overridden by the primvar when one is
@@ -219,7 +223,26 @@ fn read_shader(shader: &Prim, time: Option<TimeCode>) -> Result<MaterialVolume, 
             anisotropy,
         ));
     }
-    // MaterialX anisotropic_vdf: coefficients per unit density of the `density` field.
+    // MaterialX anisotropic_vdf: coefficients per unit density of the `density` field,
+    // or per unit of a graph driving them.
+    if let Some(graph) = super::materialx_graph::vdf_density(shader, time)? {
+        let anisotropy = input("anisotropy")?
+            .map(|v| as_f64(shader, "anisotropy", v))
+            .transpose()?
+            .unwrap_or(0.0);
+        let mut m = base(
+            graph
+                .geomprop
+                .clone()
+                .unwrap_or_else(|| "density".to_string()),
+            1.0,
+            graph.absorption,
+            graph.scattering,
+            anisotropy,
+        );
+        m.density_graph = Some(graph);
+        return Ok(m);
+    }
     let absorption = input("absorption")?
         .map(|v| as_vec3(shader, "absorption", v))
         .transpose()?

@@ -446,12 +446,29 @@ impl Loader<'_> {
                 anisotropy: read_f64(prim, tokens::ANISOTROPY, t)?.unwrap_or(0.0),
                 emission: self.emission(prim, &[])?,
                 material_shader: None,
+                density_graph: None,
             }));
         }
         let Some(m) = shading::bound_volume_material(self.stage, prim, t)? else {
             return Ok(None);
         };
-        if m.density_field != DEFAULT_DENSITY_FIELD {
+        let source = format!("{} ({})", m.shader, m.shader_id);
+        // Placed in the gprim's space by the caller (world fog refuses it).
+        let density_graph = m.density_graph.map(|g| DensityGraph {
+            program: g.program,
+            shading_to_world: DMat4::IDENTITY,
+            source: source.clone(),
+        });
+        if density_graph
+            .as_ref()
+            .is_some_and(|g| g.program.reads_attribute())
+        {
+            return Err(prim_error(
+                prim.path(),
+                format!("{source}: its density graph reads the field `{}` (ND_geompropvalue_float); fog has no fields", m.density_field),
+            ));
+        }
+        if density_graph.is_none() && m.density_field != DEFAULT_DENSITY_FIELD {
             self.warnings.borrow_mut().warn(
                 "fog density primvar",
                 prim.path().to_string(),
@@ -468,7 +485,8 @@ impl Loader<'_> {
             scattering: m.scattering,
             anisotropy: m.anisotropy,
             emission: VolumeEmission::default(),
-            material_shader: Some(format!("{} ({})", m.shader, m.shader_id)),
+            material_shader: Some(source),
+            density_graph,
         }))
     }
 
@@ -486,6 +504,10 @@ impl Loader<'_> {
         let mirrored =
             (mesh.prim_type == "Mesh").then_some(left_handed != (to_world.determinant() < 0.0));
         let (fog, problem) = fog::fog_mesh(mesh, mirrored);
+        let mut p = p;
+        if let Some(g) = &mut p.density_graph {
+            g.shading_to_world = *to_world;
+        }
         if let Some(problem) = problem {
             self.warnings
                 .borrow_mut()
@@ -646,10 +668,12 @@ impl Loader<'_> {
         }
         if let Some(m) = material {
             let density = self.density_field(prim, &m.density_field, &fields)?;
+            let volume_to_world = self.world_transform(prim)?;
+            let source = format!("{} ({})", m.shader, m.shader_id);
             return Ok(Volume {
                 prim_path: prim.path().to_string(),
                 light_group: self.light_group(prim)?,
-                volume_to_world: self.world_transform(prim)?,
+                volume_to_world,
                 shape: VolumeShape::Field(density),
                 density_scale: m.density_scale,
                 absorption: m.absorption,
@@ -658,7 +682,12 @@ impl Loader<'_> {
                 fields,
                 emission: VolumeEmission::default(),
                 albedo: None,
-                material_shader: Some(format!("{} ({})", m.shader, m.shader_id)),
+                density_graph: m.density_graph.map(|g| DensityGraph {
+                    program: g.program,
+                    shading_to_world: volume_to_world,
+                    source: source.clone(),
+                }),
+                material_shader: Some(source),
             });
         }
         let density_name = read_string(prim, tokens::DENSITY_FIELD, t)?
@@ -679,6 +708,7 @@ impl Loader<'_> {
             emission,
             albedo,
             material_shader: None,
+            density_graph: None,
         })
     }
 
@@ -694,6 +724,12 @@ impl Loader<'_> {
                 ),
             ));
         };
+        if let Some(g) = &p.density_graph {
+            return Err(prim_error(
+                prim.path(),
+                format!("{}: a density graph on world fog is not read yet (it would fill all space); bind it to a closed gprim (a fog box) instead", g.source),
+            ));
+        }
         let (_, relationship_count) = self.fields(prim)?;
         if relationship_count > 0 {
             self.warnings.borrow_mut().warn(

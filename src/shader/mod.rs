@@ -1,10 +1,13 @@
-//! Procedural shader graphs (issue 47); this is the noise they use.
+//! Procedural shader graphs (issue 47): the noise they use, and the graph evaluator.
 //!
 //! [`noise`] is Blender's Noise Texture node as Cycles 5.0 evaluates it (Perlin noise, fBM
 //! and the other fractal types, Distortion, the Color output), tested value for value
 //! against Blender itself in `tests/blender_noise.rs`; docs/shaders.md has the measured
 //! errors and costs. [`materialx_noise`] is MaterialX's `noise3d` and `fractal3d` on the
-//! same lattice noise.
+//! same lattice noise. [`graph`] compiles a reader's node graph into a flat program,
+//! evaluated per density lookup and, over [`interval`]s, per majorant cell.
 
+pub mod graph;
+pub mod interval;
 pub mod materialx_noise;
 pub mod noise;

@@ -211,6 +211,18 @@ impl MajorantTree {
     /// cells keep the historical one-voxel dilation on each side. Coarser levels are
     /// unions of their children, so they bound the reconstruction too.
     pub fn build(grid: &Grid, spec: MajorantSpec) -> MajorantTree {
+        Self::build_bounded(grid, spec, &|lo, hi| grid.value_range(lo, hi))
+    }
+
+    /// [`build`](Self::build) with each leaf's bounds from `bound(vlo, vhi)`, the
+    /// density's (min, max) over the voxels `vlo..=vhi` (whose box holds the cell): a
+    /// shader graph's range analysis over the grid's range there
+    /// ([`crate::volume::graph_density`]).
+    pub fn build_bounded(
+        grid: &Grid,
+        spec: MajorantSpec,
+        bound: &(dyn Fn([i32; 3], [i32; 3]) -> (f32, f32) + Sync),
+    ) -> MajorantTree {
         let start = Instant::now();
         let Some((lo, hi)) = grid.index_bounds else {
             return MajorantTree {
@@ -258,7 +270,7 @@ impl MajorantTree {
                 let vhi = [0, 1, 2].map(|a| {
                     (rlo[a] as i64 + (c[a] + 1) * leaf_edge[a] + pad).min(i32::MAX as i64) as i32
                 });
-                let (mn, mx) = grid.value_range(vlo, vhi);
+                let (mn, mx) = bound(vlo, vhi);
                 [mn, mx]
             })
             .collect();

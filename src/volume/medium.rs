@@ -16,6 +16,7 @@ use crate::volume::albedo::AlbedoGrid;
 use crate::volume::boundary::{Inside, MediumRegion, MediumWalk};
 use crate::volume::counters::Tally;
 use crate::volume::emission::Emission;
+use crate::volume::graph_density::DensityShader;
 use crate::volume::grid::{world_to_index, Grid, MediumError, RawGrid, RawLeaf};
 use crate::volume::majorant::{MajorantSpec, MajorantTree, PruneCost, Segment};
 use crate::volume::ticks;
@@ -119,6 +120,9 @@ pub struct Medium {
     pub constant: bool,
     /// Index → world, for mapping index rays back to the boundary's world space.
     index_to_world: DMat4,
+    /// A shader graph the density goes through (issue 47): d(x) = graph(x, grid(x));
+    /// `None` = the grid's value. Set with [`Medium::set_shader`].
+    pub shader: Option<Arc<DensityShader>>,
     /// Whether trackers prefetch the next tentative collision's stencil
     /// ([`Grid::prefetch`]): only for grids whose bricks outgrow the caches
     /// ([`PREFETCH_BYTES`]), where a lookup waits on memory; below that the hint costs
@@ -229,6 +233,7 @@ impl Medium {
             constant: false,
             index_to_world: world_to_index.inverse(),
             prefetch: density.memory_bytes() > PREFETCH_BYTES,
+            shader: None,
             density,
         })
     }
@@ -244,11 +249,30 @@ impl Medium {
     pub fn homogeneous(
         prim_path: &str,
         region: MediumRegion,
-        (lo, hi): (DVec3, DVec3),
+        bounds: (DVec3, DVec3),
         density_scale: f64,
         absorption: [f64; 3],
         scattering: [f64; 3],
         anisotropy: f64,
+    ) -> Result<Medium, MediumError> {
+        Self::homogeneous_with(
+            prim_path,
+            region,
+            bounds,
+            CONSTANT_EDGE,
+            (density_scale, absorption, scattering, anisotropy),
+        )
+    }
+
+    /// [`homogeneous`](Self::homogeneous) with `edge` voxels along each side of the
+    /// box: a fog box whose density a shader graph sets ([`Medium::set_shader`]) needs
+    /// finer majorant cells than one brick gives.
+    pub fn homogeneous_with(
+        prim_path: &str,
+        region: MediumRegion,
+        (lo, hi): (DVec3, DVec3),
+        edge: i32,
+        (density_scale, absorption, scattering, anisotropy): (f64, [f64; 3], [f64; 3], f64),
     ) -> Result<Medium, MediumError> {
         let invalid = |message: String| MediumError::Invalid {
             prim: prim_path.to_string(),
@@ -266,7 +290,7 @@ impl Medium {
         let pad = DVec3::splat(1e-4 * size.max_element().max(1e-6));
         let everywhere = matches!(region, MediumRegion::Everywhere);
         let background = if everywhere { 1.0 } else { 0.0 };
-        let grid = constant_grid(prim_path, lo - pad, size + 2.0 * pad, background)
+        let grid = constant_grid(prim_path, lo - pad, size + 2.0 * pad, background, edge)
             .map_err(|e| invalid(format!("constant density: {e}")))?;
         let mut medium = Medium::with_majorants(
             prim_path,
@@ -372,7 +396,7 @@ impl Medium {
 
     /// Rebuilds the majorant structure (e.g. to compare octree depths on one grid).
     pub fn set_majorants(&mut self, spec: MajorantSpec) {
-        self.majorants = Arc::new(MajorantTree::build(&self.density, spec));
+        self.majorants = Arc::new(self.tree(spec));
         self.world_box = world_box(&self.majorants, self.world_to_index);
     }
 
@@ -387,6 +411,7 @@ impl Medium {
             sigma: self.sigma,
             g: self.g,
             majorants: self.majorants.clone(),
+            shader: self.shader.clone(),
             world_box: world_box(&self.majorants, world_to_index),
             emission: self
                 .emission
@@ -414,7 +439,7 @@ impl Medium {
         crossing_lookups: f32,
         residual: bool,
     ) -> Arc<MajorantTree> {
-        let mut tree = MajorantTree::build(&self.density, spec);
+        let mut tree = self.tree(spec);
         if matches!(spec, MajorantSpec::Octree { .. }) {
             tree.prune(PruneCost {
                 optical_per_voxel: self.optical_per_voxel(),
@@ -423,6 +448,45 @@ impl Medium {
             });
         }
         Arc::new(tree)
+    }
+
+    /// The majorant structure `spec` over the density: the grid's values, or the
+    /// shader graph's range over them.
+    fn tree(&self, spec: MajorantSpec) -> MajorantTree {
+        match &self.shader {
+            None => MajorantTree::build(&self.density, spec),
+            Some(s) => MajorantTree::build_bounded(&self.density, spec, &|lo, hi| {
+                let grid = self.density.value_range(lo, hi);
+                let [lo, hi] = [lo, hi].map(|v| DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64));
+                s.cell_bounds(lo, hi, grid)
+            }),
+        }
+    }
+
+    /// Sends the density through `shader` (its position space placed in this medium's
+    /// index space) and rebuilds the majorants `spec` from its range analysis. Fails,
+    /// naming the prim and the shader, where the graph cannot be bounded or its bound
+    /// overflows once scaled.
+    pub fn set_shader(
+        &mut self,
+        shader: DensityShader,
+        spec: MajorantSpec,
+    ) -> Result<(), MediumError> {
+        let source = shader.source.clone();
+        self.shader = Some(Arc::new(shader));
+        self.constant = false;
+        self.set_majorants(spec);
+        let max = self.majorants.max_density();
+        let mu_max = max as f64 * self.sigma.t_max as f64;
+        if !(mu_max < f32::MAX as f64) {
+            return Err(MediumError::Invalid {
+                prim: self.prim_path.clone(),
+                message: format!(
+                    "the density graph of {source} has no finite bound (a division by a range holding 0, or values too large) so no majorant can be built"
+                ),
+            });
+        }
+        Ok(())
     }
 
     /// Installs `tree` (from [`build_majorants`](Self::build_majorants) on this
@@ -498,7 +562,13 @@ impl Medium {
     /// 63 random bits `u` ([`Grid::sample_stochastic`]); one density lookup.
     #[inline(always)]
     pub fn density_estimate<C: Tally>(&self, p: Vec3, u: u64, counters: &mut C) -> f32 {
-        lookup(counters, || self.density.sample_stochastic(p.to_array(), u))
+        lookup(counters, || {
+            let g = self.density.sample_stochastic(p.to_array(), u);
+            match &self.shader {
+                None => g,
+                Some(s) => s.density(p, g),
+            }
+        })
     }
 
     /// [`density`](Self::density) at a world-space point (one density lookup).
@@ -511,34 +581,51 @@ impl Medium {
     /// Every call is one density lookup.
     #[inline(always)]
     pub fn density<C: Tally>(&self, p: Vec3, counters: &mut C) -> f32 {
-        lookup(counters, || self.density.sample_trilinear(p.to_array()))
+        lookup(counters, || {
+            let g = self.density.sample_trilinear(p.to_array());
+            match &self.shader {
+                None => g,
+                Some(s) => s.density(p, g),
+            }
+        })
     }
 }
 
 /// Voxels per edge of the constant grid: index [0, 7] spans the box, and the trilinear
 /// stencil of any point in it reads only stored ones.
-const CONSTANT_EDGE: i32 = 8;
+pub const CONSTANT_EDGE: i32 = 8;
 
-/// One brick of ones whose voxel centres 0 and 7 lie on the faces of the box at `lo`
-/// of size `edge`.
+/// Ones at voxels `0..n` along each axis (whole bricks of ones, so `n` is rounded up to
+/// a multiple of 8 stored voxels; the box spans index [0, n − 1]), whose voxel centres
+/// 0 and n − 1 lie on the faces of the box at `lo` of size `edge`.
 fn constant_grid(
     name: &str,
     lo: DVec3,
     edge: DVec3,
     background: f32,
+    n: i32,
 ) -> Result<Grid, crate::volume::grid::GridError> {
-    let n = CONSTANT_EDGE;
+    let n = n.max(2);
     let voxel = edge / (n - 1) as f64;
     let index_to_world = DMat4::from_translation(lo) * DMat4::from_scale(voxel);
+    let bricks = (n + 7) / 8;
+    let mut leaves = Vec::with_capacity((bricks * bricks * bricks) as usize);
+    for x in 0..bricks {
+        for y in 0..bricks {
+            for z in 0..bricks {
+                leaves.push(RawLeaf {
+                    origin: [x * 8, y * 8, z * 8],
+                    values: vec![1.0; 512],
+                    active: [u64::MAX; 8],
+                });
+            }
+        }
+    }
     Grid::from_raw(&RawGrid {
         name: name.to_string(),
         class: "fog volume".to_string(),
         background,
-        leaves: vec![RawLeaf {
-            origin: [0; 3],
-            values: vec![1.0; (n * n * n) as usize],
-            active: [u64::MAX; 8],
-        }],
+        leaves,
         tiles: Vec::new(),
         index_to_world,
     })

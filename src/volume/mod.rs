@@ -6,6 +6,7 @@ pub mod asset;
 pub mod boundary;
 pub mod counters;
 pub mod emission;
+pub mod graph_density;
 pub mod grid;
 pub mod majorant;
 pub mod medium;

@@ -508,6 +508,7 @@ fn fog_medium(
         anisotropy: m.anisotropy,
         emission: VolumeEmission::default(),
         material_shader: Some(material.shader_name()),
+        density_graph: None,
     }))
 }
 
@@ -532,6 +533,7 @@ fn api_medium(path: &str, pv: &[ParamDesc]) -> Result<FogParams> {
         anisotropy: scalar(path, pv, tokens::ANISOTROPY)?.unwrap_or(0.0),
         emission: emission(path, pv, &|_| Ok(None))?,
         material_shader: None,
+        density_graph: None,
     })
 }
 
@@ -646,6 +648,7 @@ fn volume(v: &VolumeDesc, warnings: &mut Vec<String>) -> Result<Volume> {
             emission: VolumeEmission::default(),
             albedo: None,
             material_shader: Some(material.shader_name()),
+            density_graph: None,
         });
     }
     let density_name = text(pv, tokens::DENSITY_FIELD).unwrap_or("density");
@@ -671,6 +674,7 @@ fn volume(v: &VolumeDesc, warnings: &mut Vec<String>) -> Result<Volume> {
         emission,
         albedo,
         material_shader: None,
+        density_graph: None,
     })
 }
 

@@ -1,0 +1,699 @@
+//! Shader graphs compiled to a flat instruction list: the one evaluator every reader
+//! (USD/MaterialX, the Blender add-on, Hydra) hands its graph to.
+//!
+//! A graph becomes a [`Program`] once, at scene build, through a [`Builder`] that the
+//! readers call node by node; vectors are spread over consecutive scalar registers, so
+//! every instruction works on `f32`s. Per lookup [`Program::eval`] runs the list over a
+//! fixed register file on the stack: no allocation, no lock, and no dynamic dispatch —
+//! one `match` per instruction, whose arms the compiler inlines (docs/shaders.md has the
+//! cost per lookup). The same list evaluated over [`Interval`]s
+//! ([`Program::bounds`]) is the range analysis the majorants are built from.
+//!
+//! Inputs, preloaded before the first instruction: the position in the graph's
+//! coordinate space (registers 0, 1, 2: object space for MaterialX's `position`) and one
+//! attribute (register 3: the value of the volume's own density field at the point,
+//! MaterialX's `geompropvalue`). The output is one register.
+
+use super::interval::{perlin_3d_bound, Interval};
+use super::materialx_noise::perlin_noise_3d;
+
+/// A register index.
+pub type Reg = u16;
+
+/// Registers a program may use: the register file is a stack array of this size
+/// (256 bytes: it is zeroed per lookup).
+pub const MAX_REGISTERS: usize = 64;
+
+/// The position's registers (x, y, z).
+pub const POSITION: Reg = 0;
+/// The attribute's register.
+pub const ATTRIBUTE: Reg = 3;
+const INPUTS: Reg = 4;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Unary {
+    Copy,
+    Neg,
+    Abs,
+    Sqrt,
+    Floor,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Binary {
+    Add,
+    Sub,
+    Mul,
+    Div,
+    Min,
+    Max,
+}
+
+/// One instruction. Noise instructions read a position from three consecutive
+/// registers starting at `p`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Instr {
+    Const {
+        dst: Reg,
+        value: f32,
+    },
+    Unary {
+        op: Unary,
+        dst: Reg,
+        a: Reg,
+    },
+    Binary {
+        op: Binary,
+        dst: Reg,
+        a: Reg,
+        b: Reg,
+    },
+    /// `x` clamped to `[lo, hi]` (MaterialX `clamp`: `min(max(x, lo), hi)`).
+    Clamp {
+        dst: Reg,
+        x: Reg,
+        lo: Reg,
+        hi: Reg,
+    },
+    /// MaterialX `smoothstep`: 0 at or below `lo`, 1 at or above `hi`, Hermite between.
+    Smoothstep {
+        dst: Reg,
+        x: Reg,
+        lo: Reg,
+        hi: Reg,
+    },
+    /// MaterialX `noise3d` (float): `perlin(p) · amplitude + pivot`.
+    MxNoise3d {
+        dst: Reg,
+        p: Reg,
+        amplitude: Reg,
+        pivot: Reg,
+    },
+    /// MaterialX `fractal3d` (float): `amplitude · Σ diminish^i perlin(p · lacunarity^i)`
+    /// over `octaves` octaves. The octave parameters must be constants: they decide the
+    /// loop and the range analysis.
+    MxFractal3d {
+        dst: Reg,
+        p: Reg,
+        amplitude: Reg,
+        octaves: i32,
+        lacunarity: f32,
+        diminish: f32,
+    },
+}
+
+/// A compiled graph.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Program {
+    instrs: Vec<Instr>,
+    registers: usize,
+    output: Reg,
+    /// Whether any instruction reads the attribute: the grid's value then bounds the
+    /// result (else the grid only says where the medium is).
+    reads_attribute: bool,
+    /// The name of the node that made each instruction, for messages.
+    nodes: Vec<String>,
+}
+
+/// Why a graph cannot be compiled.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum GraphError {
+    #[error("the graph needs more than {MAX_REGISTERS} registers")]
+    TooLarge,
+    #[error("{node}: {message}")]
+    Node { node: String, message: String },
+}
+
+/// A scalar or a 3-vector value of the graph being built: its first register.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Value {
+    Float(Reg),
+    Vector3(Reg),
+}
+
+impl Value {
+    pub fn width(self) -> u16 {
+        match self {
+            Value::Float(_) => 1,
+            Value::Vector3(_) => 3,
+        }
+    }
+
+    pub fn reg(self) -> Reg {
+        match self {
+            Value::Float(r) | Value::Vector3(r) => r,
+        }
+    }
+}
+
+/// Builds a [`Program`] node by node. Each method appends the instructions of one node
+/// and returns the value it outputs; `node` names the node in error messages.
+pub struct Builder {
+    instrs: Vec<Instr>,
+    nodes: Vec<String>,
+    next: usize,
+    node: String,
+    reads_attribute: bool,
+}
+
+impl Default for Builder {
+    fn default() -> Self {
+        Builder {
+            instrs: Vec::new(),
+            nodes: Vec::new(),
+            next: INPUTS as usize,
+            node: String::new(),
+            reads_attribute: false,
+        }
+    }
+}
+
+impl Builder {
+    /// Names the node whose instructions follow (for messages).
+    pub fn node(&mut self, name: &str) {
+        self.node = name.to_string();
+    }
+
+    fn alloc(&mut self, width: usize) -> Result<Reg, GraphError> {
+        let r = self.next;
+        self.next += width;
+        if self.next > MAX_REGISTERS {
+            return Err(GraphError::TooLarge);
+        }
+        Ok(r as Reg)
+    }
+
+    fn push(&mut self, i: Instr) {
+        self.instrs.push(i);
+        self.nodes.push(self.node.clone());
+    }
+
+    fn error(&self, message: impl Into<String>) -> GraphError {
+        GraphError::Node {
+            node: self.node.clone(),
+            message: message.into(),
+        }
+    }
+
+    pub fn position(&self) -> Value {
+        Value::Vector3(POSITION)
+    }
+
+    pub fn attribute(&mut self) -> Value {
+        self.reads_attribute = true;
+        Value::Float(ATTRIBUTE)
+    }
+
+    pub fn constant(&mut self, value: f32) -> Result<Value, GraphError> {
+        let dst = self.alloc(1)?;
+        self.push(Instr::Const { dst, value });
+        Ok(Value::Float(dst))
+    }
+
+    pub fn vector3(&mut self, v: [f32; 3]) -> Result<Value, GraphError> {
+        let dst = self.alloc(3)?;
+        for (k, value) in v.into_iter().enumerate() {
+            self.push(Instr::Const {
+                dst: dst + k as Reg,
+                value,
+            });
+        }
+        Ok(Value::Vector3(dst))
+    }
+
+    /// A float made a 3-vector (MaterialX's `convert`, and a float input of a vector
+    /// operation).
+    pub fn splat3(&mut self, v: Value) -> Result<Value, GraphError> {
+        match v {
+            Value::Vector3(_) => Ok(v),
+            Value::Float(r) => {
+                let dst = self.alloc(3)?;
+                for k in 0..3 {
+                    self.push(Instr::Unary {
+                        op: Unary::Copy,
+                        dst: dst + k,
+                        a: r,
+                    });
+                }
+                Ok(Value::Vector3(dst))
+            }
+        }
+    }
+
+    /// One component of a vector (a float passes through).
+    pub fn component(&mut self, v: Value, k: u16) -> Result<Value, GraphError> {
+        match v {
+            Value::Float(_) => Ok(v),
+            Value::Vector3(r) if k < 3 => Ok(Value::Float(r + k)),
+            Value::Vector3(_) => Err(self.error(format!("no component {k} in a vector3"))),
+        }
+    }
+
+    /// Widths must agree, except that a float meets a vector by broadcast (MaterialX's
+    /// `vector3FA` variants).
+    fn widths(&mut self, a: Value, b: Value) -> Result<(Value, Value), GraphError> {
+        Ok(match (a, b) {
+            (Value::Vector3(_), Value::Float(_)) => (a, self.splat3(b)?),
+            (Value::Float(_), Value::Vector3(_)) => (self.splat3(a)?, b),
+            _ => (a, b),
+        })
+    }
+
+    fn like(&mut self, v: Value) -> Result<Value, GraphError> {
+        Ok(match v {
+            Value::Float(_) => Value::Float(self.alloc(1)?),
+            Value::Vector3(_) => Value::Vector3(self.alloc(3)?),
+        })
+    }
+
+    pub fn unary(&mut self, op: Unary, a: Value) -> Result<Value, GraphError> {
+        let out = self.like(a)?;
+        for k in 0..a.width() {
+            self.push(Instr::Unary {
+                op,
+                dst: out.reg() + k,
+                a: a.reg() + k,
+            });
+        }
+        Ok(out)
+    }
+
+    pub fn binary(&mut self, op: Binary, a: Value, b: Value) -> Result<Value, GraphError> {
+        let (a, b) = self.widths(a, b)?;
+        let out = self.like(a)?;
+        for k in 0..a.width() {
+            self.push(Instr::Binary {
+                op,
+                dst: out.reg() + k,
+                a: a.reg() + k,
+                b: b.reg() + k,
+            });
+        }
+        Ok(out)
+    }
+
+    pub fn clamp(&mut self, x: Value, lo: Value, hi: Value) -> Result<Value, GraphError> {
+        let (x, lo) = self.widths(x, lo)?;
+        let (x, hi) = self.widths(x, hi)?;
+        let out = self.like(x)?;
+        for k in 0..x.width() {
+            let c = |v: Value| v.reg() + if v.width() == 1 { 0 } else { k };
+            self.push(Instr::Clamp {
+                dst: out.reg() + k,
+                x: x.reg() + k,
+                lo: c(lo),
+                hi: c(hi),
+            });
+        }
+        Ok(out)
+    }
+
+    pub fn smoothstep(&mut self, x: Value, lo: Value, hi: Value) -> Result<Value, GraphError> {
+        let (x, lo) = self.widths(x, lo)?;
+        let (x, hi) = self.widths(x, hi)?;
+        let out = self.like(x)?;
+        for k in 0..x.width() {
+            let c = |v: Value| v.reg() + if v.width() == 1 { 0 } else { k };
+            self.push(Instr::Smoothstep {
+                dst: out.reg() + k,
+                x: x.reg() + k,
+                lo: c(lo),
+                hi: c(hi),
+            });
+        }
+        Ok(out)
+    }
+
+    /// MaterialX `remap`: `outlow + (x − inlow)·(outhigh − outlow)/(inhigh − inlow)`.
+    pub fn remap(
+        &mut self,
+        x: Value,
+        in_lo: Value,
+        in_hi: Value,
+        out_lo: Value,
+        out_hi: Value,
+    ) -> Result<Value, GraphError> {
+        let a = self.binary(Binary::Sub, x, in_lo)?;
+        let b = self.binary(Binary::Sub, out_hi, out_lo)?;
+        let c = self.binary(Binary::Sub, in_hi, in_lo)?;
+        let ab = self.binary(Binary::Mul, a, b)?;
+        let q = self.binary(Binary::Div, ab, c)?;
+        self.binary(Binary::Add, out_lo, q)
+    }
+
+    /// MaterialX `dot` of two vector3s.
+    pub fn dot(&mut self, a: Value, b: Value) -> Result<Value, GraphError> {
+        let (a, b) = self.widths(a, b)?;
+        let p = self.binary(Binary::Mul, a, b)?;
+        let mut sum = self.component(p, 0)?;
+        for k in 1..p.width() {
+            let c = self.component(p, k)?;
+            sum = self.binary(Binary::Add, sum, c)?;
+        }
+        Ok(sum)
+    }
+
+    /// MaterialX `magnitude` of a vector3.
+    pub fn magnitude(&mut self, a: Value) -> Result<Value, GraphError> {
+        let d = self.dot(a, a)?;
+        self.unary(Unary::Sqrt, d)
+    }
+
+    fn position3(&mut self, p: Value) -> Result<Reg, GraphError> {
+        match p {
+            Value::Vector3(r) => Ok(r),
+            Value::Float(_) => Err(self.error("position must be a vector3")),
+        }
+    }
+
+    fn float(&mut self, v: Value, what: &str) -> Result<Reg, GraphError> {
+        match v {
+            Value::Float(r) => Ok(r),
+            Value::Vector3(_) => Err(self.error(format!("{what} must be a float"))),
+        }
+    }
+
+    pub fn mx_noise3d(
+        &mut self,
+        p: Value,
+        amplitude: Value,
+        pivot: Value,
+    ) -> Result<Value, GraphError> {
+        let p = self.position3(p)?;
+        let amplitude = self.float(amplitude, "amplitude")?;
+        let pivot = self.float(pivot, "pivot")?;
+        let dst = self.alloc(1)?;
+        self.push(Instr::MxNoise3d {
+            dst,
+            p,
+            amplitude,
+            pivot,
+        });
+        Ok(Value::Float(dst))
+    }
+
+    pub fn mx_fractal3d(
+        &mut self,
+        p: Value,
+        amplitude: Value,
+        octaves: i32,
+        lacunarity: f32,
+        diminish: f32,
+    ) -> Result<Value, GraphError> {
+        let p = self.position3(p)?;
+        let amplitude = self.float(amplitude, "amplitude")?;
+        if !(0..=32).contains(&octaves) {
+            return Err(self.error(format!("octaves must lie in [0, 32], got {octaves}")));
+        }
+        if !(lacunarity.is_finite() && diminish.is_finite()) {
+            return Err(self.error("lacunarity and diminish must be finite"));
+        }
+        let dst = self.alloc(1)?;
+        self.push(Instr::MxFractal3d {
+            dst,
+            p,
+            amplitude,
+            octaves,
+            lacunarity,
+            diminish,
+        });
+        Ok(Value::Float(dst))
+    }
+
+    /// The program computing `output` (a float).
+    pub fn finish(self, output: Value) -> Result<Program, GraphError> {
+        let Value::Float(output) = output else {
+            return Err(self.error("the graph's output must be a float"));
+        };
+        Ok(Program {
+            instrs: self.instrs,
+            registers: self.next,
+            output,
+            reads_attribute: self.reads_attribute,
+            nodes: self.nodes,
+        })
+    }
+}
+
+#[inline(always)]
+fn smoothstep(x: f32, lo: f32, hi: f32) -> f32 {
+    if x >= hi {
+        1.0
+    } else if x <= lo {
+        0.0
+    } else {
+        let t = (x - lo) / (hi - lo);
+        t * t * (3.0 - 2.0 * t)
+    }
+}
+
+impl Program {
+    pub fn len(&self) -> usize {
+        self.instrs.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.instrs.is_empty()
+    }
+
+    pub fn reads_attribute(&self) -> bool {
+        self.reads_attribute
+    }
+
+    /// The graph's value at `position` with the attribute `attribute`.
+    #[inline]
+    pub fn eval(&self, position: [f32; 3], attribute: f32) -> f32 {
+        let mut r = [0.0f32; MAX_REGISTERS];
+        r[0] = position[0];
+        r[1] = position[1];
+        r[2] = position[2];
+        r[3] = attribute;
+        for i in &self.instrs {
+            match *i {
+                Instr::Const { dst, value } => r[dst as usize] = value,
+                Instr::Unary { op, dst, a } => {
+                    let a = r[a as usize];
+                    r[dst as usize] = match op {
+                        Unary::Copy => a,
+                        Unary::Neg => -a,
+                        Unary::Abs => a.abs(),
+                        Unary::Sqrt => a.max(0.0).sqrt(),
+                        Unary::Floor => a.floor(),
+                    }
+                }
+                Instr::Binary { op, dst, a, b } => {
+                    let (a, b) = (r[a as usize], r[b as usize]);
+                    r[dst as usize] = match op {
+                        Binary::Add => a + b,
+                        Binary::Sub => a - b,
+                        Binary::Mul => a * b,
+                        Binary::Div => a / b,
+                        Binary::Min => a.min(b),
+                        Binary::Max => a.max(b),
+                    }
+                }
+                Instr::Clamp { dst, x, lo, hi } => {
+                    r[dst as usize] = r[x as usize].max(r[lo as usize]).min(r[hi as usize])
+                }
+                Instr::Smoothstep { dst, x, lo, hi } => {
+                    r[dst as usize] = smoothstep(r[x as usize], r[lo as usize], r[hi as usize])
+                }
+                Instr::MxNoise3d {
+                    dst,
+                    p,
+                    amplitude,
+                    pivot,
+                } => {
+                    let p = p as usize;
+                    let n = perlin_noise_3d([r[p], r[p + 1], r[p + 2]]);
+                    r[dst as usize] = n * r[amplitude as usize] + r[pivot as usize];
+                }
+                Instr::MxFractal3d {
+                    dst,
+                    p,
+                    amplitude,
+                    octaves,
+                    lacunarity,
+                    diminish,
+                } => {
+                    let p = p as usize;
+                    let f = super::materialx_noise::fractal_noise_3d(
+                        [r[p], r[p + 1], r[p + 2]],
+                        octaves,
+                        lacunarity,
+                        diminish,
+                    );
+                    r[dst as usize] = f * r[amplitude as usize];
+                }
+            }
+        }
+        r[self.output as usize]
+    }
+
+    /// Bounds of the graph's value over the position box `[lo, hi]` with the attribute
+    /// in `attribute`, widened for rounding. Unbounded (a division by an interval
+    /// holding 0, say) comes back with infinite ends.
+    pub fn bounds(&self, lo: [f32; 3], hi: [f32; 3], attribute: Interval) -> Interval {
+        let mut r = vec![Interval::point(0.0); self.registers.max(INPUTS as usize)];
+        for a in 0..3 {
+            r[a] = Interval::new(lo[a], hi[a]);
+        }
+        r[3] = attribute;
+        for i in &self.instrs {
+            match *i {
+                Instr::Const { dst, value } => r[dst as usize] = Interval::point(value),
+                Instr::Unary { op, dst, a } => {
+                    let a = r[a as usize];
+                    r[dst as usize] = match op {
+                        Unary::Copy => a,
+                        Unary::Neg => a.neg(),
+                        Unary::Abs => a.abs(),
+                        Unary::Sqrt => a.monotone(|x| x.max(0.0).sqrt()),
+                        Unary::Floor => a.monotone(f32::floor),
+                    }
+                }
+                Instr::Binary { op, dst, a, b } => {
+                    let (a, b) = (r[a as usize], r[b as usize]);
+                    r[dst as usize] = match op {
+                        Binary::Add => a.add(b),
+                        Binary::Sub => a.sub(b),
+                        Binary::Mul => a.mul(b),
+                        Binary::Div => a.div(b),
+                        Binary::Min => a.min(b),
+                        Binary::Max => a.max(b),
+                    }
+                }
+                Instr::Clamp { dst, x, lo, hi } => {
+                    r[dst as usize] = r[x as usize].max(r[lo as usize]).min(r[hi as usize])
+                }
+                Instr::Smoothstep { dst, x, lo, hi } => {
+                    let (x, lo, hi) = (r[x as usize], r[lo as usize], r[hi as usize]);
+                    // Non-decreasing in x for fixed edges lo < hi; other edges: [0, 1].
+                    r[dst as usize] = if lo.lo == lo.hi && hi.lo == hi.hi && lo.lo < hi.lo {
+                        x.monotone(|v| smoothstep(v, lo.lo, hi.lo))
+                    } else {
+                        Interval::new(0.0, 1.0)
+                    };
+                }
+                Instr::MxNoise3d {
+                    dst,
+                    p,
+                    amplitude,
+                    pivot,
+                } => {
+                    let n = noise_bound(&r, p, 1.0);
+                    r[dst as usize] = n.mul(r[amplitude as usize]).add(r[pivot as usize]);
+                }
+                Instr::MxFractal3d {
+                    dst,
+                    p,
+                    amplitude,
+                    octaves,
+                    lacunarity,
+                    diminish,
+                } => {
+                    let mut sum = Interval::point(0.0);
+                    let (mut freq, mut amp) = (1.0f32, 1.0f32);
+                    for _ in 0..octaves {
+                        let n = noise_bound(&r, p, freq);
+                        sum = sum.add(n.mul(Interval::point(amp)));
+                        amp *= diminish;
+                        freq *= lacunarity;
+                    }
+                    r[dst as usize] = sum.mul(r[amplitude as usize]);
+                }
+            }
+        }
+        // Room for f32 rounding of the evaluation: a relative 2⁻¹² of the largest value
+        // and an absolute 2⁻²⁰ (both far above the few ulps a short program loses).
+        r[self.output as usize].widened(1.0 / 4096.0, 1.0 / 1_048_576.0)
+    }
+
+    /// The node that made the instruction computing the output (for messages).
+    pub fn output_node(&self) -> &str {
+        self.nodes.last().map(String::as_str).unwrap_or("")
+    }
+}
+
+/// MaterialX's signed Perlin noise (0.9820 × the unscaled noise) over the box held in
+/// registers `p..p+3`, scaled by `freq` (the fractal's octave frequency).
+fn noise_bound(r: &[Interval], p: Reg, freq: f32) -> Interval {
+    let p = p as usize;
+    let lo = [0, 1, 2].map(|a| r[p + a].lo * freq);
+    let hi = [0, 1, 2].map(|a| r[p + a].hi * freq);
+    // A negative frequency flips the box.
+    let (lo, hi) = (
+        [0, 1, 2].map(|a| lo[a].min(hi[a])),
+        [0, 1, 2].map(|a| lo[a].max(hi[a])),
+    );
+    perlin_3d_bound(lo, hi).mul(Interval::point(0.9820))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fbm_graph() -> Program {
+        let mut b = Builder::default();
+        b.node("/Mat/fractal");
+        let p = b.position();
+        let two = b.constant(2.0).unwrap();
+        let p2 = b.binary(Binary::Mul, p, two).unwrap();
+        let amp = b.constant(1.0).unwrap();
+        let f = b.mx_fractal3d(p2, amp, 4, 2.0, 0.5).unwrap();
+        let half = b.constant(0.5).unwrap();
+        let zero = b.constant(0.0).unwrap();
+        let one = b.constant(1.0).unwrap();
+        let s = b.binary(Binary::Add, f, half).unwrap();
+        let c = b.clamp(s, zero, one).unwrap();
+        let d = b.attribute();
+        let out = b.binary(Binary::Mul, c, d).unwrap();
+        b.finish(out).unwrap()
+    }
+
+    #[test]
+    fn evaluates_as_the_nodes_do() {
+        let prog = fbm_graph();
+        let p = [0.3f32, -0.7, 1.1];
+        let f = super::super::materialx_noise::fractal_noise_3d(p.map(|c| c * 2.0), 4, 2.0, 0.5);
+        assert_eq!(prog.eval(p, 0.5), (f + 0.5).clamp(0.0, 1.0) * 0.5);
+        assert!(prog.reads_attribute());
+    }
+
+    #[test]
+    fn bounds_hold_over_boxes() {
+        let prog = fbm_graph();
+        let mut s = 5u32;
+        let mut next = || {
+            s = crate::shader::noise::hash_uint2(s, 0x9e37_79b9);
+            s as f32 / u32::MAX as f32
+        };
+        for _ in 0..500 {
+            let lo: [f32; 3] = std::array::from_fn(|_| (next() - 0.5) * 8.0);
+            let size = 0.5 * next();
+            let hi = lo.map(|c| c + size);
+            let b = prog.bounds(lo, hi, Interval::new(0.2, 0.9));
+            for _ in 0..100 {
+                let p: [f32; 3] = std::array::from_fn(|a| lo[a] + (hi[a] - lo[a]) * next());
+                let v = prog.eval(p, 0.2 + 0.7 * next());
+                assert!(v >= b.lo && v <= b.hi, "{v} outside {b:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn division_by_a_range_holding_zero_is_unbounded() {
+        let mut b = Builder::default();
+        let one = b.constant(1.0).unwrap();
+        let p = b.position();
+        let x = b.component(p, 0).unwrap();
+        let q = b.binary(Binary::Div, one, x).unwrap();
+        let prog = b.finish(q).unwrap();
+        assert!(!prog
+            .bounds([-1.0; 3], [1.0; 3], Interval::point(0.0))
+            .is_bounded());
+        assert!(prog
+            .bounds([1.0; 3], [2.0; 3], Interval::point(0.0))
+            .is_bounded());
+    }
+}
