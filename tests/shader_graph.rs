@@ -457,3 +457,24 @@ fn graphs_nimbus_cannot_read_are_refused_naming_the_node() {
         assert!(!out.exists(), "{what}: no image is written");
     }
 }
+
+/// `nimbus info` names the graph, its size, and why `auto` keeps its choice (the
+/// minorants' share of the majorants, counted; the measured time per lookup).
+#[test]
+fn info_names_the_density_graph_and_why_auto_chooses() {
+    let dir = tempfile::tempdir().unwrap();
+    let cube = cube_stage(dir.path());
+    let o = nimbus(&["info", cube.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        out.contains("density: shader graph from /Mat/vdf (ND_anisotropic_vdf) (")
+            && out.contains("instructions per lookup, over the volume's region)"),
+        "{out}"
+    );
+    assert!(
+        out.contains("density graph of /Box (")
+            && out.contains("ns per lookup measured at load): its minorants carry"),
+        "{out}"
+    );
+}

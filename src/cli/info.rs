@@ -138,6 +138,17 @@ fn print_stage(d: &StageDescription) {
         if let Some(shader) = &v.material_shader {
             println!("  parameters from the bound material's volume shader {shader}");
         }
+        if let Some(g) = &v.density_graph {
+            println!(
+                "  density: shader graph from {} ({} instructions per lookup, {}); majorants from its range analysis",
+                g.source,
+                g.instructions,
+                match g.reads_field {
+                    true => "times the density field",
+                    false => "over the volume's region",
+                }
+            );
+        }
         for (name, f) in &v.fields {
             println!(
                 "  field:{name} -> {} file {} fieldName '{}' fieldIndex {:?}",

@@ -237,9 +237,21 @@ pub struct VolumeDescription {
     pub albedo_field: Option<String>,
     /// The bound material's volume shader the parameters come from, if any.
     pub material_shader: Option<String>,
+    /// The shader graph the density goes through, if any: its source and size.
+    pub density_graph: Option<DensityGraphDescription>,
     /// Every `field:NAME` of the volume, by NAME, in stage order.
     #[serde(serialize_with = "as_map")]
     pub fields: Vec<(String, FieldDescription)>,
+}
+
+/// A volume's density graph as `nimbus info` reports it.
+#[derive(Serialize, Debug, Clone)]
+pub struct DensityGraphDescription {
+    pub source: String,
+    /// Instructions of the compiled program (each evaluated per density lookup).
+    pub instructions: usize,
+    /// Whether it reads the density field (else the field only says where it is).
+    pub reads_field: bool,
 }
 
 impl VolumeDescription {
@@ -570,6 +582,11 @@ fn volume(v: &crate::scene::Volume, depth: u32) -> VolumeDescription {
         emission_kind: e.kind.token(),
         albedo_field: albedo.clone(),
         material_shader: v.material_shader.clone(),
+        density_graph: v.density_graph.as_ref().map(|g| DensityGraphDescription {
+            source: g.source.clone(),
+            instructions: g.program.len(),
+            reads_field: g.program.reads_attribute(),
+        }),
         fields: v
             .fields
             .iter()

@@ -42,6 +42,66 @@ pub struct Analysis {
     pub lights_total: usize,
     /// Some of a 16×16 grid of camera rays crosses a non-empty majorant cell.
     pub volume_visible: bool,
+    /// The costliest density shader graph of the stage, if any (issue 47).
+    pub density_graph: Option<GraphCost>,
+}
+
+/// What a density shader graph costs the trackers: measured time per lookup (reported
+/// only: a choice made from a timing would differ between machines) and the counted
+/// share of the majorants its minorants carry (what decomposition tracking can take
+/// from the control without a lookup).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct GraphCost {
+    pub prim_path: String,
+    pub instructions: usize,
+    /// Median of 5 timings of 1,024 lookups at fixed points of the region.
+    pub ns_per_lookup: f64,
+    /// Σ minorant / Σ majorant over the leaf cells with a non-zero majorant.
+    pub control_share: f64,
+}
+
+impl GraphCost {
+    fn of(m: &Medium) -> Option<GraphCost> {
+        let shader = m.shader.as_ref()?;
+        let (lo, hi) = m.majorants.index_region()?;
+        let dims = m.majorants.dims();
+        let (mut dmin, mut dmax) = (0.0f64, 0.0f64);
+        for x in 0..dims[0] {
+            for y in 0..dims[1] {
+                for z in 0..dims[2] {
+                    if let Some((a, b)) = m.majorants.leaf_bounds([x, y, z]) {
+                        if b > 0.0 {
+                            dmin += a as f64;
+                            dmax += b as f64;
+                        }
+                    }
+                }
+            }
+        }
+        // Fixed points (a Weyl sequence): the same lookups on every run.
+        let points: Vec<glam::Vec3> = (0..1024)
+            .map(|k| {
+                let f = |a: f32| (k as f32 * a).fract();
+                lo + (hi - lo) * glam::Vec3::new(f(0.618_034), f(0.754_878), f(0.569_840))
+            })
+            .collect();
+        let mut c = crate::volume::counters::Counters::default();
+        let mut times: Vec<f64> = (0..5)
+            .map(|_| {
+                let t = std::time::Instant::now();
+                let s: f32 = points.iter().map(|&p| m.density(p, &mut c)).sum();
+                std::hint::black_box(s);
+                t.elapsed().as_secs_f64() * 1e9 / points.len() as f64
+            })
+            .collect();
+        times.sort_by(f64::total_cmp);
+        Some(GraphCost {
+            prim_path: m.prim_path.clone(),
+            instructions: shader.program.len(),
+            ns_per_lookup: times[2],
+            control_share: if dmax > 0.0 { dmin / dmax } else { 0.0 },
+        })
+    }
 }
 
 impl Analysis {
@@ -85,6 +145,10 @@ impl Analysis {
             lights_emitting: emitting,
             lights_total: total,
             volume_visible: media.iter().any(|m| visible(m, camera, size)),
+            density_graph: media
+                .iter()
+                .filter_map(GraphCost::of)
+                .max_by(|a, b| a.ns_per_lookup.total_cmp(&b.ns_per_lookup)),
         }
     }
 
@@ -121,8 +185,20 @@ impl Analysis {
     pub fn choose(&self, base: TrackerSettings, given: Given) -> (TrackerSettings, String) {
         let mut t = base;
         if !self.homogeneous {
-            let reason = self.ratio_select(&mut t, given);
-            return (t, reason.to_string());
+            let mut reason = self.ratio_select(&mut t, given).to_string();
+            if let Some(g) = &self.density_graph {
+                // Measured on benches/shader_graph (docs/shaders.md): with minorants
+                // near 0, decomposition took 0.95-1.06x delta's lookups and no less
+                // time, so the graph's cost does not change the choice.
+                reason.push_str(&format!(
+                    "; density graph of {} ({} instructions, {:.0} ns per lookup measured at load): its minorants carry {:.0}% of its majorants, the most decomposition could take from the control without a lookup, so the graph's cost does not change the choice",
+                    g.prim_path,
+                    g.instructions,
+                    g.ns_per_lookup,
+                    100.0 * g.control_share
+                ));
+            }
+            return (t, reason);
         }
         // Homogeneous from here on.
         let mut reason = Vec::new();
