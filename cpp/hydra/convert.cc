@@ -133,6 +133,7 @@ void HdNimbusSceneStore::_FillMaterial(SdfPath const &materialId, Desc &desc) co
     desc.shader_path = m->second.shaderPath;
     desc.shader_id = m->second.shaderId;
     for (auto const &p : m->second.params) desc.shader_params.push_back(p);
+    for (auto const &n : m->second.network) desc.shader_network.push_back(n);
 }
 
 nimbus_hydra::SceneDesc HdNimbusSceneStore::Snapshot() const {

@@ -52,6 +52,8 @@ struct HdNimbusMaterialRecord {
     std::string shaderPath;
     std::string shaderId;
     std::vector<nimbus_hydra::ParamDesc> params;
+    // Every node of the material's networks, with its connected inputs.
+    std::vector<nimbus_hydra::ShaderNodeDesc> network;
 };
 
 // What the prims' Syncs (on several threads at once) leave for the render pass. Every

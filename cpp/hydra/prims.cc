@@ -242,6 +242,27 @@ void HdNimbusMaterial::Sync(HdSceneDelegate *delegate, HdRenderParam *param,
                 rec.params.push_back(HdNimbusParam(p.first.GetString(), p.second));
             }
         };
+        // Every node, for a density graph driving the shader's inputs: parameters,
+        // and the relationships into it as connected inputs.
+        for (auto const &net : map.map) {
+            for (HdMaterialNode const &node : net.second.nodes) {
+                nimbus_hydra::ShaderNodeDesc n;
+                n.path = node.path.GetString();
+                n.id = node.identifier.GetString();
+                for (auto const &p : node.parameters) {
+                    n.params.push_back(HdNimbusParam(p.first.GetString(), p.second));
+                }
+                for (HdMaterialRelationship const &r : net.second.relationships) {
+                    if (r.outputId != node.path) continue;
+                    nimbus_hydra::ConnectionDesc c;
+                    c.input = r.outputName.GetString();
+                    c.node = r.inputId.GetString();
+                    c.output = r.inputName.GetString();
+                    n.connections.push_back(std::move(c));
+                }
+                rec.network.push_back(std::move(n));
+            }
+        }
         bool found = false;
         for (auto const &net : map.map) {
             for (HdMaterialNode const &node : net.second.nodes) {

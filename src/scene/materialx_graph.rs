@@ -12,14 +12,17 @@
 //! - both connected inputs must reach the same float output (a constant input must then
 //!   be 0); anything else is refused with an error naming the shader and input.
 //!
-//! The float graph is compiled node by node ([`NODES`] lists the `info:id`s read);
+//! Both readers hand the network over as a [`ShaderNetwork`] ([`usd_network`] walks the
+//! UsdShade prims; the Hydra delegate copies Hydra's network), and [`vdf_density`]
+//! compiles it. The float graph is compiled node by node ([`NODES`] lists the ids read);
 //! `ND_position_vector3` is the position in object space, `ND_geompropvalue_float` the
 //! value of the volume's field of that name (one field per graph).
 
-use super::attrs::{prim_error, read_value, SceneError};
+use super::attrs::{prim_error, prim_error_str, read_value, SceneError};
+use super::shader_network::{Input, ParamValue, ShaderNetwork, ShaderNode};
 use crate::shader::graph::{Binary, Builder, Program, Unary, Value as Reg};
 use openusd::sdf::{self, Value};
-use openusd::usd::{Prim, Stage, TimeCode};
+use openusd::usd::{Prim, TimeCode};
 use std::collections::HashMap;
 
 /// A density graph read from a MaterialX volume shader.
@@ -65,15 +68,125 @@ pub const NODES: &[&str] = &[
 /// connection cycles.
 const MAX_HOPS: usize = 16;
 
-/// The density graph behind an `anisotropic_vdf`'s `absorption` and `scattering`, or
+/// The shader network upstream of `shader` (a UsdShade prim): every node its inputs
+/// reach, with NodeGraph outputs and interface inputs (of NodeGraphs and Materials)
+/// followed to the node or value behind them.
+pub fn usd_network(shader: &Prim, time: Option<TimeCode>) -> Result<ShaderNetwork, SceneError> {
+    let mut network = ShaderNetwork::default();
+    let mut pending = vec![shader.clone()];
+    while let Some(prim) = pending.pop() {
+        let path = prim.path().to_string();
+        if network.node(&path).is_some() {
+            continue;
+        }
+        let mut node = ShaderNode {
+            path,
+            id: node_id(&prim)?,
+            inputs: Vec::new(),
+        };
+        let names = prim
+            .authored_property_names()
+            .map_err(|e| prim_error(prim.path(), e))?;
+        for name in names {
+            let Some(input) = name.as_str().strip_prefix("inputs:") else {
+                continue;
+            };
+            let value = match resolve(&prim, name.as_str(), time)? {
+                Resolved::Value(None) => continue,
+                Resolved::Value(Some(v)) => Input::Value(param_value(&prim, input, v)?),
+                Resolved::Output(upstream, output) => {
+                    let node = upstream.path().to_string();
+                    pending.push(upstream);
+                    Input::Connection { node, output }
+                }
+            };
+            node.inputs.push((input.to_string(), value));
+        }
+        network.nodes.push(node);
+    }
+    Ok(network)
+}
+
+enum Resolved {
+    Value(Option<Value>),
+    /// A node's output (its prim and the output's name, without `outputs:`).
+    Output(Prim, String),
+}
+
+/// Follows `property` of `prim` through interface inputs and NodeGraph outputs to a
+/// value or a node's output.
+fn resolve(prim: &Prim, property: &str, time: Option<TimeCode>) -> Result<Resolved, SceneError> {
+    let stage = prim.stage();
+    let mut prim = prim.clone();
+    let mut property = property.to_string();
+    for _ in 0..MAX_HOPS {
+        let sources = prim
+            .attribute(property.as_str())
+            .connections()
+            .map_err(|e| prim_error(prim.path(), format!("{property}: {e}")))?;
+        let Some(source) = sources.first() else {
+            if property.starts_with("outputs:") {
+                return Err(prim_error(
+                    prim.path(),
+                    format!("`{property}` is not connected to a node"),
+                ));
+            }
+            return Ok(Resolved::Value(read_value(&prim, &property, time)?));
+        };
+        let (path, source_property) = split(source);
+        let upstream = stage.prim(path).map_err(|e| prim_error(prim.path(), e))?;
+        if let Some(output) = source_property.strip_prefix("outputs:") {
+            if !node_id(&upstream)?.is_empty() {
+                return Ok(Resolved::Output(upstream, output.to_string()));
+            }
+        }
+        // An interface input, or a NodeGraph's output: follow it.
+        prim = upstream;
+        property = source_property;
+    }
+    Err(prim_error(
+        prim.path(),
+        format!("`{property}` connections do not end (cycle or too deep)"),
+    ))
+}
+
+fn param_value(prim: &Prim, name: &str, v: Value) -> Result<ParamValue, SceneError> {
+    Ok(match v {
+        Value::Float(x) => ParamValue::Numbers(vec![f64::from(x)]),
+        Value::Double(x) => ParamValue::Numbers(vec![x]),
+        Value::Half(x) => ParamValue::Numbers(vec![f64::from(x)]),
+        Value::Int(x) => ParamValue::Numbers(vec![f64::from(x)]),
+        Value::Bool(x) => ParamValue::Numbers(vec![f64::from(u8::from(x))]),
+        Value::Vec3f(x) => ParamValue::Numbers([x.x, x.y, x.z].map(f64::from).to_vec()),
+        Value::Vec3d(x) => ParamValue::Numbers(vec![x.x, x.y, x.z]),
+        Value::Vec3h(x) => ParamValue::Numbers([x.x, x.y, x.z].map(f64::from).to_vec()),
+        Value::String(s) => ParamValue::Text(s),
+        Value::Token(t) => ParamValue::Text(t.to_string()),
+        Value::AssetPath(a) => ParamValue::Text(a.as_str().to_string()),
+        other => {
+            return Err(prim_error(
+                prim.path(),
+                format!("`inputs:{name}` holds {other:?}, which no node Nimbus compiles takes"),
+            ))
+        }
+    })
+}
+
+/// The density graph behind the `anisotropic_vdf` node `vdf` of `network`: its
+/// `absorption` and `scattering` read as constant colours times one float graph.
 /// `None` when neither is connected to a node.
 pub fn vdf_density(
-    shader: &Prim,
-    time: Option<TimeCode>,
+    network: &ShaderNetwork,
+    vdf: &str,
 ) -> Result<Option<MaterialXDensity>, SceneError> {
+    let Some(shader) = network.node(vdf) else {
+        return Err(prim_error_str(
+            vdf,
+            "the volume shader is not in its network",
+        ));
+    };
     let mut reader = GraphReader {
-        stage: shader.stage(),
-        time,
+        network,
         builder: Builder::default(),
         done: HashMap::new(),
         geomprop: None,
@@ -84,9 +197,9 @@ pub fn vdf_density(
     let graph = match (&abs, &sca) {
         (Coefficient::Constant(_), Coefficient::Constant(_)) => return Ok(None),
         (Coefficient::Graph(_, a), Coefficient::Graph(_, b)) if a != b => {
-            return Err(prim_error(
-                shader.path(),
-                format!("`inputs:absorption` and `inputs:scattering` are driven by different graphs ({a} and {b}); Nimbus reads one density graph times a constant colour for each"),
+            return Err(prim_error_str(
+                vdf,
+                format!("`inputs:absorption` and `inputs:scattering` are driven by different graphs ({} and {}); Nimbus reads one density graph times a constant colour for each", a.0, b.0),
             ))
         }
         (Coefficient::Graph(_, g), _) | (_, Coefficient::Graph(_, g)) => g.clone(),
@@ -95,19 +208,19 @@ pub fn vdf_density(
         match c {
             Coefficient::Graph(k, _) => Ok(*k),
             Coefficient::Constant(k) if k.iter().all(|&x| x == 0.0) => Ok(*k),
-            Coefficient::Constant(_) => Err(prim_error(
-                shader.path(),
-                format!("`inputs:{name}` is a non-zero constant while the other coefficient is driven by {graph}; Nimbus needs both proportional to one density graph (multiply the constant by the same graph, or set it to 0)"),
+            Coefficient::Constant(_) => Err(prim_error_str(
+                vdf,
+                format!("`inputs:{name}` is a non-zero constant while the other coefficient is driven by {}; Nimbus needs both proportional to one density graph (multiply the constant by the same graph, or set it to 0)", graph.0),
             )),
         }
     };
     let absorption = colour(&abs, "absorption")?;
     let scattering = colour(&sca, "scattering")?;
-    let out = reader.source(&graph)?;
+    let out = reader.output(&graph)?;
     let program = reader
         .builder
         .finish(out)
-        .map_err(|e| prim_error(shader.path(), e))?;
+        .map_err(|e| prim_error_str(vdf, e))?;
     Ok(Some(MaterialXDensity {
         program,
         absorption,
@@ -116,205 +229,164 @@ pub fn vdf_density(
     }))
 }
 
-/// A vdf coefficient: a constant colour, or a constant colour times the float graph
-/// output named by its path.
+/// A node output: the node's path and the output's name.
+type Output = (String, String);
+
+/// A vdf coefficient: a constant colour, or a constant colour times a float graph
+/// output.
 enum Coefficient {
     Constant([f64; 3]),
-    Graph([f64; 3], sdf::Path),
+    Graph([f64; 3], Output),
 }
 
 struct GraphReader<'a> {
-    stage: &'a Stage,
-    time: Option<TimeCode>,
+    network: &'a ShaderNetwork,
     builder: Builder,
     /// Outputs compiled already (a graph is a DAG: a shared node is compiled once).
-    done: HashMap<String, Reg>,
+    done: HashMap<Output, Reg>,
     geomprop: Option<String>,
     depth: usize,
 }
 
-impl GraphReader<'_> {
-    fn prim(&self, path: &sdf::Path) -> Result<Prim, SceneError> {
-        self.stage
-            .prim(path.prim_path())
-            .map_err(|e| prim_error(path, e))
+/// An input as the compiler sees it: a value (`None` when unauthored) or a node output.
+enum Source<'a> {
+    Value(Option<&'a ParamValue>),
+    Output(Output),
+}
+
+impl<'a> GraphReader<'a> {
+    fn node(&self, path: &str) -> Result<&'a ShaderNode, SceneError> {
+        self.network.node(path).ok_or_else(|| {
+            prim_error_str(
+                path,
+                "a connection names this node, which is not in the material's network",
+            )
+        })
     }
 
-    /// Where `inputs:<name>` of `prim` gets its value: its own value, an interface
-    /// input's (followed up), or a node output (returned as `Err(path)` of that output).
-    fn input(
-        &self,
-        prim: &Prim,
-        name: &str,
-    ) -> Result<Result<Option<Value>, sdf::Path>, SceneError> {
-        let mut prim = prim.clone();
-        let mut property = format!("inputs:{name}");
-        for _ in 0..MAX_HOPS {
-            let sources = prim
-                .attribute(property.as_str())
-                .connections()
-                .map_err(|e| prim_error(prim.path(), format!("{property}: {e}")))?;
-            let Some(source) = sources.first() else {
-                return Ok(Ok(read_value(&prim, &property, self.time)?));
-            };
-            let (_, source_property) = split(source);
-            if !source_property.starts_with("inputs:") {
-                return Ok(Err(source.clone()));
+    fn input<'n>(node: &'n ShaderNode, name: &str) -> Source<'n> {
+        match node.input(name) {
+            None => Source::Value(None),
+            Some(Input::Value(v)) => Source::Value(Some(v)),
+            Some(Input::Connection { node, output }) => {
+                Source::Output((node.clone(), output.clone()))
             }
-            prim = self.prim(source)?;
-            property = source_property;
         }
-        Err(prim_error(
-            prim.path(),
-            format!("`{property}` connections do not end (cycle or too deep)"),
-        ))
     }
 
-    fn coefficient(&mut self, vdf: &Prim, name: &str) -> Result<Coefficient, SceneError> {
-        let source = match self.input(vdf, name)? {
-            Ok(v) => {
+    fn coefficient(&mut self, vdf: &'a ShaderNode, name: &str) -> Result<Coefficient, SceneError> {
+        let source = match Self::input(vdf, name) {
+            Source::Value(v) => {
                 return Ok(Coefficient::Constant(match v {
                     None => [0.0; 3],
                     Some(v) => colour(vdf, name, v)?,
                 }))
             }
-            Err(source) => source,
+            Source::Output(o) => o,
         };
-        let source = self.through_node_graphs(source)?;
-        let node = self.prim(&source)?;
-        let id = node_id(&node)?;
-        match id.as_str() {
+        let node = self.node(&source.0)?;
+        match node.id.as_str() {
             "ND_multiply_color3FA" => {
-                let k = match self.input(&node, "in1")? {
-                    Ok(v) => v.map(|v| colour(&node, "in1", v)).transpose()?,
-                    Err(_) => None,
-                };
-                let Some(k) = k else {
-                    return Err(prim_error(
-                        node.path(),
+                let Source::Value(k) = Self::input(node, "in1") else {
+                    return Err(prim_error_str(
+                        &node.path,
                         "`inputs:in1` (the colour) must be a constant for Nimbus to read the graph as a density times a colour",
                     ));
                 };
-                match self.input(&node, "in2")? {
-                    Err(g) => Ok(Coefficient::Graph(k, self.through_node_graphs(g)?)),
-                    Ok(v) => {
-                        let s = v.map(|v| number(&node, "in2", v)).transpose()?.unwrap_or(1.0);
+                let k = k.map(|v| colour(node, "in1", v)).transpose()?.unwrap_or([0.0; 3]);
+                match Self::input(node, "in2") {
+                    Source::Output(g) => Ok(Coefficient::Graph(k, g)),
+                    Source::Value(v) => {
+                        let s = v.map(|v| number(node, "in2", v)).transpose()?.unwrap_or(1.0);
                         Ok(Coefficient::Constant(k.map(|c| c * s)))
                     }
                 }
             }
-            "ND_convert_float_color3" => match self.input(&node, "in")? {
-                Err(g) => Ok(Coefficient::Graph([1.0; 3], self.through_node_graphs(g)?)),
-                Ok(v) => {
-                    let s = v.map(|v| number(&node, "in", v)).transpose()?.unwrap_or(0.0);
+            "ND_convert_float_color3" => match Self::input(node, "in") {
+                Source::Output(g) => Ok(Coefficient::Graph([1.0; 3], g)),
+                Source::Value(v) => {
+                    let s = v.map(|v| number(node, "in", v)).transpose()?.unwrap_or(0.0);
                     Ok(Coefficient::Constant([s; 3]))
                 }
             },
-            _ if id.ends_with("_float") => Ok(Coefficient::Graph([1.0; 3], source)),
-            _ => Err(prim_error(
-                node.path(),
-                format!("`{id}` drives `inputs:{name}` of {}; Nimbus reads a float graph, a float graph converted to color3, or a constant colour times a float graph (ND_multiply_color3FA)", vdf.path()),
+            id if id.ends_with("_float") => Ok(Coefficient::Graph([1.0; 3], source)),
+            id => Err(prim_error_str(
+                &node.path,
+                format!("`{id}` drives `inputs:{name}` of {}; Nimbus reads a float graph, a float graph converted to color3, or a constant colour times a float graph (ND_multiply_color3FA)", vdf.path),
             )),
         }
     }
 
-    /// Follows a connection into a NodeGraph's output to the node behind it.
-    fn through_node_graphs(&self, mut source: sdf::Path) -> Result<sdf::Path, SceneError> {
-        for _ in 0..MAX_HOPS {
-            let prim = self.prim(&source)?;
-            if !node_id(&prim)?.is_empty() {
-                return Ok(source);
-            }
-            let (_, property) = split(&source);
-            let next = prim
-                .attribute(property.as_str())
-                .connections()
-                .map_err(|e| prim_error(prim.path(), e))?;
-            match next.first() {
-                Some(n) => source = n.clone(),
-                None => {
-                    return Err(prim_error(
-                        prim.path(),
-                        format!("`{property}` is not connected to a node"),
-                    ))
-                }
-            }
-        }
-        Err(prim_error(
-            &source,
-            "node graph connections do not end (cycle or too deep)",
-        ))
-    }
-
     /// The value of a node output (compiled once).
-    fn source(&mut self, source: &sdf::Path) -> Result<Reg, SceneError> {
-        let source = self.through_node_graphs(source.clone())?;
-        if let Some(v) = self.done.get(source.as_str()) {
+    fn output(&mut self, output: &Output) -> Result<Reg, SceneError> {
+        if let Some(v) = self.done.get(output) {
             return Ok(*v);
         }
         self.depth += 1;
         if self.depth > 256 {
-            return Err(prim_error(&source, "the graph is too deep (a cycle?)"));
+            return Err(prim_error_str(
+                &output.0,
+                "the graph is too deep (a cycle?)",
+            ));
         }
-        let node = self.prim(&source)?;
-        let v = self.node(&node)?;
+        let node = self.node(&output.0)?;
+        let v = self.compile(node)?;
         self.depth -= 1;
-        self.done.insert(source.as_str().to_string(), v);
+        self.done.insert(output.clone(), v);
         Ok(v)
     }
 
     /// A float input of `node` (its default when unauthored).
-    fn float(&mut self, node: &Prim, name: &str, default: f32) -> Result<Reg, SceneError> {
-        match self.input(node, name)? {
-            Err(source) => self.source(&source),
-            Ok(v) => {
+    fn float(&mut self, node: &ShaderNode, name: &str, default: f32) -> Result<Reg, SceneError> {
+        match Self::input(node, name) {
+            Source::Output(o) => self.output(&o),
+            Source::Value(v) => {
                 let x = v
                     .map(|v| number(node, name, v))
                     .transpose()?
                     .unwrap_or(default as f64);
-                self.builder.node(node.path().as_str());
+                self.builder.node(&node.path);
                 self.builder
                     .constant(x as f32)
-                    .map_err(|e| prim_error(node.path(), e))
+                    .map_err(|e| prim_error_str(&node.path, e))
             }
         }
     }
 
-    /// A constant float input (one that decides the program's shape, such as octaves).
-    fn constant(&mut self, node: &Prim, name: &str, default: f64) -> Result<f64, SceneError> {
-        match self.input(node, name)? {
-            Err(source) => Err(prim_error(
-                node.path(),
-                format!("`inputs:{name}` is driven by {source}; Nimbus needs it constant"),
+    /// A constant input (one that decides the program's shape, such as octaves).
+    fn constant(&mut self, node: &ShaderNode, name: &str, default: f64) -> Result<f64, SceneError> {
+        match Self::input(node, name) {
+            Source::Output(o) => Err(prim_error_str(
+                &node.path,
+                format!(
+                    "`inputs:{name}` is driven by {}.outputs:{}; Nimbus needs it constant",
+                    o.0, o.1
+                ),
             )),
-            Ok(v) => Ok(v
+            Source::Value(v) => Ok(v
                 .map(|v| number(node, name, v))
                 .transpose()?
                 .unwrap_or(default)),
         }
     }
 
-    /// A vector3 input; `None` default = the object-space position.
+    /// A vector3 input; a `None` default is the object-space position.
     fn vector3(
         &mut self,
-        node: &Prim,
+        node: &ShaderNode,
         name: &str,
         default: Option<[f32; 3]>,
     ) -> Result<Reg, SceneError> {
-        match self.input(node, name)? {
-            Err(source) => self.source(&source),
-            Ok(Some(v)) => {
+        let err = |e| prim_error_str(&node.path, e);
+        match Self::input(node, name) {
+            Source::Output(o) => self.output(&o),
+            Source::Value(Some(v)) => {
                 let c = colour(node, name, v)?;
-                self.builder.node(node.path().as_str());
-                self.builder
-                    .vector3(c.map(|x| x as f32))
-                    .map_err(|e| prim_error(node.path(), e))
+                self.builder.node(&node.path);
+                self.builder.vector3(c.map(|x| x as f32)).map_err(err)
             }
-            Ok(None) => match default {
-                Some(c) => self
-                    .builder
-                    .vector3(c)
-                    .map_err(|e| prim_error(node.path(), e)),
+            Source::Value(None) => match default {
+                Some(c) => self.builder.vector3(c).map_err(err),
                 None => Ok(self.builder.position()),
             },
         }
@@ -323,7 +395,7 @@ impl GraphReader<'_> {
     /// An operand of an arithmetic node: float or vector3 by the id's type suffix.
     fn operand(
         &mut self,
-        node: &Prim,
+        node: &ShaderNode,
         name: &str,
         vector: bool,
         default: f32,
@@ -335,18 +407,30 @@ impl GraphReader<'_> {
         }
     }
 
-    fn node(&mut self, node: &Prim) -> Result<Reg, SceneError> {
-        let id = node_id(node)?;
-        let err = |e: crate::shader::graph::GraphError| prim_error(node.path(), e);
+    fn text(node: &ShaderNode, name: &str) -> Result<Option<String>, SceneError> {
+        match Self::input(node, name) {
+            Source::Value(Some(ParamValue::Text(t))) => Ok(Some(t.clone())),
+            Source::Value(None) => Ok(None),
+            _ => Err(prim_error_str(
+                &node.path,
+                format!("`inputs:{name}` should be a constant string"),
+            )),
+        }
+    }
+
+    fn compile(&mut self, node: &ShaderNode) -> Result<Reg, SceneError> {
+        let id = node.id.as_str();
+        let at = node.path.clone();
+        let err = |e: crate::shader::graph::GraphError| prim_error_str(&at, e);
         let (op, ty) = id
             .strip_prefix("ND_")
             .and_then(|rest| rest.rsplit_once('_'))
             .unwrap_or(("", ""));
         let vector = ty.starts_with("vector3");
         let fa = ty.ends_with("FA");
-        if !NODES.contains(&id.as_str()) {
-            return Err(prim_error(
-                node.path(),
+        if !NODES.contains(&id) {
+            return Err(prim_error_str(
+                &node.path,
                 format!(
                     "node `{id}` is not one Nimbus compiles into a density graph (it reads: {})",
                     NODES.join(", ")
@@ -355,13 +439,10 @@ impl GraphReader<'_> {
         }
         let v = match op {
             "position" => {
-                let space = match self.input(node, "space")? {
-                    Ok(Some(v)) => string(node, "space", v)?,
-                    _ => "object".to_string(),
-                };
+                let space = Self::text(node, "space")?.unwrap_or_else(|| "object".to_string());
                 if space != "object" && space != "model" {
-                    return Err(prim_error(
-                        node.path(),
+                    return Err(prim_error_str(
+                        &node.path,
                         format!("`inputs:space` = \"{space}\": Nimbus reads positions in object (model) space only"),
                     ));
                 }
@@ -370,14 +451,11 @@ impl GraphReader<'_> {
             "constant" if vector => self.vector3(node, "value", Some([0.0; 3]))?,
             "constant" => self.float(node, "value", 0.0)?,
             "geompropvalue" => {
-                let name = match self.input(node, "geomprop")? {
-                    Ok(Some(v)) => string(node, "geomprop", v)?,
-                    _ => String::new(),
-                };
+                let name = Self::text(node, "geomprop")?.unwrap_or_default();
                 match &self.geomprop {
                     Some(g) if *g != name => {
-                        return Err(prim_error(
-                            node.path(),
+                        return Err(prim_error_str(
+                            &node.path,
                             format!("reads `{name}` where the graph already reads `{g}`; Nimbus reads one field per density graph"),
                         ))
                     }
@@ -389,7 +467,7 @@ impl GraphReader<'_> {
                 let amplitude = self.float(node, "amplitude", 1.0)?;
                 let pivot = self.float(node, "pivot", 0.0)?;
                 let p = self.vector3(node, "position", None)?;
-                self.builder.node(node.path().as_str());
+                self.builder.node(&node.path);
                 self.builder.mx_noise3d(p, amplitude, pivot).map_err(err)?
             }
             "fractal3d" => {
@@ -398,7 +476,7 @@ impl GraphReader<'_> {
                 let lacunarity = self.constant(node, "lacunarity", 2.0)?;
                 let diminish = self.constant(node, "diminish", 0.5)?;
                 let p = self.vector3(node, "position", None)?;
-                self.builder.node(node.path().as_str());
+                self.builder.node(&node.path);
                 self.builder
                     .mx_fractal3d(
                         p,
@@ -425,19 +503,19 @@ impl GraphReader<'_> {
                     "min" => Binary::Min,
                     _ => Binary::Max,
                 };
-                self.builder.node(node.path().as_str());
+                self.builder.node(&node.path);
                 self.builder.binary(op, a, b).map_err(err)?
             }
             "absval" => {
                 let a = self.float(node, "in", 0.0)?;
-                self.builder.node(node.path().as_str());
+                self.builder.node(&node.path);
                 self.builder.unary(Unary::Abs, a).map_err(err)?
             }
             "clamp" | "smoothstep" => {
                 let x = self.float(node, "in", 0.0)?;
                 let lo = self.float(node, "low", 0.0)?;
                 let hi = self.float(node, "high", 1.0)?;
-                self.builder.node(node.path().as_str());
+                self.builder.node(&node.path);
                 match op {
                     "clamp" => self.builder.clamp(x, lo, hi),
                     _ => self.builder.smoothstep(x, lo, hi),
@@ -450,18 +528,18 @@ impl GraphReader<'_> {
                 let ih = self.float(node, "inhigh", 1.0)?;
                 let ol = self.float(node, "outlow", 0.0)?;
                 let oh = self.float(node, "outhigh", 1.0)?;
-                self.builder.node(node.path().as_str());
+                self.builder.node(&node.path);
                 self.builder.remap(x, il, ih, ol, oh).map_err(err)?
             }
             "dot" => {
                 let a = self.vector3(node, "in1", Some([0.0; 3]))?;
                 let b = self.vector3(node, "in2", Some([0.0; 3]))?;
-                self.builder.node(node.path().as_str());
+                self.builder.node(&node.path);
                 self.builder.dot(a, b).map_err(err)?
             }
             "magnitude" => {
                 let a = self.vector3(node, "in", Some([0.0; 3]))?;
-                self.builder.node(node.path().as_str());
+                self.builder.node(&node.path);
                 self.builder.magnitude(a).map_err(err)?
             }
             _ => unreachable!("every id of NODES is compiled above"),
@@ -485,40 +563,24 @@ fn node_id(prim: &Prim) -> Result<String, SceneError> {
     Ok(super::attrs::read_string(prim, "info:id", None)?.unwrap_or_default())
 }
 
-fn number(node: &Prim, name: &str, v: Value) -> Result<f64, SceneError> {
+fn number(node: &ShaderNode, name: &str, v: &ParamValue) -> Result<f64, SceneError> {
     match v {
-        Value::Float(x) => Ok(f64::from(x)),
-        Value::Double(x) => Ok(x),
-        Value::Half(x) => Ok(f64::from(x)),
-        Value::Int(x) => Ok(f64::from(x)),
-        other => Err(prim_error(
-            node.path(),
+        ParamValue::Numbers(x) if x.len() == 1 => Ok(x[0]),
+        other => Err(prim_error_str(
+            &node.path,
             format!("`inputs:{name}` should be a number, found {other:?}"),
         )),
     }
 }
 
-fn colour(node: &Prim, name: &str, v: Value) -> Result<[f64; 3], SceneError> {
+fn colour(node: &ShaderNode, name: &str, v: &ParamValue) -> Result<[f64; 3], SceneError> {
     match v {
-        Value::Vec3f(x) => Ok([x.x, x.y, x.z].map(f64::from)),
-        Value::Vec3d(x) => Ok([x.x, x.y, x.z]),
-        Value::Vec3h(x) => Ok([x.x, x.y, x.z].map(f64::from)),
-        Value::Float(x) => Ok([f64::from(x); 3]),
-        Value::Double(x) => Ok([x; 3]),
-        other => Err(prim_error(
-            node.path(),
+        ParamValue::Numbers(x) if x.len() == 3 => Ok([x[0], x[1], x[2]]),
+        // A grey value written as one number.
+        ParamValue::Numbers(x) if x.len() == 1 => Ok([x[0]; 3]),
+        other => Err(prim_error_str(
+            &node.path,
             format!("`inputs:{name}` should be a colour/vector3, found {other:?}"),
-        )),
-    }
-}
-
-fn string(node: &Prim, name: &str, v: Value) -> Result<String, SceneError> {
-    match v {
-        Value::String(s) => Ok(s),
-        Value::Token(t) => Ok(t.to_string()),
-        other => Err(prim_error(
-            node.path(),
-            format!("`inputs:{name}` should be a string, found {other:?}"),
         )),
     }
 }

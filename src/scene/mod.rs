@@ -19,6 +19,7 @@ mod lights;
 pub mod materialx_graph;
 mod motion;
 pub mod schema;
+pub mod shader_network;
 pub mod shading;
 pub mod stage;
 mod unsupported;

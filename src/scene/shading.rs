@@ -225,7 +225,8 @@ fn read_shader(shader: &Prim, time: Option<TimeCode>) -> Result<MaterialVolume, 
     }
     // MaterialX anisotropic_vdf: coefficients per unit density of the `density` field,
     // or per unit of a graph driving them.
-    if let Some(graph) = super::materialx_graph::vdf_density(shader, time)? {
+    let network = super::materialx_graph::usd_network(shader, time)?;
+    if let Some(graph) = super::materialx_graph::vdf_density(&network, shader.path().as_str())? {
         let anisotropy = input("anisotropy")?
             .map(|v| as_f64(shader, "anisotropy", v))
             .transpose()?

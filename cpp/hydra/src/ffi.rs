@@ -84,6 +84,25 @@ pub mod bridge {
         text: String,
     }
 
+    /// A connection into a shader node's input: `input` takes the output `output` of
+    /// the node at path `node` (Hydra's HdMaterialRelationship, seen downstream).
+    #[derive(Clone, Debug, Default)]
+    struct ConnectionDesc {
+        input: String,
+        node: String,
+        output: String,
+    }
+
+    /// A node of a material's network: path, identifier, parameters and connected
+    /// inputs.
+    #[derive(Clone, Debug, Default)]
+    struct ShaderNodeDesc {
+        path: String,
+        id: String,
+        params: Vec<ParamDesc>,
+        connections: Vec<ConnectionDesc>,
+    }
+
     /// A volume rprim: its fields, its constant primvars and its material's volume
     /// shader (identifier and parameters).
     #[derive(Clone, Debug, Default)]
@@ -96,6 +115,8 @@ pub mod bridge {
         shader_path: String,
         shader_id: String,
         shader_params: Vec<ParamDesc>,
+        /// Every node of the material's networks (a density graph is compiled from it).
+        shader_network: Vec<ShaderNodeDesc>,
         /// The light-linking collections it is in (Hydra's categories).
         categories: Vec<String>,
     }
@@ -121,6 +142,7 @@ pub mod bridge {
         shader_path: String,
         shader_id: String,
         shader_params: Vec<ParamDesc>,
+        shader_network: Vec<ShaderNodeDesc>,
     }
 
     /// The camera rendered through, in Hydra's units (world units, not UsdGeomCamera's

@@ -12,16 +12,19 @@
 // files, ffi -> scene -> ffi::bridge. No code of ffi is used here, only its data.
 use crate::ffi::bridge::{
     CameraDesc, FieldDesc, LightDesc, MeshDesc, ParamDesc, SceneDesc, SettingDesc,
-    SettingDescriptor, VolumeDesc,
+    SettingDescriptor, ShaderNodeDesc, VolumeDesc,
 };
 use anyhow::{anyhow, bail, Result};
 use glam::{DMat4, DVec3};
+use nimbus::scene::materialx_graph;
 use nimbus::scene::schema::tokens;
+use nimbus::scene::shader_network::{Input, ParamValue, ShaderNetwork, ShaderNode};
 use nimbus::scene::{
-    fog, Camera, Collection, CylinderLight, DiskLight, DistantLight, DomeLight, Field, FogParams,
-    HoldoutMesh, LightControls, Projection, RectLight, RenderSettings, Scene, Shaping, SphereLight,
-    Volume, VolumeEmission, VolumeShape,
+    fog, Camera, Collection, CylinderLight, DensityGraph, DiskLight, DistantLight, DomeLight,
+    Field, FogParams, HoldoutMesh, LightControls, Projection, RectLight, RenderSettings, Scene,
+    Shaping, SphereLight, Volume, VolumeEmission, VolumeShape,
 };
+use nimbus::shader::graph::Program;
 use nimbus::volume::asset::AssetLocation;
 use nimbus::volume::emission::EmissionKind;
 use std::collections::BTreeMap;
@@ -342,6 +345,9 @@ struct ShaderCoefficients {
     absorption: [f64; 3],
     scattering: [f64; 3],
     anisotropy: f64,
+    /// A MaterialX density graph driving `absorption` and `scattering` (the USD
+    /// reader's rule: `nimbus::scene::materialx_graph`), compiled from the network.
+    density_graph: Option<Program>,
 }
 
 /// An rprim's bound material as handed over: its path and its volume shader
@@ -353,6 +359,7 @@ struct Material<'a> {
     shader_path: &'a str,
     shader_id: &'a str,
     params: &'a [ParamDesc],
+    network: &'a [ShaderNodeDesc],
 }
 
 impl<'a> Material<'a> {
@@ -362,6 +369,7 @@ impl<'a> Material<'a> {
             shader_path: &v.shader_path,
             shader_id: &v.shader_id,
             params: &v.shader_params,
+            network: &v.shader_network,
         }
     }
 
@@ -371,6 +379,40 @@ impl<'a> Material<'a> {
             shader_path: &m.shader_path,
             shader_id: &m.shader_id,
             params: &m.shader_params,
+            network: &m.shader_network,
+        }
+    }
+
+    /// The material's network as the core reads it: parameters with numbers are
+    /// numbers, others text; connections as they were handed over.
+    fn shader_network(&self) -> ShaderNetwork {
+        let value = |p: &ParamDesc| match p.numbers.is_empty() {
+            false => ParamValue::Numbers(p.numbers.clone()),
+            true => ParamValue::Text(p.text.clone()),
+        };
+        ShaderNetwork {
+            nodes: self
+                .network
+                .iter()
+                .map(|n| ShaderNode {
+                    path: n.path.clone(),
+                    id: n.id.clone(),
+                    inputs: n
+                        .params
+                        .iter()
+                        .map(|p| (p.name.clone(), Input::Value(value(p))))
+                        .chain(n.connections.iter().map(|c| {
+                            (
+                                c.input.clone(),
+                                Input::Connection {
+                                    node: c.node.clone(),
+                                    output: c.output.clone(),
+                                },
+                            )
+                        }))
+                        .collect(),
+                })
+                .collect(),
         }
     }
 
@@ -404,9 +446,29 @@ impl<'a> Material<'a> {
                     absorption: albedo.map(|a| (1.0 - a).max(0.0)),
                     scattering: albedo,
                     anisotropy: g,
+                    density_graph: None,
                 }))
             }
             "ND_anisotropic_vdf" => {
+                let g = scalar(&at("anisotropy"), p, "anisotropy")?.unwrap_or(0.0);
+                // A network handed over without the shader in it (no graph to read)
+                // leaves the constant inputs.
+                let in_network = self.network.iter().any(|n| n.path == self.shader_path);
+                let network = self.shader_network();
+                let graph = match in_network {
+                    true => materialx_graph::vdf_density(&network, self.shader_path)?,
+                    false => None,
+                };
+                if let Some(d) = graph {
+                    return Ok(Some(ShaderCoefficients {
+                        density_field: d.geomprop,
+                        density_scale: 1.0,
+                        absorption: d.absorption,
+                        scattering: d.scattering,
+                        anisotropy: g,
+                        density_graph: Some(d.program),
+                    }));
+                }
                 let absorption = color3(&at("absorption"), p, "absorption")?.unwrap_or([0.0; 3]);
                 let scattering = color3(&at("scattering"), p, "scattering")?.unwrap_or([0.0; 3]);
                 let g = scalar(&at("anisotropy"), p, "anisotropy")?.unwrap_or(0.0);
@@ -416,6 +478,7 @@ impl<'a> Material<'a> {
                     absorption,
                     scattering,
                     anisotropy: g,
+                    density_graph: None,
                 }))
             }
             _ => Ok(None),
@@ -495,6 +558,12 @@ fn fog_medium(
     let Some(m) = material.coefficients()? else {
         return Ok(None);
     };
+    if let (Some(field), Some(_)) = (&m.density_field, &m.density_graph) {
+        bail!(
+            "{path}: {}: its density graph reads the field `{field}` (ND_geompropvalue_float); fog has no fields",
+            material.shader_name()
+        );
+    }
     if let Some(field) = &m.density_field {
         warnings.push(format!(
             "{path}: {} names the density primvar `{field}`; fog has none: its density is 1 (times the shader's density scale)",
@@ -508,7 +577,12 @@ fn fog_medium(
         anisotropy: m.anisotropy,
         emission: VolumeEmission::default(),
         material_shader: Some(material.shader_name()),
-        density_graph: None,
+        // Placed in the mesh's object space by `mesh` (world fog refuses it).
+        density_graph: m.density_graph.map(|program| DensityGraph {
+            program,
+            shading_to_world: DMat4::IDENTITY,
+            source: material.shader_name(),
+        }),
     }))
 }
 
@@ -571,6 +645,12 @@ fn world_fog(v: &VolumeDesc, warnings: &mut Vec<String>) -> Result<Volume> {
             api_medium(path, pv)?
         }
     };
+    if let Some(g) = &medium.density_graph {
+        bail!(
+            "volume {path}: {}: a density graph on world fog is not read yet (it would fill all space); bind it to a closed mesh (a fog box) instead",
+            g.source
+        );
+    }
     if !v.fields.is_empty() {
         warnings.push(format!(
             "volume {path}: world fog has density 1 everywhere: its fields are not read"
@@ -648,7 +728,11 @@ fn volume(v: &VolumeDesc, warnings: &mut Vec<String>) -> Result<Volume> {
             emission: VolumeEmission::default(),
             albedo: None,
             material_shader: Some(material.shader_name()),
-            density_graph: None,
+            density_graph: m.density_graph.map(|program| DensityGraph {
+                program,
+                shading_to_world: volume_to_world,
+                source: material.shader_name(),
+            }),
         });
     }
     let density_name = text(pv, tokens::DENSITY_FIELD).unwrap_or("density");
@@ -715,6 +799,10 @@ fn mesh(m: &MeshDesc, scene: &mut Scene, warnings: &mut Vec<String>) -> Result<(
         warnings.push(format!("mesh {path}: {problem}"));
     }
     let light_group = text(&m.primvars, tokens::LIGHT_GROUP).map(str::to_string);
+    let mut medium = medium;
+    if let Some(g) = &mut medium.density_graph {
+        g.shading_to_world = finite_matrix(path, &m.xform)?;
+    }
     scene
         .volumes
         .push(medium.volume(path, light_group, VolumeShape::Mesh(fog)));
