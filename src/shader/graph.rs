@@ -14,8 +14,9 @@
 //! attribute (register 3: the value of the volume's own density field at the point,
 //! MaterialX's `geompropvalue`). The output is one register.
 
-use super::interval::{perlin_3d_bound, Interval};
+use super::interval::{blender_noise_bound, perlin_3d_bound, Interval};
 use super::materialx_noise::perlin_noise_3d;
+use super::noise::NoiseTexture;
 
 /// A register index.
 pub type Reg = u16;
@@ -100,12 +101,23 @@ pub enum Instr {
         lacunarity: f32,
         diminish: f32,
     },
+    /// Blender's Noise Texture (Fac) at the Vector `p` and `w` (4D), its properties and
+    /// unconnected inputs in the program's table (`noise`: the index there).
+    BlenderNoise {
+        dst: Reg,
+        p: Reg,
+        w: Reg,
+        noise: u16,
+    },
 }
 
 /// A compiled graph.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Program {
     instrs: Vec<Instr>,
+    /// The Noise Texture nodes [`Instr::BlenderNoise`] evaluates (kept aside: they are
+    /// larger than any instruction).
+    noises: Vec<NoiseTexture>,
     registers: usize,
     output: Reg,
     /// Whether any instruction reads the attribute: the grid's value then bounds the
@@ -150,6 +162,7 @@ impl Value {
 /// and returns the value it outputs; `node` names the node in error messages.
 pub struct Builder {
     instrs: Vec<Instr>,
+    noises: Vec<NoiseTexture>,
     nodes: Vec<String>,
     next: usize,
     node: String,
@@ -160,6 +173,7 @@ impl Default for Builder {
     fn default() -> Self {
         Builder {
             instrs: Vec::new(),
+            noises: Vec::new(),
             nodes: Vec::new(),
             next: INPUTS as usize,
             node: String::new(),
@@ -420,6 +434,38 @@ impl Builder {
         Ok(Value::Float(dst))
     }
 
+    /// Blender's Noise Texture node's Fac at the Vector `p` (a vector3) and `w` (a float,
+    /// read in 4D only). Of its types only fBM can be bounded ([`blender_noise_bound`]):
+    /// the others are refused here, naming the node.
+    pub fn blender_noise(
+        &mut self,
+        p: Value,
+        w: Value,
+        node: NoiseTexture,
+    ) -> Result<Value, GraphError> {
+        let p = self.position3(p)?;
+        let w = self.float(w, "W")?;
+        if !blender_noise_bound(&node, [Interval::point(0.0); 4]).is_bounded() {
+            return Err(self.error(format!(
+                "Noise Texture type {:?} has no range analysis (only fBM is bounded), so no majorant can be built",
+                node.kind
+            )));
+        }
+        if !(node.scale.is_finite() && node.lacunarity.is_finite() && node.distortion.is_finite()) {
+            return Err(self.error("Scale, Lacunarity and Distortion must be finite"));
+        }
+        let index = u16::try_from(self.noises.len()).map_err(|_| GraphError::TooLarge)?;
+        self.noises.push(node);
+        let dst = self.alloc(1)?;
+        self.push(Instr::BlenderNoise {
+            dst,
+            p,
+            w,
+            noise: index,
+        });
+        Ok(Value::Float(dst))
+    }
+
     /// The program computing `output` (a float).
     pub fn finish(self, output: Value) -> Result<Program, GraphError> {
         let Value::Float(output) = output else {
@@ -427,6 +473,7 @@ impl Builder {
         };
         Ok(Program {
             instrs: self.instrs,
+            noises: self.noises,
             registers: self.next,
             output,
             reads_attribute: self.reads_attribute,
@@ -525,6 +572,11 @@ impl Program {
                     );
                     r[dst as usize] = f * r[amplitude as usize];
                 }
+                Instr::BlenderNoise { dst, p, w, noise } => {
+                    let p = p as usize;
+                    let node = &self.noises[noise as usize];
+                    r[dst as usize] = node.fac([r[p], r[p + 1], r[p + 2]], r[w as usize]);
+                }
             }
         }
         r[self.output as usize]
@@ -601,6 +653,12 @@ impl Program {
                         freq *= lacunarity;
                     }
                     r[dst as usize] = sum.mul(r[amplitude as usize]);
+                }
+                Instr::BlenderNoise { dst, p, w, noise } => {
+                    let p = p as usize;
+                    let node = &self.noises[noise as usize];
+                    r[dst as usize] =
+                        blender_noise_bound(node, [r[p], r[p + 1], r[p + 2], r[w as usize]]);
                 }
             }
         }
@@ -679,6 +737,75 @@ mod tests {
                 assert!(v >= b.lo && v <= b.hi, "{v} outside {b:?}");
             }
         }
+    }
+
+    /// Blender's Noise Texture in a graph: the node's own Fac, and bounds that hold over
+    /// random boxes for fBM in 3D and 4D, normalized or not, with fractional Detail and
+    /// Distortion; the other types are refused.
+    #[test]
+    fn blender_noise_evaluates_and_is_bounded() {
+        use crate::shader::noise::{Dimensions, NoiseType};
+        let nodes = [
+            NoiseTexture {
+                scale: 2.0,
+                detail: 4.0,
+                ..NoiseTexture::default()
+            },
+            NoiseTexture {
+                scale: 3.5,
+                detail: 2.6,
+                roughness: 0.7,
+                distortion: 0.4,
+                ..NoiseTexture::default()
+            },
+            NoiseTexture {
+                normalize: false,
+                detail: 1.3,
+                lacunarity: 2.5,
+                ..NoiseTexture::default()
+            },
+            NoiseTexture {
+                dimensions: Dimensions::D4,
+                scale: 1.5,
+                detail: 3.0,
+                ..NoiseTexture::default()
+            },
+        ];
+        let mut s = 17u32;
+        let mut next = || {
+            s = crate::shader::noise::hash_uint2(s, 0x9e37_79b9);
+            s as f32 / u32::MAX as f32
+        };
+        for node in nodes {
+            let mut b = Builder::default();
+            let p = b.position();
+            let w = b.constant(0.37).unwrap();
+            let f = b.blender_noise(p, w, node).unwrap();
+            let prog = b.finish(f).unwrap();
+            for _ in 0..300 {
+                let lo: [f32; 3] = std::array::from_fn(|_| (next() - 0.5) * 6.0);
+                let size = 0.3 * next();
+                let hi = lo.map(|c| c + size);
+                let bound = prog.bounds(lo, hi, Interval::point(0.0));
+                for _ in 0..50 {
+                    let q: [f32; 3] = std::array::from_fn(|a| lo[a] + (hi[a] - lo[a]) * next());
+                    let v = prog.eval(q, 0.0);
+                    assert_eq!(v, node.fac(q, 0.37));
+                    assert!(
+                        v >= bound.lo && v <= bound.hi,
+                        "{node:?}: {v} outside {bound:?}"
+                    );
+                }
+            }
+        }
+        let mut b = Builder::default();
+        let p = b.position();
+        let w = b.constant(0.0).unwrap();
+        let ridged = NoiseTexture {
+            kind: NoiseType::RidgedMultifractal,
+            ..NoiseTexture::default()
+        };
+        assert!(b.blender_noise(p, w, ridged).is_err());
     }
 
     #[test]

@@ -9,7 +9,7 @@
 //! is small against the noise's lattice and falls back to the noise's global range
 //! where it is not.
 
-use super::noise::hash_uint3;
+use super::noise::{hash_uint3, Dimensions, NoiseTexture, NoiseType};
 
 /// A closed interval `[lo, hi]`; `lo > hi` never happens, infinite ends mean unbounded.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -182,6 +182,82 @@ pub fn global_bound_3d() -> f32 {
         // Room for the rounding of the sums above and of the noise itself.
         worst * (1.0 + 1e-4)
     })
+}
+
+/// Blender's signed 3D noise is the Perlin noise times this.
+const BLENDER_SCALE_3D: f32 = 0.9820;
+/// And its 4D noise times this; the 4D corner bound is 3 (three ±1 components), not
+/// refined: the 4D noise gets the naive global bound.
+const BLENDER_SCALE_4D: f32 = 0.8344;
+const CORNER_BOUND_4D: f32 = 3.0;
+/// Beyond this Blender folds coordinates into a period of 100000 (and shifts them by half
+/// a cell from 10⁶ on): boxes reaching it get the global bound.
+const BLENDER_FOLD_FROM: f32 = 90000.0;
+
+/// Bounds of a Noise Texture's Fac for a Vector in the box `p[0..3]` and W in `p[3]`
+/// (both before Scale). fBM only: each octave's signed noise bounded as
+/// [`perlin_3d_bound`] does (4D: the global bound), summed with its amplitude; a
+/// fractional Detail blends two normalized sums, so the result lies in their hull;
+/// Distortion moves the position by at most |Distortion| × the global bound per axis.
+/// Other types (their products and offsets are not bounded here) give
+/// [`Interval::EVERYTHING`].
+pub fn blender_noise_bound(node: &NoiseTexture, p: [Interval; 4]) -> Interval {
+    if node.kind != NoiseType::Fbm {
+        return Interval::EVERYTHING;
+    }
+    let detail = node.detail.clamp(0.0, 15.0);
+    let roughness = node.roughness.max(0.0);
+    let s = node.scale;
+    let four = node.dimensions == Dimensions::D4;
+    let g3 = global_bound_3d() * BLENDER_SCALE_3D;
+    let spread = node.distortion.abs()
+        * if four {
+            CORNER_BOUND_4D * BLENDER_SCALE_4D
+        } else {
+            g3
+        };
+    let axes = if four { 4 } else { 3 };
+    let mut lo = [0f32; 4];
+    let mut hi = [0f32; 4];
+    for a in 0..axes {
+        let b = p[a].mul(Interval::point(s));
+        lo[a] = b.lo - spread;
+        hi[a] = b.hi + spread;
+    }
+    let octave = |f: f32| -> Interval {
+        let far = (0..axes).any(|a| (lo[a] * f).abs().max((hi[a] * f).abs()) >= BLENDER_FOLD_FROM);
+        if four {
+            let g = CORNER_BOUND_4D * BLENDER_SCALE_4D;
+            return Interval::new(-g, g);
+        }
+        if far || !f.is_finite() {
+            return Interval::new(-g3, g3);
+        }
+        let l = [0, 1, 2].map(|a| (lo[a] * f).min(hi[a] * f));
+        let h = [0, 1, 2].map(|a| (lo[a] * f).max(hi[a] * f));
+        perlin_3d_bound(l, h).mul(Interval::point(BLENDER_SCALE_3D))
+    };
+    let mut sum = Interval::point(0.0);
+    let (mut fscale, mut amp, mut maxamp) = (1.0f32, 1.0f32, 0.0f32);
+    for _ in 0..=(detail as i32) {
+        sum = sum.add(octave(fscale).mul(Interval::point(amp)));
+        maxamp += amp;
+        amp *= roughness;
+        fscale *= node.lacunarity;
+    }
+    let finish = |sum: Interval, maxamp: f32| match node.normalize {
+        true => sum
+            .mul(Interval::point(0.5))
+            .div(Interval::point(maxamp))
+            .add(Interval::point(0.5)),
+        false => sum,
+    };
+    let whole = finish(sum, maxamp);
+    if detail - detail.floor() == 0.0 {
+        return whole;
+    }
+    let sum2 = sum.add(octave(fscale).mul(Interval::point(amp)));
+    whole.hull(finish(sum2, maxamp + amp))
 }
 
 /// The gradient of a 3D Perlin corner as a vector: what `grad3` dots with the offset
