@@ -559,15 +559,15 @@ impl Medium {
     }
 
     /// An unbiased one-voxel estimate of [`density`](Self::density) at `p` from the
-    /// 63 random bits `u` ([`Grid::sample_stochastic`]); one density lookup.
+    /// 63 random bits `u` ([`Grid::sample_stochastic`]); one density lookup. Through a
+    /// shader graph it is the exact density: the one-voxel read is unbiased only for
+    /// a density linear in the grid's value, and a graph need not be (a clamp, a
+    /// product of the field with itself).
     #[inline(always)]
     pub fn density_estimate<C: Tally>(&self, p: Vec3, u: u64, counters: &mut C) -> f32 {
-        lookup(counters, || {
-            let g = self.density.sample_stochastic(p.to_array(), u);
-            match &self.shader {
-                None => g,
-                Some(s) => s.density(p, g),
-            }
+        lookup(counters, || match &self.shader {
+            None => self.density.sample_stochastic(p.to_array(), u),
+            Some(s) => s.density(p, self.density.sample_trilinear(p.to_array())),
         })
     }
 
