@@ -46,7 +46,10 @@ use std::time::Instant;
 /// (`lightgroup_GROUP`); `"NAME=EXPR"` names a layer of a light path expression
 /// (a RenderVar's `lpe` sourceName, docs/aovs.md), returned as NAME. `output`,
 /// `stats` and `preview` write files as `-o`, `--stats` and `--preview` do; without
-/// them nothing is written (use RenderResult.write).
+/// them nothing is written (use RenderResult.write). `denoise=True` (`--denoise`):
+/// `rgba` and the split layers are denoised with Open Image Denoise, and `aovs` also
+/// holds the noisy beauty ("noisy") and the albedo it was guided by ("albedo"), each
+/// (H, W, 3); None leaves it to the stage's `nimbus:denoise`.
 ///
 /// The GIL is released while the stage loads and renders. On the calling thread:
 /// `progress(done, total)` as rows finish (total = spp * height; None with a time
