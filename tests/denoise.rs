@@ -303,6 +303,7 @@ fn the_stage_attribute_asks_for_it_and_the_flag_overrides() {
     }
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
+    let costs = d.join("costs.exr");
     let text = std::fs::read_to_string(root().join(CLOUD))
         .unwrap()
         .replace(

@@ -35,6 +35,19 @@ pub struct ProductOutput {
     pub deep: bool,
 }
 
+impl ProductOutput {
+    /// Whether denoising applies to this product: a flat EXR with the beauty. A deep
+    /// one is written as it is; every flat product has R, G, B, A today
+    /// ([`product_outputs`]), and the check keeps one without them from failing the
+    /// render only when it is written, at its end.
+    fn denoised(&self) -> bool {
+        !self.deep
+            && [Aov::R, Aov::G, Aov::B]
+                .iter()
+                .all(|a| self.aovs.contains(a))
+    }
+}
+
 /// Everything a render writes.
 #[derive(Clone, Debug)]
 pub struct Outputs {
@@ -163,7 +176,7 @@ impl Outputs {
         if self.tile.is_none() {
             super::denoise::check_available().map_err(anyhow::Error::msg)?;
         }
-        for o in self.products.iter_mut().filter(|o| !o.deep) {
+        for o in self.products.iter_mut().filter(|o| o.denoised()) {
             for a in Aov::ALBEDO {
                 if !o.aovs.contains(&a) {
                     o.aovs.push(a);
@@ -254,7 +267,7 @@ impl Outputs {
                     channels.push((format!("{}.{c}", layer.name), v));
                 }
             }
-            if self.denoise {
+            if self.denoise && o.denoised() {
                 meta.denoise = match self.tile {
                     Some(_) => Denoise::ByMerge,
                     None => {
