@@ -55,12 +55,16 @@ fn denoise_writes_the_denoised_beauty_and_keeps_the_noisy_one() {
     let d = dir.path();
     let flags = ["--res", "64x48", "--spp", "8", "--seed", "3"];
     let noisy = d.join("noisy.exr");
-    render(&noisy, &flags);
+    let noisy_png = d.join("noisy.png").display().to_string();
+    let mut f = flags.to_vec();
+    f.extend(["--preview", &noisy_png]);
+    render(&noisy, &f);
     let den = d.join("den.exr");
     let stats = d.join("den.json");
     let stats_s = stats.display().to_string();
+    let den_png = d.join("den.png").display().to_string();
     let mut f = flags.to_vec();
-    f.extend(["--denoise", "--stats", &stats_s]);
+    f.extend(["--denoise", "--stats", &stats_s, "--preview", &den_png]);
     let o = render(&den, &f);
     assert!(common::cli::stderr(&o).contains(", denoised"));
     let (n, c) = (channels(&noisy), channels(&den));
@@ -78,6 +82,13 @@ fn denoise_writes_the_denoised_beauty_and_keeps_the_noisy_one() {
         assert!(channel(&c, ch).iter().all(|v| v.is_finite()));
     }
     assert_eq!(bits(channel(&n, "A")), bits(channel(&c, "A")));
+    // The preview shows the denoised beauty.
+    let png = |p: &str| std::fs::read(p).unwrap();
+    assert_ne!(
+        png(&noisy_png),
+        png(&den_png),
+        "the preview is the noisy image"
+    );
     for ch in ["albedo.R", "albedo.G", "albedo.B"] {
         let a = channel(&c, ch);
         assert!(a.iter().all(|v| (0.0..=1.0).contains(v)), "{ch}");
