@@ -121,7 +121,8 @@ pub struct RenderArgs {
     pub no_specialise: bool,
     /// AOVs to write besides R, G, B, A (comma-separated): lookups, residual_lookups,
     /// real_collisions, null_collisions, control_collisions, max_throughput, variance,
-    /// samples (per pixel: adaptive sampling stops pixels early);
+    /// samples (per pixel: adaptive sampling stops pixels early), albedo.R, albedo.G,
+    /// albedo.B (the albedo at the first scattering event; --denoise adds them);
     /// and the RGB splits of the beauty: emission (light reaching the camera unscattered),
     /// direct (scattered once), indirect (twice or more), lightgroup:GROUP (the lights,
     /// or emissive volumes, whose nimbus:lightGroup or prim path is GROUP).
