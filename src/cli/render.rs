@@ -157,6 +157,7 @@ pub struct RenderArgs {
     /// (`merge` denoises the frame). As nimbus:denoise; --no-denoise turns it off.
     #[arg(long, conflicts_with = "no_denoise")]
     pub denoise: bool,
+    /// Do not denoise, whatever nimbus:denoise says.
     #[arg(long)]
     pub no_denoise: bool,
     /// Write the EXR (and stats) every this many seconds of rendering, after the pass
