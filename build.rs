@@ -1,6 +1,14 @@
 //! Build script: compiles the C++ bridges (`cpp/`) when their libraries are available:
 //! OpenVDB (reading VDB files) and OpenEXR (deep EXR files, which the pure-Rust `exr`
-//! crate cannot write).
+//! crate cannot write); and finds Open Image Denoise (denoising, `--denoise`).
+//!
+//! `NIMBUS_OIDN` (same modes) looks for `libOpenImageDenoise.so.2` in `OIDN_DIR/lib`
+//! (the `oidn` crate's variable), in the `pyoidn` package of `python3` (PyPI's wheel
+//! ships the library, no headers: none are needed), then in the system library
+//! folders. Found, the cfg `nimbus_oidn` is set and the file's path is compiled in
+//! (`NIMBUS_OIDN_LIBRARY`): src/output/denoise.rs loads it at run time, so nothing
+//! links against it and a binary whose library went away still runs (denoising then
+//! fails in one line).
 //!
 //! `NIMBUS_OPENVDB` and `NIMBUS_OPENEXR` each select the behaviour for their library:
 //! - `auto` (default): use the library when its header and library are found, else build
@@ -31,7 +39,11 @@ use std::path::{Path, PathBuf};
 fn main() {
     println!("cargo::rustc-check-cfg=cfg(nimbus_openvdb)");
     println!("cargo::rustc-check-cfg=cfg(nimbus_openexr)");
+    println!("cargo::rustc-check-cfg=cfg(nimbus_oidn)");
     for var in [
+        "NIMBUS_OIDN",
+        "OIDN_DIR",
+        "OIDN_LIB_DIR",
         "NIMBUS_OPENVDB",
         "OPENVDB_INCLUDE_DIR",
         "OPENVDB_LIB_DIR",
@@ -89,6 +101,71 @@ fn main() {
         },
     };
     println!("cargo:warning={exr}");
+
+    let oidn = match mode("NIMBUS_OIDN") {
+        None => "denoising: not built in (NIMBUS_OIDN=off)".to_string(),
+        Some(required) => match find_oidn() {
+            Ok(lib) => {
+                println!("cargo:rerun-if-changed={}", lib.display());
+                println!("cargo:rustc-env=NIMBUS_OIDN_LIBRARY={}", lib.display());
+                println!("cargo:rustc-cfg=nimbus_oidn");
+                format!(
+                    "denoising: Open Image Denoise, loaded at run time from {}",
+                    lib.display()
+                )
+            }
+            Err(why) => format!(
+                "denoising: {}",
+                missing(
+                    required,
+                    "NIMBUS_OIDN",
+                    "Open Image Denoise 2.x",
+                    &why,
+                    "`bash .ci/setup`, or `python3 -m pip install pyoidn`, or set OIDN_DIR",
+                    "not built in",
+                )
+            ),
+        },
+    };
+    println!("cargo:warning={oidn}");
+}
+
+/// OIDN's library file: `OIDN_DIR/lib` (or `lib64`), the `pyoidn` wheel's
+/// `oidn/lib` of `python3`, then the system library folders.
+fn find_oidn() -> Result<PathBuf, String> {
+    const FILE: &str = "libOpenImageDenoise.so.2";
+    let mut dirs: Vec<PathBuf> = Vec::new();
+    if let Some(d) = env::var_os("OIDN_DIR").filter(|d| !d.is_empty()) {
+        let d = PathBuf::from(d);
+        dirs.extend([d.join("lib"), d.join("lib64"), d]);
+    }
+    dirs.extend(pyoidn_lib_dir());
+    dirs.extend(lib_candidates("OIDN_LIB_DIR"));
+    dirs.iter()
+        .map(|d| d.join(FILE))
+        .find(|f| f.is_file())
+        .ok_or_else(|| format!("no {FILE} in {}", join_paths(&dirs)))
+}
+
+/// Where the `pyoidn` package of `python3` keeps its library, if it is installed:
+/// asked without importing it (`find_spec` reads no module), so this costs one
+/// interpreter start. The folder is watched (pip replacing the wheel reruns this).
+fn pyoidn_lib_dir() -> Option<PathBuf> {
+    let out = std::process::Command::new("python3")
+        .args([
+            "-c",
+            "import importlib.util as u; s = u.find_spec('pyoidn'); \
+             print(s.submodule_search_locations[0] if s else '')",
+        ])
+        .output()
+        .ok()?;
+    let text = String::from_utf8_lossy(&out.stdout).trim().to_string();
+    let dir = PathBuf::from(&text).join("oidn/lib");
+    if !out.status.success() || text.is_empty() || !dir.is_dir() {
+        return None;
+    }
+    println!("cargo:rerun-if-changed={}", dir.display());
+    Some(dir)
 }
 
 /// The system header folders searched (under `NIMBUS_SYSROOT`).

@@ -2,7 +2,8 @@
 # Farm integration test (issue 16), run by .ci/run after `cargo t` built
 # target/release/nimbus:
 #  1. Open Job Description: `nimbus farm openjd` writes a template for 2 frames x 2 tiles
-#     of scenes/cloud; `openjd check` validates it and `openjd run` runs the render and
+#     of scenes/cloud, denoised (issue 48: the tiles are not, the merge step denoises
+#     each frame); `openjd check` validates it and `openjd run` runs the render and
 #     merge steps locally.
 #  2. Slurm: a real slurmctld + slurmd on loopback (as root, auth/none), `nimbus farm
 #     slurm --submit` of 2 frames x 4 tiles; one render task is killed mid-render and
@@ -18,7 +19,7 @@ nimbus="$root/target/release/nimbus"
 work=$(mktemp -d)
 odd="$work/shot dir 'q' \$HOME"
 mkdir -p "$odd"
-flags=(--res 48x36 --spp 24 --seed 7)
+flags=(--res 48x36 --spp 24 --seed 7 --denoise)
 
 # Bitwise equality of every channel of two EXRs (OpenEXR's Python bindings).
 same() {

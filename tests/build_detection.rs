@@ -92,11 +92,16 @@ fn build(probe: &Path, sysroot: &Path, target: &Path) -> Build {
         .env("NIMBUS_SYSROOT", sysroot)
         .env("NIMBUS_OPENVDB", "auto")
         .env("NIMBUS_OPENEXR", "auto")
+        // Open Image Denoise is looked for outside the sysroot too (python3's pyoidn):
+        // found or not, it must not fail the probe (CI requires it for the real build).
+        .env("NIMBUS_OIDN", "auto")
         .env("CARGO_TARGET_DIR", target)
         .env_remove("OPENVDB_INCLUDE_DIR")
         .env_remove("OPENVDB_LIB_DIR")
         .env_remove("OPENEXR_INCLUDE_DIR")
         .env_remove("OPENEXR_LIB_DIR")
+        .env_remove("OIDN_DIR")
+        .env_remove("OIDN_LIB_DIR")
         .env_remove("RUSTFLAGS")
         .output()
         .expect("run cargo");

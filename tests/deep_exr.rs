@@ -133,6 +133,7 @@ fn a_flat_exr_is_not_deep() {
         render_seconds: 0.0,
         time: f64::NAN,
         product: None,
+        denoise: Default::default(),
         farm: None,
     };
     nimbus::output::exr::write_channels(

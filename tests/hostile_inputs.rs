@@ -338,6 +338,7 @@ fn merge_refuses_tiles_claiming_a_huge_frame_or_tile_count() {
             render_seconds: 0.0,
             time: f64::NAN,
             product: None,
+            denoise: Default::default(),
             farm: Some(FarmMetadata {
                 seed: 1,
                 spp_cap: Some(1),
@@ -402,6 +403,7 @@ fn pixels_beyond_the_f32_range_are_written_finite_with_a_warning() {
         render_seconds: 0.0,
         time: f64::NAN,
         product: None,
+        denoise: Default::default(),
         farm: None,
     };
     let values = vec![f32::INFINITY, f32::NEG_INFINITY, f32::NAN, 1.5];

@@ -830,4 +830,71 @@ mod hydra_host {
             "mean alpha {mean_alpha}: no fog: {hydra_log}"
         );
     }
+
+    /// `nimbus:denoise` through Hydra: the host hands the stage's RenderSettings
+    /// attributes to hdNimbus as render settings, hdNimbus denoises the color AOV
+    /// after the last pass, and the image matches `nimbus render`'s denoised one of the
+    /// same stage, while it does not match the noisy render (the check has power). The
+    /// noisy images agree in all but a few pixels (see the file comment), and the
+    /// denoiser spreads those few over their neighbourhood: measured, the denoised
+    /// images differ by 2.8e-5 relative at the median pixel, 2.2e-3 at the 99th
+    /// percentile, 5.2 % at most; the test asks 99 % of the pixels within 1 % and the
+    /// means within 0.5 %.
+    #[test]
+    fn denoise_setting_through_hydra_matches_nimbus_render() {
+        let Some(host) = host() else {
+            return;
+        };
+        let out = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("hydra_host_denoise");
+        let _ = std::fs::remove_dir_all(&out);
+        std::fs::create_dir_all(&out).unwrap();
+        let cloud = common::repo().join("scenes/cloud/cloud.usda");
+        let text = std::fs::read_to_string(&cloud).unwrap().replace(
+            "int nimbus:samples",
+            "bool nimbus:denoise = 1\n        int nimbus:samples",
+        );
+        let base = common::repo().join("scenes/cloud");
+        let stage = out.join("denoised.usda");
+        std::fs::write(
+            &stage,
+            text.replace("@./", &format!("@{}/", base.display())),
+        )
+        .unwrap();
+        let (hydra, log) = hydra_render_logged(&host, &stage, &out.join("hydra.exr"));
+        let (nimbus, e) = nimbus_render_logged(&stage, &out.join("nimbus.exr"));
+        assert!(e.contains(", denoised"), "{e}");
+        let noisy = nimbus_render(&cloud, &out.join("noisy.exr"));
+        for c in 0..3 {
+            let (x, y) = (&hydra[c], &nimbus[c]);
+            let close = x
+                .iter()
+                .zip(y)
+                .filter(|(p, q)| (*p - *q).abs() <= 1e-2 * q.abs().max(1e-6))
+                .count();
+            let mean = |v: &[f32]| v.iter().map(|&p| p as f64).sum::<f64>() / v.len() as f64;
+            let (ma, mb) = (mean(x), mean(y));
+            eprintln!(
+                "denoised cloud {c}: {close} of {} within 1 %, means {ma} {mb}",
+                x.len()
+            );
+            assert!(
+                close * 100 >= x.len() * 99,
+                "channel {c}: {close} within 1 %"
+            );
+            assert!(
+                (ma - mb).abs() <= 0.005 * mb.abs(),
+                "channel {c}: means {ma}, {mb}"
+            );
+        }
+        let close = hydra[0]
+            .iter()
+            .zip(&noisy[0])
+            .filter(|(p, q)| (*p - *q).abs() <= 1e-5 * q.abs().max(1e-6))
+            .count();
+        assert!(
+            close * 2 < hydra[0].len(),
+            "{close} of {} pixels as the noisy render: not denoised; {log}",
+            hydra[0].len()
+        );
+    }
 }

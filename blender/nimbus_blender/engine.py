@@ -135,7 +135,10 @@ class NimbusRenderEngine(bpy.types.RenderEngine):
             octree_depth=settings.octree_depth if settings.octree_depth > 0 else None,
             threads=scene.render.threads,
             aovs=aovs,
+            denoise=settings.use_denoising,
         )
+        if settings.use_denoising:
+            _use_blenders_oidn()
         # Pass registration, then the result (Blender crops it to the border).
         for prop, name, _ in AOV_PASSES:
             if getattr(vl, prop):
@@ -195,7 +198,10 @@ class NimbusRenderEngine(bpy.types.RenderEngine):
         for prop, name, aov in AOV_PASSES:
             if getattr(vl, prop):
                 layer.passes[name].rect.foreach_set(_blender_rows(r.aovs[aov]))
-        if vl.use_pass_albedo:
+        if vl.use_pass_albedo and "albedo" in r.aovs:
+            # Denoised: the albedo the denoiser used (first-scatter, per pixel).
+            layer.passes[ALBEDO_PASS].rect.foreach_set(_blender_rows(r.aovs["albedo"]))
+        elif vl.use_pass_albedo:
             albedo = r.rgba[..., 3:4] * np.asarray(t.albedo, np.float32)
             layer.passes[ALBEDO_PASS].rect.foreach_set(_blender_rows(albedo))
         zero = np.zeros(r.rgba.shape[:2] + (3,), np.float32)
@@ -219,6 +225,32 @@ class NimbusRenderEngine(bpy.types.RenderEngine):
                      f"{100 * r.stats['converged_pixels']:.0f}% converged, ")
         self.update_stats("", f"Nimbus: {r.spp} samples in {r.stats['passes']} passes, "
                               f"{noise}{end - start:.2f} s")
+
+
+def _blenders_oidn():
+    """Blender's own Open Image Denoise library (the one Cycles uses), or None: in
+    Blender's process the module denoises with it, not with the library the wheel was
+    built against (another machine's path, and a second OIDN and TBB in one process)."""
+    import bpy
+    # Blender keeps its libraries in `lib` beside its version folder (`5.0`), in the
+    # application and in the bpy module alike.
+    local = bpy.utils.resource_path("LOCAL")
+    folders = [os.path.join(os.path.dirname(local), "lib"),
+               os.path.join(os.path.dirname(bpy.app.binary_path or ""), "lib")]
+    for folder in folders:
+        path = os.path.join(folder, "libOpenImageDenoise.so.2")
+        if os.path.isfile(path):
+            return path
+    return None
+
+
+def _use_blenders_oidn():
+    """Points nimbus at Blender's OIDN (NIMBUS_OIDN_LIBRARY) unless the user set one;
+    read once, at the first denoise of the process."""
+    if not os.environ.get("NIMBUS_OIDN_LIBRARY"):
+        path = _blenders_oidn()
+        if path:
+            os.environ["NIMBUS_OIDN_LIBRARY"] = path
 
 
 def _name_object(message, scene):

@@ -75,6 +75,11 @@ class NimbusRenderSettings(bpy.types.PropertyGroup):
         name="Min Samples", description="Samples every pixel takes before it may stop "
         "(nimbus:minSamples; 0: the square root of the samples, at least 16)", default=0,
         min=0)
+    # Cycles' name (scene.cycles.use_denoising); off by default here.
+    use_denoising: BoolProperty(
+        name="Denoise", description="Denoise the image with Open Image Denoise, guided by "
+        "the volume's first-scatter albedo (nimbus:denoise); light group passes are denoised "
+        "each on its own", default=False)
     octree_depth: IntProperty(
         name="Octree Depth", description="Majorant octree depth (nimbus:octreeDepth; 0: chosen "
         "from the grid)", default=0, min=0, max=12)

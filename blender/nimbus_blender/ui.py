@@ -31,6 +31,7 @@ class NIMBUS_PT_sampling(_NimbusPanel, bpy.types.Panel):
         sub.active = s.use_adaptive_sampling
         sub.prop(s, "adaptive_min_samples")
         col.prop(s, "time_limit")
+        col.prop(s, "use_denoising")
         row = col.row(align=True)
         row.prop(s, "seed")
         row.prop(s, "use_animated_seed", text="", icon="TIME")

@@ -65,6 +65,38 @@ def test_the_image_is_nimbus_render_of_the_stage_bit_for_bit(addon, smoke_vdb, n
         assert same_bits(combined[..., i], cli[c]), f"channel {c} differs from nimbus render's"
 
 
+def test_denoise_is_nimbus_render_denoise_with_blenders_oidn(addon, smoke_vdb, nimbus_bin,
+                                                             tmp_path):
+    """Cycles' Denoise checkbox (use_denoising on scene.nimbus): F12 denoises with Blender's
+    own Open Image Denoise and equals `nimbus render --denoise` with that library bit for
+    bit; the Denoising Albedo pass is then the albedo the denoiser used."""
+    import os
+    scene, _, _ = smoke_scene(smoke_vdb, res=32, world=False, lights=("sun",))
+    s = scene.nimbus
+    assert not s.use_denoising
+    s.samples = 4
+    s.use_denoising = True
+    s.keep_files = True
+    scene.view_layers[0].nimbus.use_pass_albedo = True
+    passes = render(scene, tmp_path / "addon.exr")
+    k = addon.last_render["kwargs"]
+    assert k["denoise"] is True, k
+    lib = os.environ.get("NIMBUS_OIDN_LIBRARY", "")
+    assert lib.endswith("libOpenImageDenoise.so.2") and os.path.isfile(lib), lib
+    exr = tmp_path / "cli.exr"
+    subprocess.run(
+        [str(nimbus_bin), "render", addon.last_render["stage"], "-o", str(exr), "--camera",
+         k["camera"], "--res", "32x32", "--spp", "4", "--seed", str(k["seed"]),
+         "--max-depth", str(k["max_depth"]), "--denoise", "--threads", "1"],
+        check=True, capture_output=True, env=dict(os.environ, NIMBUS_OIDN_LIBRARY=lib))
+    cli = nimbus.read_exr(str(exr))
+    for i, c in enumerate("RGB"):
+        assert same_bits(passes["Combined"][..., i], cli[c]), f"channel {c} differs"
+        assert not same_bits(cli[c], cli[f"noisy.{c}"]), f"channel {c} was not denoised"
+    for i, c in enumerate("RGB"):
+        assert same_bits(passes["Denoising Albedo"][..., i], cli[f"albedo.{c}"])
+
+
 def test_adaptive_sampling_is_nimbus_render_with_the_same_threshold(addon, smoke_vdb, nimbus_bin,
                                                                    tmp_path):
     """Cycles' Noise Threshold and Min Samples (the same property names on scene.nimbus):

@@ -15,11 +15,14 @@ use crate::settings::{
     check_region_fits, check_tracker, parse_choice, parse_region, requested_aovs_and_layers,
 };
 use crate::stage_input::stage_file;
+use nimbus::output::denoise::{check_available, denoise_film, NOISY};
+use nimbus::output::exr::Denoise;
 use nimbus::output::products::{OutputRequest, Outputs};
 use nimbus::output::stats::{RenderStats, RunFacts};
 use nimbus::render::sampler::SamplerKind;
 use nimbus::render::session::{Overrides, Session, DEFAULT_OCTREE_PRUNE};
 use nimbus::track::select::{SchemeKind, TransmittanceKind};
+use numpy::PyArrayMethods;
 use pyo3::prelude::*;
 use pyo3::types::PyList;
 use std::path::{Path, PathBuf};
@@ -43,7 +46,10 @@ use std::time::Instant;
 /// (`lightgroup_GROUP`); `"NAME=EXPR"` names a layer of a light path expression
 /// (a RenderVar's `lpe` sourceName, docs/aovs.md), returned as NAME. `output`,
 /// `stats` and `preview` write files as `-o`, `--stats` and `--preview` do; without
-/// them nothing is written (use RenderResult.write).
+/// them nothing is written (use RenderResult.write). `denoise=True` (`--denoise`):
+/// `rgba` and the split layers are denoised with Open Image Denoise, and `aovs` also
+/// holds the noisy beauty ("noisy") and the albedo it was guided by ("albedo"), each
+/// (H, W, 3); None leaves it to the stage's `nimbus:denoise`.
 ///
 /// The GIL is released while the stage loads and renders. On the calling thread:
 /// `progress(done, total)` as rows finish (total = spp * height; None with a time
@@ -65,7 +71,7 @@ use std::time::Instant;
     tracker=None, scheme=None, transmittance=None, control=None,
     reduced_termination=false, no_absorption_events=false, majorant_scale=1.0,
     profile=false, no_specialise=false, aovs=None, time_limit=None,
-    noise_threshold=None, min_spp=None, strict=false, no_default_lights=false, grid=None, camera=None, frame=None, output=None, stats=None, preview=None,
+    noise_threshold=None, min_spp=None, denoise=None, strict=false, no_default_lights=false, grid=None, camera=None, frame=None, output=None, stats=None, preview=None,
     progress=None, on_pass=None, cancel=None
 ))]
 #[allow(clippy::too_many_arguments)]
@@ -97,6 +103,7 @@ pub fn render(
     time_limit: Option<f64>,
     noise_threshold: Option<f64>,
     min_spp: Option<u32>,
+    denoise: Option<bool>,
     strict: bool,
     no_default_lights: bool,
     grid: Option<String>,
@@ -136,6 +143,7 @@ pub fn render(
         time_limit,
         noise_threshold,
         min_spp,
+        denoise,
         grid,
         strict,
         no_default_lights,
@@ -155,7 +163,13 @@ pub fn render(
         region: region.is_some(),
         ..OutputRequest::default()
     };
-    let outputs = resolve_outputs(&path, &session, &request, frame)?;
+    let mut outputs = resolve_outputs(&path, &session, &request, frame)?;
+    // As the CLI: a build without Open Image Denoise refuses before rendering.
+    match &mut outputs {
+        Some(o) => guarded(|| o.set_denoise(session.denoise))?,
+        None if session.denoise => guarded(|| check_available().map_err(anyhow::Error::msg))?,
+        None => {}
+    }
     warn_all(py, &session.warnings)?;
 
     // The film's split layers: every layer a product written asks for (the requested
@@ -184,9 +198,44 @@ pub fn render(
     if let Some(outputs) = &outputs {
         py.allow_threads(|| guarded(|| outputs.write(&session, &film, &facts, &p)))?;
     }
-    let rgba = rgba_array(py, interleaved_rgba(&film), shape)?;
+    // Denoised: the beauty and the layers asked for are the denoised ones, the noisy
+    // beauty and the albedo are in `aovs` ("noisy", "albedo"), as the EXR has them.
+    let names: Vec<String> = layers.iter().map(|l| l.name.clone()).collect();
+    let denoised = match session.denoise {
+        true => Some(py.allow_threads(|| {
+            guarded(|| denoise_film(&film, &names).map_err(anyhow::Error::msg))
+        })?),
+        false => None,
+    };
+    let rgba = match &denoised {
+        Some((chans, _)) => interleave(chans, &["R", "G", "B", "A"]),
+        None => interleaved_rgba(&film),
+    };
+    let rgba = rgba_array(py, rgba, shape)?;
     let aovs = aov_dict(py, &film, &aov_list, &layers, &requested_layers, shape)?;
-    let stats_value = guarded(|| Ok(RenderStats::new(&session, &film, &p, &facts)))?;
+    if let Some((chans, _)) = &denoised {
+        let rgb = |l: &str| interleave(chans, &["R", "G", "B"].map(|c| format!("{l}.{c}")));
+        for l in requested_layers.iter().map(|l| l.name.as_str()) {
+            aovs.set_item(
+                l,
+                numpy::PyArray1::from_vec(py, rgb(l)).reshape([shape.0, shape.1, 3])?,
+            )?;
+        }
+        for l in [NOISY, "albedo"] {
+            aovs.set_item(
+                l,
+                numpy::PyArray1::from_vec(py, rgb(l)).reshape([shape.0, shape.1, 3])?,
+            )?;
+        }
+    }
+    let stats_value = guarded(|| {
+        let mut stats = RenderStats::new(&session, &film, &p, &facts);
+        if let Some((_, d)) = &denoised {
+            stats.denoise = Denoise::Done.attribute();
+            stats.denoise_seconds = d.seconds;
+        }
+        Ok(stats)
+    })?;
     let stats_py = json_to_py(py, &stats_value)?;
     let warnings = PyList::new(py, &session.warnings)?;
     let auto_summary = session.auto_summary();
@@ -219,4 +268,23 @@ fn resolve_outputs(
         return Ok(None);
     }
     guarded(|| Outputs::resolve(path, &session.scene.settings, request, frame, false)).map(Some)
+}
+
+/// The named channels `names` of `chans` interleaved (pixels of `names.len()` values).
+fn interleave<S: AsRef<str>>(chans: &[(String, Vec<f32>)], names: &[S]) -> Vec<f32> {
+    let planes: Vec<&[f32]> = names
+        .iter()
+        .map(|n| {
+            chans
+                .iter()
+                .find(|c| c.0 == n.as_ref())
+                .map_or(&[][..], |c| c.1.as_slice())
+        })
+        .collect();
+    let n = planes.iter().map(|p| p.len()).max().unwrap_or(0);
+    let mut v = Vec::with_capacity(n * planes.len());
+    for i in 0..n {
+        v.extend(planes.iter().map(|p| p.get(i).copied().unwrap_or(0.0)));
+    }
+    v
 }

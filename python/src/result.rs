@@ -66,8 +66,9 @@ impl RenderResult {
         py.allow_threads(|| {
             guarded(|| {
                 let s = &self.session;
-                let outputs =
+                let mut outputs =
                     Outputs::resolve(&s.stage_path, &s.scene.settings, &request, s.frame, false)?;
+                outputs.set_denoise(s.denoise)?;
                 outputs.write(s, &self.film, &self.facts, &self.progress)
             })
         })

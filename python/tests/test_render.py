@@ -188,6 +188,33 @@ def test_adaptive_sampling_keywords_render_like_the_cli(stage, nimbus_bin, tmp_p
     assert r.stats["samples_taken"] == int(r.aovs["samples"].sum())
 
 
+def test_denoise_keyword_renders_like_the_cli(stage, nimbus_bin, tmp_path):
+    """render(denoise=True) is `nimbus render --denoise` bit for bit: the denoised beauty
+    in rgba, the noisy one and the albedo in aovs, each split layer denoised; written,
+    the EXR is the CLI's."""
+    cli_exr = tmp_path / "cli.exr"
+    run_cli(nimbus_bin, "render", stage, "-o", cli_exr, "--seed", 3, "--spp", 4,
+            "--aovs", "direct,indirect", "--denoise")
+    r = nimbus.render(stage, seed=3, spp=4, aovs=["direct", "indirect"], denoise=True)
+    cli = exr_channels(cli_exr)
+    for k, name in enumerate("RGBA"):
+        assert same_bits(r.rgba[..., k], cli[name]), f"channel {name} differs from the CLI's"
+    for k, name in enumerate("RGB"):
+        assert same_bits(r.aovs["noisy"][..., k], cli[f"noisy.{name}"])
+        assert same_bits(r.aovs["albedo"][..., k], cli[f"albedo.{name}"])
+        assert same_bits(r.aovs["direct"][..., k], cli[f"direct.{name}"])
+        assert not same_bits(r.rgba[..., k], r.aovs["noisy"][..., k]), "not denoised"
+    assert r.stats["denoise"] == "denoised" and r.stats["denoise_seconds"] > 0
+    noisy = nimbus.render(stage, seed=3, spp=4)
+    assert same_bits(noisy.rgba[..., :3], r.aovs["noisy"])
+    assert noisy.stats["denoise"] is None
+    written = tmp_path / "py.exr"
+    r.write(str(written))
+    again = exr_channels(written)
+    for name in ("R", "G", "B", "noisy.R", "albedo.G"):
+        assert same_bits(again[name], cli[name]), name
+
+
 def test_tracker_keywords(stage):
     names = nimbus.tracker_names()
     assert "spectral" in names or len(names) > 3

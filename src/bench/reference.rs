@@ -203,6 +203,7 @@ pub fn cached_or_render(
             render_seconds: p.seconds,
             time: scene.time,
             product: None,
+            denoise: Default::default(),
             farm: None,
         },
     )?;

@@ -18,11 +18,13 @@ pub struct MergeArgs {
 pub fn run(args: MergeArgs) -> Result<()> {
     let m = merge(&args.output, &args.tiles)?;
     eprintln!(
-        "nimbus: wrote {} ({}x{}, {} tiles)",
+        "nimbus: wrote {} ({}x{}, {} tiles{})",
         args.output.display(),
         m.width,
         m.height,
-        m.tiles
+        m.tiles,
+        m.denoise_seconds
+            .map_or(String::new(), |s| format!(", denoised in {s:.2} s"))
     );
     Ok(())
 }

@@ -121,7 +121,8 @@ pub struct RenderArgs {
     pub no_specialise: bool,
     /// AOVs to write besides R, G, B, A (comma-separated): lookups, residual_lookups,
     /// real_collisions, null_collisions, control_collisions, max_throughput, variance,
-    /// samples (per pixel: adaptive sampling stops pixels early);
+    /// samples (per pixel: adaptive sampling stops pixels early), albedo.R, albedo.G,
+    /// albedo.B (the albedo at the first scattering event; --denoise adds them);
     /// and the RGB splits of the beauty: emission (light reaching the camera unscattered),
     /// direct (scattered once), indirect (twice or more), lightgroup:GROUP (the lights,
     /// or emissive volumes, whose nimbus:lightGroup or prim path is GROUP).
@@ -150,6 +151,15 @@ pub struct RenderArgs {
     /// square root of the sample count, at least 16; overrides nimbus:minSamples).
     #[arg(long, value_name = "N")]
     pub min_spp: Option<u32>,
+    /// Denoise with Open Image Denoise (its RT filter, guided by the albedo AOV, which
+    /// is written too): R, G, B are the denoised beauty, the noisy one is kept as
+    /// noisy.R/G/B, each split layer is denoised on its own; a --tile is not denoised
+    /// (`merge` denoises the frame). As nimbus:denoise; --no-denoise turns it off.
+    #[arg(long, conflicts_with = "no_denoise")]
+    pub denoise: bool,
+    /// Do not denoise, whatever nimbus:denoise says.
+    #[arg(long)]
+    pub no_denoise: bool,
     /// Write the EXR (and stats) every this many seconds of rendering, after the pass
     /// that crosses the interval, so a stopped render keeps its finished passes.
     #[arg(long, value_name = "SECONDS")]
@@ -278,6 +288,11 @@ impl RenderArgs {
             time_limit: self.time_limit,
             noise_threshold: self.noise_threshold,
             min_spp: self.min_spp,
+            denoise: match (self.denoise, self.no_denoise) {
+                (true, _) => Some(true),
+                (_, true) => Some(false),
+                _ => None,
+            },
             grid: self.grid.clone(),
             strict: self.strict,
             no_default_lights: self.no_default_lights,
@@ -352,13 +367,14 @@ fn render_frame(
 ) -> Result<()> {
     let wall = Instant::now();
     let session = Session::open(&args.stage, &args.overrides(frame))?;
-    let outputs = Outputs::resolve(
+    let mut outputs = Outputs::resolve(
         &args.stage,
         &session.scene.settings,
         request,
         frame,
         sequence,
     )?;
+    outputs.set_denoise(session.denoise)?;
     if let Some(line) = session.auto_summary() {
         eprintln!("nimbus: {line}");
     }
@@ -492,8 +508,13 @@ fn render_frame(
         ),
         None => String::new(),
     };
+    let denoised = match (outputs.denoise, args.tile) {
+        (false, _) => "",
+        (true, Some(_)) => ", not denoised: merge denoises the frame",
+        (true, None) => ", denoised",
+    };
     eprintln!(
-        "nimbus: wrote {} ({}x{}, {} spp in {} passes, {:.2} s{lookups}{adaptive}{tile})",
+        "nimbus: wrote {} ({}x{}, {} spp in {} passes, {:.2} s{lookups}{adaptive}{denoised}{tile})",
         outputs.list(),
         film.width,
         film.height,

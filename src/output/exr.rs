@@ -18,9 +18,43 @@ pub struct ExrMetadata {
     pub time: f64,
     /// The RenderProduct prim this image is, if any.
     pub product: Option<String>,
+    /// Whether the image is denoised, or is a tile whose merge denoises
+    /// (`nimbus:denoise`).
+    pub denoise: Denoise,
     /// What a farm's `merge` checks: the seed, the samples per pixel asked for (`None`:
     /// a time limit alone), the session's settings hash, and the tile this image is.
     pub farm: Option<FarmMetadata>,
+}
+
+/// Denoising as an EXR header records it: the text attribute `nimbus:denoise`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Denoise {
+    /// Not asked for (no attribute).
+    #[default]
+    Off,
+    /// A tile of a frame to denoise: `merge` denoises the merged frame (`merge`).
+    ByMerge,
+    /// The beauty and split layers are denoised, the noisy beauty is the layer
+    /// `noisy` (`denoised`).
+    Done,
+}
+
+impl Denoise {
+    pub fn attribute(self) -> Option<&'static str> {
+        match self {
+            Denoise::Off => None,
+            Denoise::ByMerge => Some("merge"),
+            Denoise::Done => Some("denoised"),
+        }
+    }
+
+    pub fn from_attribute(text: Option<&str>) -> Denoise {
+        match text {
+            Some("merge") => Denoise::ByMerge,
+            Some("denoised") => Denoise::Done,
+            _ => Denoise::Off,
+        }
+    }
 }
 
 /// The header attributes of a tile (or of a frame a farm renders).
@@ -81,6 +115,9 @@ pub fn write_channels(
     }
     if let Some(product) = &meta.product {
         put("nimbus:renderProduct", text(product));
+    }
+    if let Some(d) = meta.denoise.attribute() {
+        put("nimbus:denoise", text(d));
     }
     put(
         "nimbus:spp",

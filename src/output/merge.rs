@@ -3,7 +3,8 @@
 //! complete (all the samples asked for) and from the same stage and settings (the
 //! settings hash); otherwise the error lists the tile indices to re-run.
 
-use super::exr::{write_channels, ExrMetadata, FarmMetadata, MAX_READ_BYTES};
+use super::denoise::denoise_channels;
+use super::exr::{write_channels, Denoise, ExrMetadata, FarmMetadata, MAX_READ_BYTES};
 use super::products::write_json;
 use crate::render::film::Region;
 use crate::render::tiles::Tile;
@@ -84,6 +85,8 @@ pub struct Merged {
     pub tiles: u32,
     pub width: u32,
     pub height: u32,
+    /// Seconds the merged frame's denoising took (`None`: not asked for).
+    pub denoise_seconds: Option<f64>,
 }
 
 /// Merges tile EXRs (or, when the output is a `.json`, tile stats) into `out`.
@@ -226,16 +229,26 @@ fn merge_images(out: &Path, inputs: &[PathBuf]) -> Result<Merged> {
         }
         seconds += t.meta.render_seconds;
     }
-    let meta = ExrMetadata {
+    let mut meta = ExrMetadata {
         render_seconds: seconds,
         farm: first.meta.farm.map(|f| FarmMetadata { tile: None, ..f }),
         ..first.meta.clone()
     };
+    // The frame is denoised whole, never tile by tile (the denoiser looks across
+    // tile borders): as `render` denoises it on one machine, from the same channels.
+    let mut denoise_seconds = None;
+    if first.meta.denoise == Denoise::ByMerge {
+        let d = denoise_channels(w as usize, h as usize, &mut channels)
+            .map_err(|e| anyhow!("{} was not written: {e}", out.display()))?;
+        denoise_seconds = Some(d.seconds);
+        meta.denoise = Denoise::Done;
+    }
     write_channels(out, (w, h), Region::full(w, h), channels, &meta)?;
     Ok(Merged {
         tiles: count,
         width: w,
         height: h,
+        denoise_seconds,
     })
 }
 
@@ -312,6 +325,7 @@ fn read_tile(path: &Path) -> Result<TileImage> {
             _ => f64::NAN,
         },
         product: text("nimbus:renderProduct"),
+        denoise: Denoise::from_attribute(text("nimbus:denoise").as_deref()),
         farm: Some(FarmMetadata {
             seed,
             spp_cap: spp_cap.map(|c| c.max(0) as u32),
@@ -458,10 +472,17 @@ fn merge_stats(out: &Path, inputs: &[PathBuf]) -> Result<Merged> {
     merged.insert("height".into(), Value::from(h));
     merged.insert("tile".into(), Value::Null);
     merged.insert("tiles_merged".into(), Value::from(count));
+    // The tiles' `"merge"`: the merged image is denoised, by `merge` of the EXRs
+    // (its time is not in these stats).
+    let by_merge = Denoise::ByMerge.attribute();
+    if by_merge.is_some() && merged.get("denoise").and_then(Value::as_str) == by_merge {
+        merged.insert("denoise".into(), Value::from(Denoise::Done.attribute()));
+    }
     write_json(out, &Value::Object(merged))?;
     Ok(Merged {
         tiles: count,
         width: w,
         height: h,
+        denoise_seconds: None,
     })
 }

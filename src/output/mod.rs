@@ -8,6 +8,7 @@ pub mod compare;
 pub mod deep;
 #[cfg(nimbus_openexr)]
 mod deep_bridge;
+pub mod denoise;
 pub mod describe;
 pub mod exr;
 pub mod merge;

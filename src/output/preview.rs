@@ -11,9 +11,20 @@ use std::path::Path;
 
 /// Writes `film`'s beauty as an 8-bit sRGB RGB PNG, atomically.
 pub fn write_preview(path: &Path, film: &Film) -> Result<(), OutputError> {
-    let rgba = tone_map(film);
+    let rgb = [Aov::R, Aov::G, Aov::B].map(|c| film.channel(c));
+    write_preview_rgb(path, (film.width, film.height), [&rgb[0], &rgb[1], &rgb[2]])
+}
+
+/// Writes the `width` × `height` image `rgb` (three row-major channels, e.g. a
+/// denoised beauty) as an 8-bit sRGB RGB PNG, atomically.
+pub fn write_preview_rgb(
+    path: &Path,
+    (width, height): (u32, u32),
+    rgb: [&[f32]; 3],
+) -> Result<(), OutputError> {
+    let rgba = tone_map_rgb(rgb);
     write_atomically(path, |f| {
-        let mut encoder = png::Encoder::new(f, film.width, film.height);
+        let mut encoder = png::Encoder::new(f, width, height);
         encoder.set_color(png::ColorType::Rgb);
         encoder.set_depth(png::BitDepth::Eight);
         encoder.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
@@ -25,7 +36,12 @@ pub fn write_preview(path: &Path, film: &Film) -> Result<(), OutputError> {
 
 /// The film's pixels as 8-bit sRGB RGB, row-major, y down.
 pub fn tone_map(film: &Film) -> Vec<u8> {
-    let [r, g, b] = [Aov::R, Aov::G, Aov::B].map(|c| film.channel(c));
+    let rgb = [Aov::R, Aov::G, Aov::B].map(|c| film.channel(c));
+    tone_map_rgb([&rgb[0], &rgb[1], &rgb[2]])
+}
+
+/// Three row-major channels as 8-bit sRGB RGB.
+fn tone_map_rgb([r, g, b]: [&[f32]; 3]) -> Vec<u8> {
     let mut out = Vec::with_capacity(r.len() * 3);
     for i in 0..r.len() {
         let c = [r[i] as f64, g[i] as f64, b[i] as f64].map(|v| {

@@ -4,8 +4,9 @@
 //! done so far (after the last pass, and at every checkpoint).
 
 use super::deep::{deep_samples, write_deep_exr, DeepImage, DepthBin};
-use super::exr::{write_channels, ExrMetadata, FarmMetadata};
-use super::preview::write_preview;
+use super::denoise::denoise_channels;
+use super::exr::{write_channels, Denoise, ExrMetadata, FarmMetadata};
+use super::preview::{write_preview, write_preview_rgb};
 use super::stats::{RenderStats, RunFacts};
 use super::{check_writable, write_atomically, OutputError};
 use crate::render::film::{Aov, Film};
@@ -34,6 +35,19 @@ pub struct ProductOutput {
     pub deep: bool,
 }
 
+impl ProductOutput {
+    /// Whether denoising applies to this product: a flat EXR with the beauty. A deep
+    /// one is written as it is; every flat product has R, G, B, A today
+    /// ([`product_outputs`]), and the check keeps one without them from failing the
+    /// render only when it is written, at its end.
+    fn denoised(&self) -> bool {
+        !self.deep
+            && [Aov::R, Aov::G, Aov::B]
+                .iter()
+                .all(|a| self.aovs.contains(a))
+    }
+}
+
 /// Everything a render writes.
 #[derive(Clone, Debug)]
 pub struct Outputs {
@@ -45,6 +59,9 @@ pub struct Outputs {
     pub farm: bool,
     /// Deep samples per pixel at most.
     pub deep_samples: usize,
+    /// Denoise the flat EXRs (a tile's are not: its merge denoises the frame);
+    /// [`Outputs::set_denoise`].
+    pub denoise: bool,
 }
 
 /// Deep samples per pixel at most, unless asked otherwise.
@@ -119,6 +136,7 @@ impl Outputs {
                 0 => DEFAULT_DEEP_SAMPLES,
                 n => n,
             },
+            denoise: false,
         };
         outputs.check_distinct()?;
         for o in &outputs.products {
@@ -144,6 +162,28 @@ impl Outputs {
                     && int("nimbus:spp").is_some()
                     && int("nimbus:spp") == int("nimbus:sppCap")
             })
+    }
+
+    /// Denoises the flat EXRs when `denoise` (the session's): each gets the albedo AOV
+    /// (the denoiser's auxiliary image; a tile carries it for its merge), and a frame
+    /// that is not a tile checks that Open Image Denoise loads, before anything
+    /// renders (a build without it fails here, in one line).
+    pub fn set_denoise(&mut self, denoise: bool) -> Result<()> {
+        self.denoise = denoise;
+        if !denoise {
+            return Ok(());
+        }
+        if self.tile.is_none() {
+            super::denoise::check_available().map_err(anyhow::Error::msg)?;
+        }
+        for o in self.products.iter_mut().filter(|o| o.denoised()) {
+            for a in Aov::ALBEDO {
+                if !o.aovs.contains(&a) {
+                    o.aovs.push(a);
+                }
+            }
+        }
+        Ok(())
     }
 
     /// Every split layer some product writes, each once, in the order the film holds
@@ -192,8 +232,9 @@ impl Outputs {
                     .join(", ")
             );
         }
+        let mut denoise_seconds = 0.0;
         for o in &self.products {
-            let meta = ExrMetadata {
+            let mut meta = ExrMetadata {
                 stage: session.stage_path.display().to_string(),
                 tracker: t.tracker.name().into(),
                 scheme: t.scheme.name().into(),
@@ -202,6 +243,7 @@ impl Outputs {
                 render_seconds: p.seconds,
                 time: session.frame.unwrap_or(f64::NAN),
                 product: o.prim_path.clone(),
+                denoise: Denoise::Off,
                 farm: self.farm.then(|| FarmMetadata {
                     seed: session.seed,
                     spp_cap: (session.spp != u32::MAX).then_some(session.spp),
@@ -225,13 +267,45 @@ impl Outputs {
                     channels.push((format!("{}.{c}", layer.name), v));
                 }
             }
+            if self.denoise && o.denoised() {
+                meta.denoise = match self.tile {
+                    Some(_) => Denoise::ByMerge,
+                    None => {
+                        let (w, h) = (film.width as usize, film.height as usize);
+                        let d = denoise_channels(w, h, &mut channels)
+                            .map_err(|e| anyhow::anyhow!("{}: {e}", o.path.display()))?;
+                        denoise_seconds += d.seconds;
+                        Denoise::Done
+                    }
+                };
+            }
+            let preview_rgb = match (&o.preview, meta.denoise) {
+                (Some(_), Denoise::Done) => Some(["R", "G", "B"].map(|n| {
+                    channels
+                        .iter()
+                        .find(|c| c.0 == n)
+                        .map(|c| c.1.clone())
+                        .unwrap_or_default()
+                })),
+                _ => None,
+            };
             write_channels(&o.path, film.full, film.region, channels, &meta)?;
-            if let Some(preview) = &o.preview {
-                write_preview(preview, film)?;
+            match (&o.preview, preview_rgb) {
+                (Some(preview), Some([r, g, b])) => {
+                    write_preview_rgb(preview, (film.width, film.height), [&r, &g, &b])?
+                }
+                (Some(preview), None) => write_preview(preview, film)?,
+                (None, _) => {}
             }
         }
         if let Some(path) = &self.stats {
-            let stats = RenderStats::new(session, film, p, run);
+            let mut stats = RenderStats::new(session, film, p, run);
+            stats.denoise = match (self.denoise, self.tile) {
+                (false, _) => None,
+                (true, Some(_)) => Denoise::ByMerge.attribute(),
+                (true, None) => Denoise::Done.attribute(),
+            };
+            stats.denoise_seconds = denoise_seconds;
             write_json(path, &stats)?;
         }
         Ok(())

@@ -21,6 +21,11 @@ pub struct RenderStats {
     /// (null without it).
     pub estimated_noise: f64,
     pub converged_pixels: Option<f64>,
+    /// Denoising, as the EXR's `nimbus:denoise` says: `"denoised"` (the EXRs'
+    /// beauty and split layers are), `"merge"` (a tile: the merge of the frame
+    /// denoises it), null (not asked for); and the seconds the denoising took.
+    pub denoise: Option<&'static str>,
+    pub denoise_seconds: f64,
     /// Progressive passes the samples were taken in.
     pub passes: u32,
     pub max_pass_seconds: f64,
@@ -138,6 +143,8 @@ impl RenderStats {
             min_samples: session.adaptive.map(|a| a.min_spp),
             estimated_noise: p.convergence.mean_error,
             converged_pixels: p.convergence.stopped,
+            denoise: None,
+            denoise_seconds: 0.0,
             passes: p.passes,
             max_pass_seconds: p.max_pass_seconds,
             spp_cap: (session.spp != u32::MAX).then_some(session.spp),

@@ -19,6 +19,10 @@ pub struct Pixel {
     /// Σ RGB over the even-numbered samples (0, 2, 4, …): adaptive sampling's error
     /// estimate compares the two halves ([`crate::render::adaptive`]).
     pub half: [f64; 3],
+    /// Σ over samples of the single-scattering albedo at the first real scattering
+    /// event of the camera path (0 for a sample with none): the denoiser's auxiliary
+    /// image ([`Aov::AlbedoR`]).
+    pub albedo: [f64; 3],
 }
 
 /// Rec. 709 luminance.
@@ -88,6 +92,12 @@ pub enum Aov {
     Variance,
     /// Samples taken in this pixel (adaptive sampling stops pixels early).
     Samples,
+    /// Mean over samples of the single-scattering albedo σs/σt (times the albedo
+    /// field) at the camera path's first scattering event, 0 where it had none: the
+    /// auxiliary image of denoising (docs/sampling.md, "Denoising").
+    AlbedoR,
+    AlbedoG,
+    AlbedoB,
 }
 
 impl Aov {
@@ -96,11 +106,19 @@ impl Aov {
     pub fn uses_counters(self) -> bool {
         !matches!(
             self,
-            Aov::R | Aov::G | Aov::B | Aov::A | Aov::Variance | Aov::Samples
+            Aov::R
+                | Aov::G
+                | Aov::B
+                | Aov::A
+                | Aov::Variance
+                | Aov::Samples
+                | Aov::AlbedoR
+                | Aov::AlbedoG
+                | Aov::AlbedoB
         )
     }
 
-    pub const ALL: [Aov; 12] = [
+    pub const ALL: [Aov; 15] = [
         Aov::R,
         Aov::G,
         Aov::B,
@@ -113,7 +131,12 @@ impl Aov {
         Aov::MaxThroughput,
         Aov::Variance,
         Aov::Samples,
+        Aov::AlbedoR,
+        Aov::AlbedoG,
+        Aov::AlbedoB,
     ];
+    /// The albedo AOV's channels (`albedo.R`, `.G`, `.B`).
+    pub const ALBEDO: [Aov; 3] = [Aov::AlbedoR, Aov::AlbedoG, Aov::AlbedoB];
     /// What a render writes unless asked otherwise.
     pub const DEFAULT: [Aov; 5] = [Aov::R, Aov::G, Aov::B, Aov::A, Aov::Lookups];
 
@@ -132,6 +155,9 @@ impl Aov {
             Aov::MaxThroughput => "max_throughput",
             Aov::Variance => "variance",
             Aov::Samples => "samples",
+            Aov::AlbedoR => "albedo.R",
+            Aov::AlbedoG => "albedo.G",
+            Aov::AlbedoB => "albedo.B",
         }
     }
 
@@ -153,6 +179,9 @@ impl Aov {
             Aov::MaxThroughput => p.per_sample(p.counters.max_throughput),
             Aov::Variance => p.luminance_variance() as f32,
             Aov::Samples => p.samples as f32,
+            Aov::AlbedoR => p.per_sample(p.albedo[0]),
+            Aov::AlbedoG => p.per_sample(p.albedo[1]),
+            Aov::AlbedoB => p.per_sample(p.albedo[2]),
         }
     }
 }

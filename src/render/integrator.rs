@@ -206,6 +206,10 @@ pub struct SampleResult {
     /// walk: the collision it scatters at, else the one its emission was taken at);
     /// NaN when there was none (deep output bins the sample by it).
     pub depth: f64,
+    /// The single-scattering albedo (σs/σt, times the albedo field) at the camera
+    /// path's first scattering event; 0 when it had none (escaped, or absorbed: the
+    /// emission of a fire is not scattered light). The denoiser's auxiliary image.
+    pub albedo: [f64; 3],
 }
 
 impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
@@ -305,6 +309,9 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             let finite = px.add_sample(s.rgb, s.alpha);
             if !finite {
                 continue;
+            }
+            for c in 0..3 {
+                px.albedo[c] += s.albedo[c];
             }
             if let Some((_, layers)) = &mut extra.splits {
                 for (acc, v) in layers.iter_mut().zip(&scratch[..nl]) {
@@ -416,6 +423,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         };
         let mut alpha = 0.0;
         let mut depth = f64::NAN;
+        let mut first_albedo = [0f64; 3];
         loop {
             // Scattering points towards the local lights, beside the tracker's: drawn
             // before the walk, with the throughput the segment starts with.
@@ -522,11 +530,17 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                     // with c = 1 (μt is unchanged); weighting the scatter event by
                     // c(x) turns its estimate of ∫T·μs·Ls into ∫T·c·μs·Ls, and the
                     // (1 − c) part is absorbed (see volume::albedo).
-                    if let Some(albedo) = &medium.albedo {
-                        let c = albedo.sample(p, counters);
+                    let c = match &medium.albedo {
+                        Some(albedo) => albedo.sample(p, counters),
+                        None => [1.0; 3],
+                    };
+                    if medium.albedo.is_some() {
                         for (w, c) in path.throughput.iter_mut().zip(c) {
                             *w *= c;
                         }
+                    }
+                    if path.depth == 1 {
+                        first_albedo = single_scattering_albedo(medium, c);
                     }
                     path.g = medium.g as f64;
                     let last = path.depth >= self.max_depth;
@@ -562,6 +576,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             rgb: radiance.total,
             alpha,
             depth,
+            albedo: first_albedo,
         }
     }
 
@@ -1362,6 +1377,16 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
 enum Step {
     Tracked(FreePath, usize),
     Selected(SegmentEstimate, usize),
+}
+
+/// σs/σt of `medium` per channel, times the albedo field's multiplier `c` there (1
+/// without one); 0 in a channel without extinction.
+fn single_scattering_albedo(medium: &Medium, c: [f32; 3]) -> [f64; 3] {
+    let (s, t) = (medium.sigma.s, medium.sigma.t);
+    std::array::from_fn(|i| match t[i] > 0.0 {
+        true => (s[i] / t[i] * c[i]) as f64,
+        false => 0.0,
+    })
 }
 
 /// Per-pixel slices of a film's extra accumulators, for [`Integrator::add_samples`].

@@ -110,6 +110,8 @@ pub struct Overrides {
     /// Samples every pixel takes before adaptive sampling may stop it
     /// (`nimbus:minSamples`; 0: the default minimum).
     pub min_spp: Option<u32>,
+    /// Denoise the frame with Open Image Denoise (`nimbus:denoise`).
+    pub denoise: Option<bool>,
     /// Time lookups, traversal and the rest of the trackers.
     pub profile: bool,
     /// Run the general RGB trackers even where a specialised one applies.
@@ -145,6 +147,8 @@ pub struct Session {
     pub time_limit: Option<f64>,
     /// Adaptive sampling (`None`: every pixel takes `spp` samples).
     pub adaptive: Option<Adaptive>,
+    /// Denoise the finished frame (a farm's tiles are not: their merge is).
+    pub denoise: bool,
     pub tracking: TrackerSettings,
     /// The majorant structure the media carry (after `auto`).
     pub spec: MajorantSpec,
@@ -340,6 +344,7 @@ impl Session {
             sampler: o.sampler.unwrap_or_default(),
             time_limit: o.time_limit,
             adaptive,
+            denoise: o.denoise.unwrap_or(settings.denoise),
             scene,
             media,
             lights,
@@ -602,6 +607,11 @@ impl Session {
             Err(e) => put(&format!("unreadable stage: {e}")),
         }
         put(&format!("{:?}", self.scene));
+        // Tiles of a denoised frame carry what its merge needs (the albedo AOV): they
+        // do not merge with tiles of a frame that is not denoised.
+        if self.denoise {
+            put("denoise");
+        }
         put(&format!(
             "{}x{} spp {} adaptive {:?} depth {} seed {} sampler {:?} time limit {:?} {:?} {:?} prune {} specialise {} nimbus {}",
             self.width,

@@ -605,6 +605,8 @@ pub struct RenderSettings {
     /// the default minimum).
     pub noise_threshold: f64,
     pub min_samples: u32,
+    /// Denoise the frame with Open Image Denoise (`nimbus:denoise`).
+    pub denoise: bool,
     /// Maximum scattering depth (`nimbus:maxDepth`).
     pub max_depth: u32,
     /// Random seed (`nimbus:seed`).
@@ -631,6 +633,7 @@ impl Default for RenderSettings {
             samples: 16,
             noise_threshold: 0.0,
             min_samples: 0,
+            denoise: false,
             max_depth: 64,
             seed: 0,
             products: Vec::new(),

@@ -55,6 +55,7 @@ pub mod tokens {
     pub const SAMPLES: &str = "nimbus:samples";
     pub const MIN_SAMPLES: &str = "nimbus:minSamples";
     pub const NOISE_THRESHOLD: &str = "nimbus:noiseThreshold";
+    pub const DENOISE: &str = "nimbus:denoise";
     pub const MAX_DEPTH: &str = "nimbus:maxDepth";
     pub const SEED: &str = "nimbus:seed";
     pub const TRACKER: &str = "nimbus:tracker";

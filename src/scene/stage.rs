@@ -1013,6 +1013,7 @@ impl Loader<'_> {
                 read_i64(prim, tokens::OCTREE_DEPTH, t)
             })?,
             strict: read_bool(prim, tokens::STRICT, t)?.unwrap_or(defaults.strict),
+            denoise: read_bool(prim, tokens::DENOISE, t)?.unwrap_or(defaults.denoise),
         })
     }
 

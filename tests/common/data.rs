@@ -245,3 +245,16 @@ pub fn bpy_python(imports: &str) -> Option<std::path::PathBuf> {
         )),
     }
 }
+
+/// Whether this build denoises (Open Image Denoise found by build.rs, and it loads):
+/// without it `part` is skipped with one `SKIPPED` line, or fails under
+/// `NIMBUS_REQUIRE_DATA=1` (CI, which also builds with `NIMBUS_OIDN=require`).
+pub fn oidn(part: &str) -> bool {
+    match nimbus::output::denoise::check_available() {
+        Ok(()) => true,
+        Err(e) => {
+            missing::<()>(&format!("{part}: {e}"));
+            false
+        }
+    }
+}

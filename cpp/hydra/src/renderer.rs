@@ -31,6 +31,9 @@ struct Running {
     spp: u32,
     passes: u32,
     seconds: f64,
+    /// The finished film denoised (`nimbus:denoise`): its channels by name, read
+    /// instead of the film's; or why denoising failed (shown in the stats line).
+    denoised: Option<Result<Vec<(String, Vec<f32>)>, String>>,
 }
 
 /// What the render pass renders: nothing (after `clear`, or when the scene had no
@@ -103,6 +106,7 @@ impl Renderer {
             spp: 0,
             passes: 0,
             seconds: 0.0,
+            denoised: None,
         });
         Ok(warnings)
     }
@@ -132,7 +136,14 @@ impl Renderer {
             r.passes += 1;
             r.seconds += dt;
         }
-        info(r)
+        let state = info(r);
+        // Denoised once, when the last pass is done (as `nimbus render` denoises the
+        // finished frame); the passes before show the noisy image.
+        if state.converged && r.session.denoise && r.denoised.is_none() {
+            let d = nimbus::output::denoise::denoise_film(&r.film, &r.layers);
+            r.denoised = Some(d.map(|(channels, _)| channels));
+        }
+        state
     }
 
     /// Copies AOV `name` into `out` (`components` floats per pixel, row 0 at the
@@ -162,7 +173,10 @@ impl Renderer {
             return false;
         }
         for (c, aov) in channels.iter().enumerate().take(components) {
-            let values = r.film.channel(*aov);
+            let values = match denoised(r, aov.channel_name()) {
+                Some(v) => v.to_vec(),
+                None => r.film.channel(*aov),
+            };
             // The film's row 0 is the top; Hydra's buffers start at the bottom row.
             for y in 0..h {
                 let dst = (h - 1 - y) * w;
@@ -188,7 +202,11 @@ impl Renderer {
         if out.len() < w * h * components {
             return false;
         }
-        for (c, values) in r.film.layer(i).iter().enumerate().take(components) {
+        let layer = match ["R", "G", "B"].map(|c| denoised(r, &format!("{name}.{c}"))) {
+            [Some(a), Some(b), Some(c)] => [a.to_vec(), b.to_vec(), c.to_vec()],
+            _ => r.film.layer(i),
+        };
+        for (c, values) in layer.iter().enumerate().take(components) {
             // The film's row 0 is the top; Hydra's buffers start at the bottom row.
             for y in 0..h {
                 let dst = (h - 1 - y) * w;
@@ -209,8 +227,13 @@ impl Renderer {
             Some(r) => {
                 let i = info(r);
                 let s = &r.session;
+                let denoise = match &r.denoised {
+                    None => String::new(),
+                    Some(Ok(_)) => ", denoised".to_string(),
+                    Some(Err(e)) => format!(", not denoised: {e}"),
+                };
                 format!(
-                    "{STAGE_NAME}: {}x{}, {} of {} spp in {} passes, tracker {}, {:.2} lookups/sample, {:.3} s loading, {:.3} s rendering, prims synced on {} threads",
+                    "{STAGE_NAME}: {}x{}, {} of {} spp in {} passes, tracker {}, {:.2} lookups/sample, {:.3} s loading, {:.3} s rendering, prims synced on {} threads{denoise}",
                     s.width,
                     s.height,
                     i.spp,
@@ -225,6 +248,17 @@ impl Renderer {
             }
         }
     }
+}
+
+/// The denoised channel `name`, once the render is finished and denoised.
+fn denoised<'a>(r: &'a Running, name: &str) -> Option<&'a [f32]> {
+    let Some(Ok(channels)) = &r.denoised else {
+        return None;
+    };
+    channels
+        .iter()
+        .find(|c| c.0 == name)
+        .map(|c| c.1.as_slice())
 }
 
 fn info(r: &Running) -> PassState {

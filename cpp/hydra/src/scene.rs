@@ -920,6 +920,7 @@ fn settings(list: &[SettingDesc], (w, h): (u32, u32)) -> Result<RenderSettings> 
             "nimbus:control" if !set.is_text => s.control = Some(set.number),
             "nimbus:control" => bail!("render setting nimbus:control must be a number"),
             "nimbus:strict" => s.strict = !set.is_text && set.number != 0.0,
+            "nimbus:denoise" => s.denoise = !set.is_text && set.number != 0.0,
             _ => {}
         }
     }
@@ -980,6 +981,12 @@ pub fn setting_descriptors() -> Vec<SettingDescriptor> {
             "nimbus:octreeDepth",
             "Majorant octree depth (0: flat grid)",
             0.0,
+            true,
+        ),
+        number(
+            "nimbus:denoise",
+            "Denoise (Open Image Denoise, at the last pass)",
+            d.denoise as u8 as f64,
             true,
         ),
     ]
@@ -1636,6 +1643,9 @@ pub(crate) mod tests {
         .unwrap();
         assert_eq!((s.samples, s.seed, s.resolution), (64, 7, (32, 16)));
         assert_eq!(s.tracker.as_deref(), Some("delta"));
+        assert!(!s.denoise);
+        let s = settings(&[set("nimbus:denoise", 1.0)], (1, 1)).unwrap();
+        assert!(s.denoise, "nimbus:denoise");
         let e = settings(&[set("nimbus:samples", 0.5)], (1, 1))
             .unwrap_err()
             .to_string();
