@@ -55,6 +55,42 @@ fn info_describes_the_stage() {
     }
 }
 
+/// `nimbus info` says whether the stage asks for adaptive sampling and denoising
+/// (`nimbus:noiseThreshold`, `nimbus:minSamples`, `nimbus:denoise`), and says "off"
+/// for the example cloud, which asks for neither.
+#[test]
+fn info_states_adaptive_sampling_and_denoising() {
+    let info = |stage: &std::path::Path| {
+        let o = Command::new(env!("CARGO_BIN_EXE_nimbus"))
+            .args(["info", stage.to_str().unwrap()])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", stderr(&o));
+        String::from_utf8_lossy(&o.stdout).to_string()
+    };
+    let cloud = root().join("scenes/cloud/cloud.usda");
+    let plain = info(&cloud);
+    assert!(
+        plain.contains("  adaptive sampling off; denoise off"),
+        "{plain}"
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(&cloud)
+        .unwrap()
+        .replace("@./cloud.vdb@", &format!("@{}@", root().join("scenes/cloud/cloud.vdb").display()))
+        .replace(
+            "int nimbus:samples = 64",
+            "int nimbus:samples = 64\n        float nimbus:noiseThreshold = 0.05\n        int nimbus:minSamples = 32\n        bool nimbus:denoise = 1",
+        );
+    let stage = dir.path().join("adaptive.usda");
+    std::fs::write(&stage, text).unwrap();
+    let asked = info(&stage);
+    assert!(
+        asked.contains("  adaptive sampling noise threshold 0.05 min samples 32; denoise on"),
+        "{asked}"
+    );
+}
+
 /// NaN, ±Inf and negative voxels in a VDB: `nimbus info` and `--stats` count them, and
 /// the render is finite with no sample dropped.
 #[test]

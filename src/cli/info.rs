@@ -85,6 +85,21 @@ fn print_stage(d: &StageDescription) {
         s.max_depth,
         s.seed
     );
+    let adaptive = match (s.noise_threshold > 0.0, s.min_samples) {
+        (false, _) => "off".to_string(),
+        (true, 0) => format!(
+            "noise threshold {} (default minimum)",
+            s.noise_threshold as f32
+        ),
+        (true, m) => format!(
+            "noise threshold {} min samples {m}",
+            s.noise_threshold as f32
+        ),
+    };
+    println!(
+        "  adaptive sampling {adaptive}; denoise {}",
+        if s.denoise { "on" } else { "off" }
+    );
     for p in &s.products {
         println!(
             "  product {} {:?} vars {:?}",

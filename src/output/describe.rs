@@ -188,6 +188,12 @@ pub struct RenderSettingsDescription {
     pub samples: u32,
     pub max_depth: u32,
     pub seed: u64,
+    /// Adaptive sampling (`nimbus:noiseThreshold`, 0 = off; `nimbus:minSamples`, 0 =
+    /// the default minimum).
+    pub noise_threshold: f64,
+    pub min_samples: u32,
+    /// `nimbus:denoise`.
+    pub denoise: bool,
     pub tracker: Option<String>,
     pub products: Vec<ProductDescription>,
 }
@@ -383,6 +389,9 @@ pub fn describe_stage(path: &Path, o: &DescribeOptions) -> Result<StageDescripti
             samples: s.samples,
             max_depth: s.max_depth,
             seed: s.seed,
+            noise_threshold: s.noise_threshold,
+            min_samples: s.min_samples,
+            denoise: s.denoise,
             tracker: s.tracker.clone(),
             products: s
                 .products
