@@ -20,8 +20,9 @@
 
 use super::attrs::{prim_error, prim_error_str, read_value, SceneError};
 use super::shader_network::{Input, ParamValue, ShaderNetwork, ShaderNode};
+use super::shading::{shader_id, split_property};
 use crate::shader::graph::{Binary, Builder, Program, Unary, Value as Reg};
-use openusd::sdf::{self, Value};
+use openusd::sdf::Value;
 use openusd::usd::{Prim, TimeCode};
 use std::collections::HashMap;
 
@@ -81,7 +82,7 @@ pub fn usd_network(shader: &Prim, time: Option<TimeCode>) -> Result<ShaderNetwor
         }
         let mut node = ShaderNode {
             path,
-            id: node_id(&prim)?,
+            id: shader_id(&prim)?,
             inputs: Vec::new(),
         };
         let names = prim
@@ -133,10 +134,10 @@ fn resolve(prim: &Prim, property: &str, time: Option<TimeCode>) -> Result<Resolv
             }
             return Ok(Resolved::Value(read_value(&prim, &property, time)?));
         };
-        let (path, source_property) = split(source);
+        let (path, source_property) = split_property(source);
         let upstream = stage.prim(path).map_err(|e| prim_error(prim.path(), e))?;
         if let Some(output) = source_property.strip_prefix("outputs:") {
-            if !node_id(&upstream)?.is_empty() {
+            if !shader_id(&upstream)?.is_empty() {
                 return Ok(Resolved::Output(upstream, output.to_string()));
             }
         }
@@ -546,21 +547,6 @@ impl<'a> GraphReader<'a> {
         };
         Ok(v)
     }
-}
-
-fn split(path: &sdf::Path) -> (sdf::Path, String) {
-    let prim = path.prim_path();
-    let property = path
-        .as_str()
-        .strip_prefix(prim.as_str())
-        .and_then(|rest| rest.strip_prefix('.'))
-        .unwrap_or_default()
-        .to_string();
-    (prim, property)
-}
-
-fn node_id(prim: &Prim) -> Result<String, SceneError> {
-    Ok(super::attrs::read_string(prim, "info:id", None)?.unwrap_or_default())
 }
 
 fn number(node: &ShaderNode, name: &str, v: &ParamValue) -> Result<f64, SceneError> {

@@ -107,7 +107,7 @@ fn bound_material(stage: &Stage, volume: &Prim) -> Result<Option<Prim>, SceneErr
 }
 
 /// The shader prim and property a connection source path names.
-fn split_property(path: &sdf::Path) -> (sdf::Path, String) {
+pub(super) fn split_property(path: &sdf::Path) -> (sdf::Path, String) {
     let prim = path.prim_path();
     let full = path.as_str();
     let property = full
@@ -118,7 +118,7 @@ fn split_property(path: &sdf::Path) -> (sdf::Path, String) {
     (prim, property)
 }
 
-fn shader_id(shader: &Prim) -> Result<String, SceneError> {
+pub(super) fn shader_id(shader: &Prim) -> Result<String, SceneError> {
     Ok(read_string(shader, "info:id", None)?.unwrap_or_default())
 }
 

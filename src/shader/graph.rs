@@ -307,33 +307,33 @@ impl Builder {
     }
 
     pub fn clamp(&mut self, x: Value, lo: Value, hi: Value) -> Result<Value, GraphError> {
-        let (x, lo) = self.widths(x, lo)?;
-        let (x, hi) = self.widths(x, hi)?;
-        let out = self.like(x)?;
-        for k in 0..x.width() {
-            let c = |v: Value| v.reg() + if v.width() == 1 { 0 } else { k };
-            self.push(Instr::Clamp {
-                dst: out.reg() + k,
-                x: x.reg() + k,
-                lo: c(lo),
-                hi: c(hi),
-            });
-        }
-        Ok(out)
+        self.between(x, lo, hi, |dst, x, lo, hi| Instr::Clamp { dst, x, lo, hi })
     }
 
     pub fn smoothstep(&mut self, x: Value, lo: Value, hi: Value) -> Result<Value, GraphError> {
+        self.between(x, lo, hi, |dst, x, lo, hi| Instr::Smoothstep {
+            dst,
+            x,
+            lo,
+            hi,
+        })
+    }
+
+    /// An instruction of `x` and two edges per component (`make(dst, x, lo, hi)`), the
+    /// edges broadcast when they are floats.
+    fn between(
+        &mut self,
+        x: Value,
+        lo: Value,
+        hi: Value,
+        make: impl Fn(Reg, Reg, Reg, Reg) -> Instr,
+    ) -> Result<Value, GraphError> {
         let (x, lo) = self.widths(x, lo)?;
         let (x, hi) = self.widths(x, hi)?;
         let out = self.like(x)?;
         for k in 0..x.width() {
             let c = |v: Value| v.reg() + if v.width() == 1 { 0 } else { k };
-            self.push(Instr::Smoothstep {
-                dst: out.reg() + k,
-                x: x.reg() + k,
-                lo: c(lo),
-                hi: c(hi),
-            });
+            self.push(make(out.reg() + k, x.reg() + k, c(lo), c(hi)));
         }
         Ok(out)
     }
