@@ -428,3 +428,19 @@ pub(super) fn read_packaged(resolved: &str) -> std::io::Result<Vec<u8>> {
     asset.read_to_end(&mut bytes)?;
     Ok(bytes)
 }
+
+/// The shader prim and property a connection source path names.
+pub(super) fn split_property(path: &sdf::Path) -> (sdf::Path, String) {
+    let prim = path.prim_path();
+    let full = path.as_str();
+    let property = full
+        .strip_prefix(prim.as_str())
+        .and_then(|rest| rest.strip_prefix('.'))
+        .unwrap_or_default()
+        .to_string();
+    (prim, property)
+}
+
+pub(super) fn shader_id(shader: &Prim) -> Result<String, SceneError> {
+    Ok(read_string(shader, "info:id", None)?.unwrap_or_default())
+}

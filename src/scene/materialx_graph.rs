@@ -18,9 +18,8 @@
 //! `ND_position_vector3` is the position in object space, `ND_geompropvalue_float` the
 //! value of the volume's field of that name (one field per graph).
 
-use super::attrs::{prim_error, prim_error_str, read_value, SceneError};
+use super::attrs::{prim_error, prim_error_str, read_value, shader_id, split_property, SceneError};
 use super::shader_network::{Input, ParamValue, ShaderNetwork, ShaderNode};
-use super::shading::{shader_id, split_property};
 use crate::shader::graph::{Binary, Builder, Program, Unary, Value as Reg};
 use openusd::sdf::Value;
 use openusd::usd::{Prim, TimeCode};

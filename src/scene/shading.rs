@@ -14,7 +14,7 @@
 //! the material's own interface inputs) are read: an input driven by another shader
 //! is refused with an error naming it, not silently replaced by a default.
 
-use super::attrs::{prim_error, read_string, read_value, SceneError};
+use super::attrs::{prim_error, read_value, shader_id, split_property, SceneError};
 use openusd::sdf::{self, Value};
 use openusd::usd::{Prim, Stage, TimeCode};
 
@@ -104,22 +104,6 @@ fn bound_material(stage: &Stage, volume: &Prim) -> Result<Option<Prim>, SceneErr
         prim = p.parent();
     }
     Ok(None)
-}
-
-/// The shader prim and property a connection source path names.
-pub(super) fn split_property(path: &sdf::Path) -> (sdf::Path, String) {
-    let prim = path.prim_path();
-    let full = path.as_str();
-    let property = full
-        .strip_prefix(prim.as_str())
-        .and_then(|rest| rest.strip_prefix('.'))
-        .unwrap_or_default()
-        .to_string();
-    (prim, property)
-}
-
-pub(super) fn shader_id(shader: &Prim) -> Result<String, SceneError> {
-    Ok(read_string(shader, "info:id", None)?.unwrap_or_default())
 }
 
 /// Follows `source` (a material output's connection) to a volume shader Nimbus
