@@ -524,3 +524,147 @@ fn a_graph_reads_the_exact_density_where_ratio_tracking_would_read_one_voxel() {
     // so the equality above is the graph's doing.
     assert!(differs_without_graph > 9_000, "{differs_without_graph}");
 }
+
+/// A fog cube as the Blender add-on writes it (blender/nimbus_blender/translate.py):
+/// NimbusVolumeAPI coefficients, and `nimbus:densityScale` connected to a Blender node
+/// tree: Noise Texture (Scale 2, Detail 4) on Generated coordinates → Color Ramp (the
+/// 3-entry table 0, 0.2, 1 interpolated) → Math Multiply × 2 → Math Multiply × 1.5 (the
+/// add-on's coefficient scale). `noise_id` is the noise node's type.
+fn blender_cube_stage(dir: &Path, noise_id: &str) -> PathBuf {
+    let body = format!(
+        r#"def Scope "Graphs"
+{{
+    def Shader "coords"
+    {{
+        uniform token info:id = "ShaderNodeTexCoord"
+        float3 inputs:generated_scale = (0.5, 0.5, 0.5)
+        float3 inputs:generated_offset = (-0.5, -0.5, -0.5)
+    }}
+    def Shader "noise"
+    {{
+        uniform token info:id = "{noise_id}"
+        uniform token inputs:noise_dimensions = "3D"
+        uniform token inputs:noise_type = "FBM"
+        float inputs:normalize = 1
+        float inputs:Scale = 2
+        float inputs:Detail = 4
+        float inputs:Roughness = 0.5
+        float inputs:Lacunarity = 2
+        float inputs:Distortion = 0
+        float3 inputs:Vector.connect = </Graphs/coords.outputs:Generated>
+    }}
+    def Shader "ramp"
+    {{
+        uniform token info:id = "ShaderNodeValToRGB"
+        float[] inputs:gray_table = [0, 0.2, 1]
+        float[] inputs:alpha_table = [1, 1, 1]
+        float inputs:interpolate = 1
+        float inputs:Fac.connect = </Graphs/noise.outputs:Fac>
+    }}
+    def Shader "times"
+    {{
+        uniform token info:id = "ShaderNodeMath"
+        uniform token inputs:operation = "MULTIPLY"
+        float inputs:Value.connect = </Graphs/ramp.outputs:Color>
+        float inputs:Value_001 = 2
+    }}
+    def Shader "scale"
+    {{
+        uniform token info:id = "ShaderNodeMath"
+        uniform token inputs:operation = "MULTIPLY"
+        float inputs:Value.connect = </Graphs/times.outputs:Value>
+        float inputs:Value_001 = 1.5
+    }}
+}}
+def Cube "Box" (
+    prepend apiSchemas = ["NimbusVolumeAPI"]
+)
+{{
+    double size = 2
+    float nimbus:densityScale.connect = </Graphs/scale.outputs:Value>
+    color3f nimbus:scattering = (0.9, 0.9, 0.9)
+    color3f nimbus:absorption = (0.1, 0.1, 0.1)
+}}
+"#
+    );
+    stage(dir, "blender_cube.usda", &body)
+}
+
+/// The Blender cube's density written out here (not through the compiler): Cycles'
+/// Color Ramp lookup of the table [0, 0.2, 1] (linear between entries) of the Noise
+/// Texture's Fac at the generated coordinates p/2 + 1/2, × 2 × 1.5.
+fn blender_density(p: DVec3) -> f64 {
+    use nimbus::shader::noise::NoiseTexture;
+    let noise = NoiseTexture {
+        scale: 2.0,
+        detail: 4.0,
+        ..NoiseTexture::default()
+    };
+    let g = (p.as_vec3() * 0.5 - glam::Vec3::splat(-0.5)).to_array();
+    let fac = noise.fac(g, 0.0).clamp(0.0, 1.0) as f64;
+    let ramp = if fac < 0.5 {
+        0.4 * fac
+    } else {
+        0.2 + 1.6 * (fac - 0.5)
+    };
+    ramp * 2.0 * 1.5
+}
+
+/// The add-on's density node trees: at 10⁵ points of the cube the medium's density
+/// is the tree's value computed independently (to 1e-5: the generated coordinates are
+/// computed from the index-space point), inside its majorant cell's bounds; a node
+/// type Nimbus does not compile is refused, naming the node.
+#[test]
+fn a_blender_node_tree_on_densityscale_is_the_fog_density() {
+    let dir = tempfile::tempdir().unwrap();
+    let cube = blender_cube_stage(dir.path(), "ShaderNodeTexNoise");
+    let scene = load_stage(&cube, &LoadOptions::default()).unwrap();
+    let media = media_for_scene_with(&scene, MajorantSpec::Octree { depth: 6 }).unwrap();
+    let m = &media[0];
+    assert!(m.shader.is_some());
+    let mut c = Counters::default();
+    let mut state = 3u64;
+    let mut next = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let (mut worst, mut max_seen) = (0f64, 0f64);
+    for _ in 0..100_000 {
+        let p = DVec3::new(next(), next(), next()) * 1.9 - DVec3::splat(0.95);
+        let i = m.index_ray(p, DVec3::X).o;
+        let d = m.density(i, &mut c) as f64;
+        worst = worst.max((d - blender_density(p)).abs());
+        max_seen = max_seen.max(d);
+        let cell = m.majorants.leaf_at(i).expect("inside the cube");
+        let (mn, mx) = m.majorants.leaf_bounds(cell).unwrap();
+        assert!(
+            d as f32 <= mx && d as f32 >= mn,
+            "density {d} outside [{mn}, {mx}] at {p}"
+        );
+    }
+    eprintln!("Blender node tree: worst |density - written out| {worst:e}, largest {max_seen}");
+    assert!(worst < 1e-5, "worst difference {worst}");
+    assert!(max_seen > 1.5, "the graph varies: largest {max_seen}");
+
+    let voronoi = blender_cube_stage(dir.path(), "ShaderNodeTexVoronoi");
+    let out = dir.path().join("never.exr");
+    let o = nimbus(&[
+        "render",
+        voronoi.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--res",
+        "8x8",
+        "--spp",
+        "1",
+    ]);
+    assert_clean_error(&o, "/Graphs/noise");
+    assert!(
+        stderr(&o).contains("ShaderNodeTexVoronoi"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!out.exists());
+}

@@ -145,6 +145,9 @@ class _Medium:
         self.sigma_a = [0.0, 0.0, 0.0]
         self.anisotropy = []  # (weight, g)
         self.density_attribute = None
+        # (overlay prims, output "path.outputs:name") of the node tree driving the
+        # Density input, when there is one (_graph).
+        self.density_graph = None
         self.emission = None  # (color, strength, attribute or None = constant)
         self.blackbody = None  # (intensity, temperature, attribute, tint)
 
@@ -156,18 +159,170 @@ class _Medium:
             self.anisotropy.append((w, g))
 
 
+# ---- density node trees (issue 47) ---------------------------------------------------
+
+# Where the overlay defines the node trees that drive densities: one Scope per object.
+GRAPHS = f"{ROOT}/nimbus_graphs"
+
+# Blender nodes Nimbus compiles (src/scene/blender_graph.rs), with the properties each
+# needs written as inputs.
+_GRAPH_NODES = {
+    "ShaderNodeTexCoord": (),
+    "ShaderNodeTexNoise": ("noise_dimensions", "noise_type", "normalize"),
+    "ShaderNodeTexGradient": ("gradient_type",),
+    "ShaderNodeValToRGB": (),
+    "ShaderNodeMath": ("operation", "use_clamp"),
+    "ShaderNodeMapRange": ("data_type", "interpolation_type", "clamp"),
+    "ShaderNodeVectorMath": ("operation",),
+    "ShaderNodeMapping": ("vector_type",),
+    "ShaderNodeSeparateXYZ": (),
+    "ShaderNodeAttribute": ("attribute_name",),
+    "ShaderNodeValue": (),
+}
+# Texture nodes whose unlinked Vector is Blender's Generated coordinates.
+_TEXTURES = ("ShaderNodeTexNoise", "ShaderNodeTexGradient")
+# Cycles' luminance weights (linear Rec. 709): a ramp's colour read as a float.
+_LUMINANCE = (0.2126729, 0.7151522, 0.0721750)
+# Cycles bakes a Color Ramp into this many intervals (RAMP_TABLE_SIZE).
+_RAMP_TABLE = 256
+
+
+class _Untranslatable(Exception):
+    """A node tree Nimbus cannot compile; the message names the node."""
+
+
+def _ident(sock):
+    return re.sub(r"[^A-Za-z0-9_]", "_", sock.identifier)
+
+
+def _value_line(sock, name):
+    v = sock.default_value
+    if sock.type in ("VALUE", "INT", "BOOLEAN"):
+        return f"float inputs:{name} = {_f(v)}"
+    if sock.type in ("VECTOR", "RGBA"):
+        return f"float3 inputs:{name} = {_c(v)}"
+    raise _Untranslatable(f"input '{sock.name}' of type {sock.type}")
+
+
+def _texture_space(obj):
+    """Cycles' generated coordinates of a mesh, p x scale - offset, from its texture
+    space in float32 as Cycles computes them (mesh_texture_space)."""
+    import numpy as np
+    loc = np.array(obj.data.texspace_location, dtype=np.float32)
+    size = np.array(obj.data.texspace_size, dtype=np.float32)
+    half = np.float32(0.5)
+    scale = np.where(size != 0, half / np.where(size != 0, size, 1), size).astype(np.float32)
+    offset = (loc * scale - half).astype(np.float32)
+    return scale, offset
+
+
+def _graph(socket, obj, owner, folder_prim):
+    """The node tree feeding `socket` (a linked input) as overlay prims under
+    `folder_prim`: (prims, "path.outputs:name"). Raises _Untranslatable."""
+    prims = {}
+
+    def define(node):
+        path = f"{folder_prim}/{prim_name(node.name)}"
+        if path in prims:
+            return path
+        kind = node.bl_idname
+        if kind not in _GRAPH_NODES:
+            raise _Untranslatable(f"node '{node.name}' ({kind}) is not one Nimbus compiles")
+        prims[path] = None  # a cycle stops here
+        lines = [f'uniform token info:id = "{kind}"']
+        for prop in _GRAPH_NODES[kind]:
+            v = getattr(node, prop)
+            if isinstance(v, str):
+                lines.append(f'uniform token inputs:{prop} = "{v}"')
+            else:
+                lines.append(f"float inputs:{prop} = {_f(v)}")
+        if kind == "ShaderNodeValToRGB":
+            ramp = node.color_ramp
+            if ramp.color_mode != "RGB" or ramp.interpolation not in ("LINEAR", "EASE", "CONSTANT"):
+                raise _Untranslatable(
+                    f"node '{node.name}': Color Ramp mode {ramp.color_mode}, interpolation "
+                    f"{ramp.interpolation} (Nimbus reads RGB with Linear, Ease or Constant)")
+            rows = [ramp.evaluate(i / _RAMP_TABLE) for i in range(_RAMP_TABLE + 1)]
+            gray = [sum(w * c for w, c in zip(_LUMINANCE, row[:3])) for row in rows]
+            alpha = [row[3] for row in rows]
+            lines.append("float[] inputs:gray_table = [{}]".format(", ".join(map(_f, gray))))
+            lines.append("float[] inputs:alpha_table = [{}]".format(", ".join(map(_f, alpha))))
+            lines.append(f"float inputs:interpolate = {_f(ramp.interpolation != 'CONSTANT')}")
+        if kind == "ShaderNodeValue":
+            lines.append(f"float inputs:value = {_f(node.outputs[0].default_value)}")
+        if kind == "ShaderNodeAttribute" and obj.type != "VOLUME":
+            raise _Untranslatable(
+                f"node '{node.name}': an Attribute in a fog's density (Cycles reads it as 0)")
+        if kind == "ShaderNodeAttribute" and node.attribute_type != "GEOMETRY":
+            raise _Untranslatable(f"node '{node.name}': attribute type {node.attribute_type}")
+        for sock in node.inputs:
+            if not sock.enabled:
+                continue
+            name = _ident(sock)
+            link = sock.links[0] if sock.is_linked and sock.links else None
+            if link is not None and not link.is_muted:
+                src = link.from_node
+                while src.bl_idname == "NodeReroute":
+                    if not src.inputs[0].is_linked:
+                        raise _Untranslatable(f"reroute '{src.name}' is not linked")
+                    link = src.inputs[0].links[0]
+                    src = link.from_node
+                up = define(src)
+                kind_line = "float3" if link.from_socket.type in ("VECTOR", "RGBA") else "float"
+                lines.append(f"{kind_line} inputs:{name}.connect = <{up}.outputs:{_ident(link.from_socket)}>")
+            elif kind in _TEXTURES and name == "Vector":
+                lines.append(f"float3 inputs:Vector.connect = <{generated()}.outputs:Generated>")
+            elif sock.type in ("VALUE", "INT", "BOOLEAN", "VECTOR", "RGBA"):
+                lines.append(_value_line(sock, name))
+        if kind == "ShaderNodeTexCoord" and obj.type == "MESH":
+            lines += generated_lines()
+        prims[path] = ([], lines, "def Shader")
+        return path
+
+    def generated_lines():
+        if obj.type != "MESH":
+            raise _Untranslatable(
+                "Generated texture coordinates of a Volume object (link a Texture "
+                "Coordinate's Object output)")
+        scale, offset = _texture_space(obj)
+        return [f"float3 inputs:generated_scale = {_c(scale)}",
+                f"float3 inputs:generated_offset = {_c(offset)}"]
+
+    def generated():
+        path = f"{folder_prim}/nimbus_generated"
+        if path not in prims:
+            prims[path] = ([], ['uniform token info:id = "ShaderNodeTexCoord"']
+                           + generated_lines(), "def Shader")
+        return path
+
+    link = socket.links[0]
+    src, out = link.from_node, link.from_socket
+    while src.bl_idname == "NodeReroute":
+        link = src.inputs[0].links[0]
+        src, out = link.from_node, link.from_socket
+    if out.type not in ("VALUE", "RGBA", "VECTOR"):
+        raise _Untranslatable(f"output '{out.name}' of node '{src.name}'")
+    path = define(src)
+    return prims, f"{path}.outputs:{_ident(out)}"
+
+
 # What a fog (no grids) is called in warnings, by its kind.
 _FOG_NAMES = {"mesh": "a fog mesh", "world": "the world volume"}
 
 
-def _density(node, sock_name, owner, warnings, default_attribute, fog=None):
+def _density(node, sock_name, owner, warnings, default_attribute, fog=None, medium=None,
+             graph=None):
     """A closure's Density input: a number (the grid `default_attribute` times it for
     Principled Volume; Cycles fills the whole volume for the others), or an Attribute
     node (optionally times a number by a Math node). Returns (number, attribute).
 
     `fog` ("mesh" or "world"; None for a Volume object): there are no grids, and
     Cycles reads an attribute the mesh or world does not have as 0 (svm_node_attr_init):
-    an Attribute node is a warning and the input is 0 (the closure is left out)."""
+    an Attribute node is a warning and the input is 0 (the closure is left out).
+
+    Any other node tree is compiled by Nimbus when `graph` = (object, overlay folder)
+    is given and `medium` has no density graph yet: it becomes `medium.density_graph`
+    and the number is 1."""
     sock = node.inputs[sock_name]
     src = _linked(sock)
     if src is None:
@@ -189,13 +344,26 @@ def _density(node, sock_name, owner, warnings, default_attribute, fog=None):
                 "an attribute it lacks as 0); left out")
             return 0.0, None
         return scale, src.attribute_name
+    graph_ok = graph is not None and medium is not None and fog != "world"
+    if graph_ok and medium.density_graph is None:
+        try:
+            medium.density_graph = _graph(sock, graph[0], owner, graph[1])
+            return 1.0, default_attribute
+        except _Untranslatable as e:
+            reason = f"{e}"
+    elif graph_ok:
+        reason = "a second density graph (Nimbus reads one per medium)"
+    elif fog == "world":
+        reason = "a density graph on the world volume is not read"
+    else:
+        reason = "not translated"
     warnings.append(
         f"{owner}: node '{src.name}' ({src.bl_idname}) drives "
-        f"'{node.name}'.{sock_name}: not translated; Nimbus uses {sock.default_value!r}")
+        f"'{node.name}'.{sock_name}: {reason}; Nimbus uses {sock.default_value!r}")
     return float(sock.default_value), default_attribute
 
 
-def _closure(node, owner, medium, warnings, weight=1.0, fog=None):
+def _closure(node, owner, medium, warnings, weight=1.0, fog=None, graph=None):
     """Adds the volume closure `node` (Cycles' meaning) to `medium`. `owner` names the
     node tree in warnings ("material 'M'", "world 'W'"); `fog` as in _density."""
     kind = node.bl_idname
@@ -203,14 +371,14 @@ def _closure(node, owner, medium, warnings, weight=1.0, fog=None):
         for sock in node.inputs:
             n = _linked(sock)
             if n is not None:
-                _closure(n, owner, medium, warnings, weight, fog)
+                _closure(n, owner, medium, warnings, weight, fog, graph)
         return
     if kind == "ShaderNodeVolumePrincipled":
         # svm_node_principled_volume: sigma_s = C D d(x),
         # sigma_a = max(1 - C, 0) max(1 - sqrt(A), 0) D d(x); without the attribute
         # (a mesh, the world) d = 1.
         attr = None if fog else (node.inputs["Density Attribute"].default_value or "density")
-        d, attr = _density(node, "Density", owner, warnings, attr, fog)
+        d, attr = _density(node, "Density", owner, warnings, attr, fog, medium, graph)
         c = [max(x, 0.0) for x in _socket_value(node.inputs["Color"])]
         a = [max(x, 0.0) for x in _socket_value(node.inputs["Absorption Color"])]
         g = float(node.inputs["Anisotropy"].default_value)
@@ -259,14 +427,16 @@ def _closure(node, owner, medium, warnings, weight=1.0, fog=None):
             warnings.append(
                 f"{owner}: node '{node.name}' uses the {phase} phase "
                 "function; Nimbus renders Henyey-Greenstein with its Anisotropy")
-        d, attr = _density(node, "Density", owner, warnings, None, fog)
+        d, attr = _density(node, "Density", owner, warnings, None, fog, medium,
+                           graph if fog else None)
         c = [max(x, 0.0) for x in _socket_value(node.inputs["Color"])]
         medium.add([weight * d * x for x in c], [0.0, 0.0, 0.0],
                    float(node.inputs["Anisotropy"].default_value))
         medium.density_attribute = medium.density_attribute or attr
         return
     if kind == "ShaderNodeVolumeAbsorption":
-        d, attr = _density(node, "Density", owner, warnings, None, fog)
+        d, attr = _density(node, "Density", owner, warnings, None, fog, medium,
+                           graph if fog else None)
         c = [max(x, 0.0) for x in _socket_value(node.inputs["Color"])]
         medium.add([0.0, 0.0, 0.0], [weight * d * max(1.0 - x, 0.0) for x in c])
         medium.density_attribute = medium.density_attribute or attr
@@ -295,8 +465,22 @@ def _medium_attrs(medium, who, warnings, density_field=None):
     attrs = {}
     if density_field is not None:
         attrs["token nimbus:densityField"] = f'"{density_field}"'
+    if medium.density_graph is not None:
+        # The density is the graph's value (times the grid): the graph times `scale`
+        # drives nimbus:densityScale (src/scene/blender_graph.rs).
+        graph_prims, output = medium.density_graph
+        folder = output.rsplit("/", 1)[0]
+        node = f"{folder}/nimbus_density_scale"
+        graph_prims[node] = ([], [
+            'uniform token info:id = "ShaderNodeMath"',
+            'uniform token inputs:operation = "MULTIPLY"',
+            f"float inputs:Value.connect = <{output}>",
+            f"float inputs:Value_001 = {_f(scale)}",
+        ], "def Shader")
+        attrs["float nimbus:densityScale.connect"] = f"<{node}.outputs:Value>"
+    else:
+        attrs["float nimbus:densityScale"] = _f(scale)
     attrs.update({
-        "float nimbus:densityScale": _f(scale),
         "color3f nimbus:scattering": _c([x / scale for x in medium.sigma_s]),
         "color3f nimbus:absorption": _c([x / scale for x in medium.sigma_a]),
         "float nimbus:anisotropy": _f(g),
@@ -338,8 +522,24 @@ def _medium_attrs(medium, who, warnings, density_field=None):
     return attrs, albedo
 
 
-def volume_medium(obj, warnings):
-    """The NimbusVolumeAPI attributes of a Volume object's material, and its albedo."""
+def _graph_target(obj, prims):
+    """Where `obj`'s density node tree goes in the overlay (None: not translated)."""
+    return None if prims is None else (obj, f"{GRAPHS}/{prim_name(obj.name)}")
+
+
+def _add_graph(medium, prims):
+    """Adds the overlay prims of `medium`'s density node tree to `prims`."""
+    if medium.density_graph is None:
+        return
+    graph_prims, output = medium.density_graph
+    prims[GRAPHS] = ([], [], "def Scope")
+    prims[output.rsplit("/", 1)[0]] = ([], [], "def Scope")
+    prims.update(graph_prims)
+
+
+def volume_medium(obj, warnings, prims=None):
+    """The NimbusVolumeAPI attributes of a Volume object's material, and its albedo.
+    With `prims` (the overlay's), a node tree driving the Density is translated there."""
     material = obj.active_material
     if material is None:
         # An evaluated instance (Geometry Nodes' Set Material) has no active material
@@ -356,17 +556,20 @@ def volume_medium(obj, warnings):
             raise TranslationError(
                 f"object '{obj.name}': material '{material.name}' has no volume shader "
                 "connected to its Material Output's Volume input")
-        _closure(src, f"material '{material.name}'", medium, warnings)
+        _closure(src, f"material '{material.name}'", medium, warnings,
+                 graph=_graph_target(obj, prims))
     if medium.density_attribute is None:
         warnings.append(
             f"object '{obj.name}': the density of material "
             f"'{material.name if material else ''}' is a constant (Cycles fills the volume's "
             "active voxels with it); Nimbus uses the grid 'density' times it")
         medium.density_attribute = "density"
-    return _medium_attrs(medium, f"object '{obj.name}'", warnings, medium.density_attribute)
+    result = _medium_attrs(medium, f"object '{obj.name}'", warnings, medium.density_attribute)
+    _add_graph(medium, prims)
+    return result
 
 
-def fog_mesh_medium(obj, warnings):
+def fog_mesh_medium(obj, warnings, prims=None):
     """A mesh whose material has a Volume output link is a fog mesh (docs/blender.md:
     Cycles fills its inside with Density x 1): (material, NimbusVolumeAPI attributes
     without fields, albedo), or None when no material of the evaluated mesh has one."""
@@ -388,8 +591,10 @@ def fog_mesh_medium(obj, warnings):
             "surface is not rendered (Cycles draws the surface, and shows the fog inside "
             "only through a transmitting or transparent surface)")
     medium = _Medium()
-    _closure(src, f"material '{material.name}'", medium, warnings, fog="mesh")
+    _closure(src, f"material '{material.name}'", medium, warnings, fog="mesh",
+             graph=_graph_target(obj, prims))
     attrs, albedo = _medium_attrs(medium, f"object '{obj.name}'", warnings)
+    _add_graph(medium, prims)
     return material, attrs, albedo
 
 
@@ -778,7 +983,7 @@ def translate(depsgraph, folder):
             instances += 1
             xf = f"{INSTANCES}/{prim_name(obj.name)}_{k}"
             vdb = volume_file(obj, folder, f"instance_{prim_name(obj.name)}_{k}")
-            attrs, a = volume_medium(obj, warnings)
+            attrs, a = volume_medium(obj, warnings, prims)
             vol = xf + "/volume"
             lines = [f"{key} = {v}" for key, v in attrs.items()]
             prims[INSTANCES] = ([], [], "def Xform")
@@ -816,7 +1021,7 @@ def translate(depsgraph, folder):
                 vdb = volume_file(obj, folder, prim_name(obj.name))
                 for g in obj.data.grids:
                     prims[f"{path}/{prim_name(g.name)}"] = ([], [f"asset filePath = @{vdb}@"])
-            attrs, a = volume_medium(obj, warnings)
+            attrs, a = volume_medium(obj, warnings, prims)
             prims[path] = (["NimbusVolumeAPI"], _medium_lines(obj, attrs, groups, used))
             albedo = albedo or a
         elif obj.type == "LIGHT":
@@ -843,7 +1048,7 @@ def translate(depsgraph, folder):
             else:
                 fog = None
                 if exists(path) and len(obj.data.polygons) > 0:
-                    fog = fog_mesh_medium(obj, warnings)
+                    fog = fog_mesh_medium(obj, warnings, prims)
                 if fog is not None:
                     # A fog mesh (docs/blender.md): the reader makes it no holdout.
                     _, attrs, a = fog

@@ -163,6 +163,9 @@ fn param_value(prim: &Prim, name: &str, v: Value) -> Result<ParamValue, SceneErr
         Value::String(s) => ParamValue::Text(s),
         Value::Token(t) => ParamValue::Text(t.to_string()),
         Value::AssetPath(a) => ParamValue::Text(a.as_str().to_string()),
+        // Tables (the Blender add-on's ramps).
+        Value::FloatVec(v) => ParamValue::Numbers(v.into_iter().map(f64::from).collect()),
+        Value::DoubleVec(v) => ParamValue::Numbers(v),
         other => {
             return Err(prim_error(
                 prim.path(),
@@ -548,7 +551,7 @@ impl<'a> GraphReader<'a> {
     }
 }
 
-fn number(node: &ShaderNode, name: &str, v: &ParamValue) -> Result<f64, SceneError> {
+pub(super) fn number(node: &ShaderNode, name: &str, v: &ParamValue) -> Result<f64, SceneError> {
     match v {
         ParamValue::Numbers(x) if x.len() == 1 => Ok(x[0]),
         other => Err(prim_error_str(
@@ -558,7 +561,11 @@ fn number(node: &ShaderNode, name: &str, v: &ParamValue) -> Result<f64, SceneErr
     }
 }
 
-fn colour(node: &ShaderNode, name: &str, v: &ParamValue) -> Result<[f64; 3], SceneError> {
+pub(super) fn colour(
+    node: &ShaderNode,
+    name: &str,
+    v: &ParamValue,
+) -> Result<[f64; 3], SceneError> {
     match v {
         ParamValue::Numbers(x) if x.len() == 3 => Ok([x[0], x[1], x[2]]),
         // A grey value written as one number.

@@ -8,6 +8,7 @@
 //! (or the bytes of a .usdz member).
 
 use super::attrs::*;
+use super::blender_graph;
 use super::camera;
 use super::defaults;
 use super::description::*;
@@ -439,14 +440,31 @@ impl Loader<'_> {
                     ));
                 }
             }
+            let graph = self.density_scale_graph(prim, false)?;
+            if let Some((g, source)) = &graph {
+                if let Some(a) = &g.attribute {
+                    return Err(prim_error(
+                        prim.path(),
+                        format!("{source}: its density graph reads the field `{a}` (an Attribute node); fog has no fields"),
+                    ));
+                }
+            }
+            let density_scale = match graph {
+                Some(_) => 1.0,
+                None => read_f64(prim, tokens::DENSITY_SCALE, t)?.unwrap_or(1.0),
+            };
             return Ok(Some(FogParams {
-                density_scale: read_f64(prim, tokens::DENSITY_SCALE, t)?.unwrap_or(1.0),
+                density_scale,
                 absorption: read_vec3(prim, tokens::ABSORPTION, t)?.unwrap_or([0.1; 3]),
                 scattering: read_vec3(prim, tokens::SCATTERING, t)?.unwrap_or([0.9; 3]),
                 anisotropy: read_f64(prim, tokens::ANISOTROPY, t)?.unwrap_or(0.0),
                 emission: self.emission(prim, &[])?,
                 material_shader: None,
-                density_graph: None,
+                density_graph: graph.map(|(g, source)| DensityGraph {
+                    program: g.program,
+                    shading_to_world: DMat4::IDENTITY,
+                    source,
+                }),
             }));
         }
         let Some(m) = shading::bound_volume_material(self.stage, prim, t)? else {
@@ -695,12 +713,26 @@ impl Loader<'_> {
         let density = self.density_field(prim, &density_name, &fields)?;
         let emission = self.emission(prim, &fields)?;
         let albedo = self.named_field(prim, tokens::ALBEDO_FIELD, &fields)?;
+        let volume_to_world = self.world_transform(prim)?;
+        let graph = self.density_scale_graph(prim, true)?;
+        if let Some((g, source)) = &graph {
+            if let Some(a) = g.attribute.as_ref().filter(|a| **a != density_name) {
+                return Err(prim_error(
+                    prim.path(),
+                    format!("{source}: its density graph reads the field `{a}` (an Attribute node) where the density field is `{density_name}`; Nimbus reads one field per density graph"),
+                ));
+            }
+        }
+        let density_scale = match graph {
+            Some(_) => 1.0,
+            None => read_f64(prim, tokens::DENSITY_SCALE, t)?.unwrap_or(1.0),
+        };
         Ok(Volume {
             prim_path: prim.path().to_string(),
             light_group: self.light_group(prim)?,
-            volume_to_world: self.world_transform(prim)?,
+            volume_to_world,
             shape: VolumeShape::Field(density),
-            density_scale: read_f64(prim, tokens::DENSITY_SCALE, t)?.unwrap_or(1.0),
+            density_scale,
             absorption: read_vec3(prim, tokens::ABSORPTION, t)?.unwrap_or([0.1; 3]),
             scattering: read_vec3(prim, tokens::SCATTERING, t)?.unwrap_or([0.9; 3]),
             anisotropy: read_f64(prim, tokens::ANISOTROPY, t)?.unwrap_or(0.0),
@@ -708,8 +740,46 @@ impl Loader<'_> {
             emission,
             albedo,
             material_shader: None,
-            density_graph: None,
+            density_graph: graph.map(|(g, source)| DensityGraph {
+                program: g.program,
+                shading_to_world: volume_to_world,
+                source,
+            }),
         })
+    }
+
+    /// The density graph `nimbus:densityScale` is connected to (the Blender add-on's
+    /// node trees, [`blender_graph`]), with a description of its source; `times_field`:
+    /// the program multiplies the graph by the density field's value (a Volume; fog
+    /// has none).
+    fn density_scale_graph(
+        &self,
+        prim: &Prim,
+        times_field: bool,
+    ) -> Result<Option<(blender_graph::BlenderDensity, String)>, SceneError> {
+        let sources = prim
+            .attribute(tokens::DENSITY_SCALE)
+            .connections()
+            .map_err(|e| prim_error(prim.path(), format!("{}: {e}", tokens::DENSITY_SCALE)))?;
+        let Some(source) = sources.first() else {
+            return Ok(None);
+        };
+        let (path, property) = split_property(source);
+        let Some(output) = property.strip_prefix("outputs:") else {
+            return Err(prim_error(
+                prim.path(),
+                format!(
+                    "{} is connected to {source}, which is not a shader output",
+                    tokens::DENSITY_SCALE
+                ),
+            ));
+        };
+        let shader = self
+            .stage
+            .prim(path.clone())
+            .map_err(|e| prim_error(prim.path(), format!("{}: {e}", tokens::DENSITY_SCALE)))?;
+        let graph = blender_graph::usd_density(&shader, output, self.time, times_field)?;
+        Ok(Some((graph, format!("{path} (Blender nodes)"))))
     }
 
     /// World fog: a Volume with `nimbus:fill = "world"` (its fields are not read).

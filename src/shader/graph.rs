@@ -48,6 +48,12 @@ pub enum Binary {
     Div,
     Min,
     Max,
+    /// Cycles' `safe_divide`: 0 where the divisor is 0 (Blender's Math Divide).
+    SafeDiv,
+    /// 1 where a < b, else 0 (Blender's Math Less Than).
+    Less,
+    /// 1 where a > b, else 0 (Blender's Math Greater Than).
+    Greater,
 }
 
 /// One instruction. Noise instructions read a position from three consecutive
@@ -109,6 +115,15 @@ pub enum Instr {
         w: Reg,
         noise: u16,
     },
+    /// A lookup table over [0, 1] (Blender's Color Ramp as Cycles evaluates it: the
+    /// ramp sampled at i / (n − 1), linearly interpolated between samples or not):
+    /// `table` indexes the program's ramps.
+    Ramp {
+        dst: Reg,
+        x: Reg,
+        table: u16,
+        interpolate: bool,
+    },
 }
 
 /// A compiled graph.
@@ -118,6 +133,8 @@ pub struct Program {
     /// The Noise Texture nodes [`Instr::BlenderNoise`] evaluates (kept aside: they are
     /// larger than any instruction).
     noises: Vec<NoiseTexture>,
+    /// The tables [`Instr::Ramp`] reads.
+    ramps: Vec<Vec<f32>>,
     registers: usize,
     output: Reg,
     /// Whether any instruction reads the attribute: the grid's value then bounds the
@@ -163,6 +180,7 @@ impl Value {
 pub struct Builder {
     instrs: Vec<Instr>,
     noises: Vec<NoiseTexture>,
+    ramps: Vec<Vec<f32>>,
     nodes: Vec<String>,
     next: usize,
     node: String,
@@ -174,6 +192,7 @@ impl Default for Builder {
         Builder {
             instrs: Vec::new(),
             noises: Vec::new(),
+            ramps: Vec::new(),
             nodes: Vec::new(),
             next: INPUTS as usize,
             node: String::new(),
@@ -466,6 +485,33 @@ impl Builder {
         Ok(Value::Float(dst))
     }
 
+    /// A lookup of `x` in `table` (at least 2 finite entries, sampled at i / (n − 1)
+    /// over [0, 1]; `x` clamped to [0, 1]), interpolated linearly or not.
+    pub fn ramp(
+        &mut self,
+        x: Value,
+        table: Vec<f32>,
+        interpolate: bool,
+    ) -> Result<Value, GraphError> {
+        let x = self.float(x, "the ramp's input")?;
+        if table.len() < 2 || table.len() > 4096 || !table.iter().all(|v| v.is_finite()) {
+            return Err(self.error(format!(
+                "a ramp table needs 2 to 4096 finite entries, got {}",
+                table.len()
+            )));
+        }
+        let index = u16::try_from(self.ramps.len()).map_err(|_| GraphError::TooLarge)?;
+        self.ramps.push(table);
+        let dst = self.alloc(1)?;
+        self.push(Instr::Ramp {
+            dst,
+            x,
+            table: index,
+            interpolate,
+        });
+        Ok(Value::Float(dst))
+    }
+
     /// The program computing `output` (a float).
     pub fn finish(self, output: Value) -> Result<Program, GraphError> {
         let Value::Float(output) = output else {
@@ -474,6 +520,7 @@ impl Builder {
         Ok(Program {
             instrs: self.instrs,
             noises: self.noises,
+            ramps: self.ramps,
             registers: self.next,
             output,
             reads_attribute: self.reads_attribute,
@@ -492,6 +539,39 @@ fn smoothstep(x: f32, lo: f32, hi: f32) -> f32 {
         let t = (x - lo) / (hi - lo);
         t * t * (3.0 - 2.0 * t)
     }
+}
+
+/// Cycles' table lookup (`float_ramp_lookup` without extrapolation): `x` clamped to
+/// [0, 1] and scaled to the table's index range; NaN reads the first entry.
+#[inline(always)]
+fn ramp_lookup(table: &[f32], x: f32, interpolate: bool) -> f32 {
+    let last = table.len() - 1;
+    let f = if x > 0.0 { x.min(1.0) } else { 0.0 } * last as f32;
+    let i = (f as usize).min(last);
+    let t = f - i as f32;
+    let a = table[i];
+    if interpolate && t > 0.0 {
+        (1.0 - t) * a + t * table[(i + 1).min(last)]
+    } else {
+        a
+    }
+}
+
+/// The range of [`ramp_lookup`] over `x`: the entries the clamped index range touches
+/// (an interpolated value lies between its two entries).
+fn ramp_bound(table: &[f32], x: Interval) -> Interval {
+    let last = table.len() - 1;
+    let scaled = |v: f32| if v > 0.0 { v.min(1.0) } else { 0.0 } * last as f32;
+    let (lo, hi) = if x.lo.is_nan() || x.hi.is_nan() {
+        (0, last)
+    } else {
+        let lo = (scaled(x.lo) as usize).min(last);
+        (lo, (scaled(x.hi).floor() as usize + 1).min(last))
+    };
+    let slice = &table[lo..=hi.max(lo)];
+    let min = slice.iter().copied().fold(f32::INFINITY, f32::min);
+    let max = slice.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+    Interval::new(min, max)
 }
 
 impl Program {
@@ -537,7 +617,25 @@ impl Program {
                         Binary::Div => a / b,
                         Binary::Min => a.min(b),
                         Binary::Max => a.max(b),
+                        Binary::SafeDiv => {
+                            if b != 0.0 {
+                                a / b
+                            } else {
+                                0.0
+                            }
+                        }
+                        Binary::Less => f32::from(u8::from(a < b)),
+                        Binary::Greater => f32::from(u8::from(a > b)),
                     }
+                }
+                Instr::Ramp {
+                    dst,
+                    x,
+                    table,
+                    interpolate,
+                } => {
+                    r[dst as usize] =
+                        ramp_lookup(&self.ramps[table as usize], r[x as usize], interpolate)
                 }
                 Instr::Clamp { dst, x, lo, hi } => {
                     r[dst as usize] = r[x as usize].max(r[lo as usize]).min(r[hi as usize])
@@ -613,7 +711,31 @@ impl Program {
                         Binary::Div => a.div(b),
                         Binary::Min => a.min(b),
                         Binary::Max => a.max(b),
+                        Binary::SafeDiv => {
+                            if b.lo == 0.0 && b.hi == 0.0 {
+                                Interval::point(0.0)
+                            } else if b.lo > 0.0 || b.hi < 0.0 {
+                                a.div(b)
+                            } else {
+                                // A divisor range through 0 (not only 0): unbounded.
+                                Interval::new(f32::NEG_INFINITY, f32::INFINITY)
+                            }
+                        }
+                        Binary::Less | Binary::Greater => {
+                            let (lo, hi) = if op == Binary::Less { (a, b) } else { (b, a) };
+                            // lo < hi surely, never, or either.
+                            if lo.hi < hi.lo {
+                                Interval::point(1.0)
+                            } else if lo.lo >= hi.hi {
+                                Interval::point(0.0)
+                            } else {
+                                Interval::new(0.0, 1.0)
+                            }
+                        }
                     }
+                }
+                Instr::Ramp { dst, x, table, .. } => {
+                    r[dst as usize] = ramp_bound(&self.ramps[table as usize], r[x as usize])
                 }
                 Instr::Clamp { dst, x, lo, hi } => {
                     r[dst as usize] = r[x as usize].max(r[lo as usize]).min(r[hi as usize])

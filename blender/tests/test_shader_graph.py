@@ -1,0 +1,99 @@
+"""Density node trees (issue 47; docs/shaders.md, "Blender node trees"): a node tree
+driving a volume shader's Density is written into the overlay as UsdShade prims with
+Blender's node types, and Nimbus compiles it (src/scene/blender_graph.rs) with Cycles'
+semantics. The translation test reads the overlay; the render test compares F12 with
+Cycles through conftest.against_cycles (image and 8 x 8 block means)."""
+
+import re
+
+import bpy
+import pytest
+
+from conftest import against_cycles
+from test_fog import (_camera, _mesh_object, _node_material, _render_settings, _world,
+                      translated)
+
+
+def noise_ramp_material(name="cloud"):
+    """The issue's scene (a) material: Noise Texture (Scale 2, Detail 4, its Vector the
+    default Generated coordinates) -> Color Ramp (black at 0.4, white at 0.6, linear)
+    -> Math Multiply x 2 -> Principled Volume Density; Color 0.8, Anisotropy 0.2."""
+    m, nt, out = _node_material(name)
+    pv = nt.nodes.new("ShaderNodeVolumePrincipled")
+    pv.inputs["Color"].default_value = (0.8, 0.8, 0.8, 1.0)
+    pv.inputs["Anisotropy"].default_value = 0.2
+    noise = nt.nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 2.0
+    noise.inputs["Detail"].default_value = 4.0
+    ramp = nt.nodes.new("ShaderNodeValToRGB")
+    ramp.color_ramp.elements[0].position = 0.4
+    ramp.color_ramp.elements[1].position = 0.6
+    times = nt.nodes.new("ShaderNodeMath")
+    times.operation = "MULTIPLY"
+    times.inputs[1].default_value = 2.0
+    nt.links.new(noise.outputs["Fac"], ramp.inputs["Fac"])
+    nt.links.new(ramp.outputs["Color"], times.inputs[0])
+    nt.links.new(times.outputs["Value"], pv.inputs["Density"])
+    nt.links.new(pv.outputs["Volume"], out.inputs["Volume"])
+    return m
+
+
+def noise_cube_scene():
+    """Scene (a): a cube [-1, 1]^3 of that material lit by a sun (strength 3, angle 0),
+    black world, film transparent, camera 5.5 units away, 32 x 32."""
+    scene = _render_settings((32, 32), True)
+    _world()
+    _mesh_object("noise cube", "cube", noise_ramp_material())
+    data = bpy.data.lights.new("sun", "SUN")
+    data.energy = 3.0
+    data.angle = 0.0
+    sun = bpy.data.objects.new("sun", data)
+    sun.rotation_euler = (0.6, 0.2, 0.0)
+    scene.collection.objects.link(sun)
+    _camera((0.0, -5.5, 0.5), (1.5, 0.0, 0.0))
+    return scene
+
+
+def test_a_noise_ramp_density_is_translated_as_a_graph(addon, tmp_path):
+    """The overlay defines one Shader per node (Blender's node types as ids), the
+    Noise Texture's unlinked Vector as Generated coordinates of the cube's texture
+    space (scale 0.5, offset -0.5: [-1, 1] -> [0, 1]), the ramp as its 257-entry
+    table, and connects the cube's nimbus:densityScale to the graph times the
+    coefficients' scale; no warning says a node drives the Density."""
+    noise_cube_scene()
+    t, prims = translated(tmp_path)
+    assert not [w for w in t.warnings if "drives" in w], t.warnings
+    text = open(t.stage).read()
+    ids = re.findall(r'info:id = "(\w+)"', text)
+    assert sorted(ids) == sorted(["ShaderNodeTexNoise", "ShaderNodeTexCoord",
+                                  "ShaderNodeValToRGB", "ShaderNodeMath", "ShaderNodeMath"])
+    assert "float3 inputs:generated_scale = (0.5, 0.5, 0.5)" in text
+    assert "float3 inputs:generated_offset = (-0.5, -0.5, -0.5)" in text
+    table = re.search(r"float\[\] inputs:gray_table = \[([^\]]*)\]", text).group(1)
+    values = [float(x) for x in table.split(",")]
+    assert len(values) == 257
+    # Black up to 0.4 (entry 102.4), white from 0.6 (entry 153.6): the luminance of
+    # grey is the grey times the weights' sum (1 within 1e-6).
+    assert values[102] == 0.0 and abs(values[154] - 1.0) < 1e-6
+    assert re.search(r"float nimbus:densityScale\.connect = <[^>]*nimbus_density_scale"
+                     r"\.outputs:Value>", text)
+
+
+# Cycles renders a heterogeneous (graph-driven) volume with its null-scattering
+# estimators, measured 0.2-0.5 % bright against references (conftest.against_cycles'
+# default bias); the tolerance is 5 combined standard errors of the two means plus that
+# bias, set before the first run.
+CYCLES_BIAS = 0.005
+
+
+def test_a_noise_ramp_cube_against_cycles(addon, tmp_path):
+    """Scene (a) through the add-on against Cycles 5.0.1, 4 seeds x 32 spp each, max
+    depth 8: image means of alpha and R, G, B over the pixels where either's mean alpha
+    > 0.01, and 8 x 8 block means, |N - C| <= 5 combined standard errors + 0.5 % of
+    Cycles' (conftest.against_cycles)."""
+    noise_cube_scene()
+    ok, report, n = against_cycles(bpy.context.scene, tmp_path, seeds=(0, 1, 2, 3), spp=32,
+                                   bias=CYCLES_BIAS, block=8)
+    print(f"\nnoise cube (scene a), sun, against Cycles ({n} pixels):\n" + "\n".join(report))
+    assert n > 100
+    assert ok, "\n".join(report)

@@ -1,0 +1,597 @@
+//! Blender shader node trees driving a medium's density (issue 47), as the Blender
+//! add-on writes them into its USD overlay, compiled into a [`Program`].
+//!
+//! The add-on writes each node of the tree upstream of a volume shader's Density as a
+//! UsdShade `Shader` whose `info:id` is the node's Blender type (`ShaderNodeTexNoise`,
+//! `ShaderNodeMath`…), its properties (operation, noise type…) and unlinked inputs as
+//! `inputs:` values and its links as connections; inputs and outputs are named by the
+//! socket's identifier with every character outside `[A-Za-z0-9_]` made `_` (Math's
+//! second input is `Value_001`, Map Range's `From Min` is `From_Min`). It then
+//! connects the medium's `nimbus:densityScale` to the graph's output: the density is
+//! the medium's density field times that value (a fog: the value itself).
+//!
+//! The semantics are Cycles' (`intern/cycles/kernel/svm/`), so that the add-on's image
+//! is Cycles' image: `safe_divide` for Divide, the Color Ramp as the 257-entry table
+//! Cycles bakes (the add-on evaluates the ramp with Blender's own `ColorRamp.evaluate`
+//! and writes the table: Nimbus never re-implements the ramp's interpolation), colours
+//! read as floats by their luminance (the add-on converts the table).
+//! [`NODES`] lists what is compiled; any other node is an error naming it.
+
+use super::attrs::{prim_error_str, SceneError};
+use super::materialx_graph::{colour, number, usd_network};
+use super::shader_network::{Input, ParamValue, ShaderNetwork, ShaderNode};
+use crate::shader::graph::{Binary, Builder, Program, Unary, Value as Reg};
+use crate::shader::noise::{Dimensions, NoiseTexture, NoiseType};
+use openusd::usd::{Prim, TimeCode};
+use std::collections::HashMap;
+
+/// The Blender node types compiled.
+pub const NODES: &[&str] = &[
+    "ShaderNodeTexCoord",
+    "ShaderNodeTexNoise",
+    "ShaderNodeTexGradient",
+    "ShaderNodeValToRGB",
+    "ShaderNodeMath",
+    "ShaderNodeMapRange",
+    "ShaderNodeVectorMath",
+    "ShaderNodeMapping",
+    "ShaderNodeSeparateXYZ",
+    "ShaderNodeAttribute",
+    "ShaderNodeValue",
+];
+
+/// A density graph read from Blender nodes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BlenderDensity {
+    /// The graph's value (the attribute register holds the field named by `attribute`,
+    /// when the graph reads one).
+    pub program: Program,
+    /// The field an Attribute node reads (one per graph).
+    pub attribute: Option<String>,
+}
+
+/// The Blender graph whose output `output` of the shader prim `shader` is connected
+/// to a medium's density scale.
+/// `times_field`: the program multiplies the graph by the density field's value (a
+/// Principled Volume's Density times its Density Attribute).
+pub fn usd_density(
+    shader: &Prim,
+    output: &str,
+    time: Option<TimeCode>,
+    times_field: bool,
+) -> Result<BlenderDensity, SceneError> {
+    let network = usd_network(shader, time)?;
+    compile(&network, shader.path().as_str(), output, times_field)
+}
+
+/// Compiles the output `output` of node `node` of `network` into a program.
+pub fn compile(
+    network: &ShaderNetwork,
+    node: &str,
+    output: &str,
+    times_field: bool,
+) -> Result<BlenderDensity, SceneError> {
+    let mut reader = Reader {
+        network,
+        builder: Builder::default(),
+        done: HashMap::new(),
+        attribute: None,
+        depth: 0,
+    };
+    let v = reader.output(&(node.to_string(), output.to_string()))?;
+    let mut v = reader.scalar(node, v)?;
+    if times_field {
+        let e = |e| prim_error_str(node, e);
+        let field = reader.builder.attribute();
+        v = reader.builder.binary(Binary::Mul, v, field).map_err(e)?;
+    }
+    let attribute = reader.attribute.take();
+    let program = reader
+        .builder
+        .finish(v)
+        .map_err(|e| prim_error_str(node, e))?;
+    Ok(BlenderDensity { program, attribute })
+}
+
+type Output = (String, String);
+
+struct Reader<'a> {
+    network: &'a ShaderNetwork,
+    builder: Builder,
+    done: HashMap<Output, Reg>,
+    attribute: Option<String>,
+    depth: usize,
+}
+
+impl<'a> Reader<'a> {
+    fn node(&self, path: &str) -> Result<&'a ShaderNode, SceneError> {
+        self.network.node(path).ok_or_else(|| {
+            prim_error_str(
+                path,
+                "a connection names this node, which is not in the network",
+            )
+        })
+    }
+
+    fn output(&mut self, output: &Output) -> Result<Reg, SceneError> {
+        if let Some(v) = self.done.get(output) {
+            return Ok(*v);
+        }
+        self.depth += 1;
+        if self.depth > 256 {
+            return Err(prim_error_str(
+                &output.0,
+                "the graph is too deep (a cycle?)",
+            ));
+        }
+        let node = self.node(&output.0)?;
+        let v = self.compile(node, &output.1)?;
+        self.depth -= 1;
+        self.done.insert(output.clone(), v);
+        Ok(v)
+    }
+
+    fn graph_error(at: &str) -> impl Fn(crate::shader::graph::GraphError) -> SceneError + '_ {
+        move |e| prim_error_str(at, e)
+    }
+
+    /// A value read as a float. Every vector the compiled nodes output is a vector (a
+    /// colour output reaches here as its luminance already: the ramp's table, the
+    /// gradient's grey), which Cycles reads in a float socket as its average.
+    fn scalar(&mut self, at: &str, v: Reg) -> Result<Reg, SceneError> {
+        match v {
+            Reg::Float(_) => Ok(v),
+            Reg::Vector3(_) => {
+                self.builder.node(at);
+                let e = Self::graph_error(at);
+                let ones = self.builder.vector3([1.0; 3]).map_err(&e)?;
+                let sum = self.builder.dot(v, ones).map_err(&e)?;
+                let third = self.builder.constant(1.0 / 3.0).map_err(&e)?;
+                self.builder.binary(Binary::Mul, sum, third).map_err(&e)
+            }
+        }
+    }
+
+    fn source(node: &ShaderNode, name: &str) -> Option<Result<Output, ParamValue>> {
+        match node.input(name)? {
+            Input::Value(v) => Some(Err(v.clone())),
+            Input::Connection { node, output } => Some(Ok((node.clone(), output.clone()))),
+        }
+    }
+
+    /// A float input (linked: the linked output as a float; else its value, or
+    /// `default`).
+    fn float(&mut self, node: &ShaderNode, name: &str, default: f32) -> Result<Reg, SceneError> {
+        match Self::source(node, name) {
+            Some(Ok(o)) => {
+                let v = self.output(&o)?;
+                self.scalar(&node.path, v)
+            }
+            value => {
+                let x = match value {
+                    Some(Err(v)) => number(node, name, &v)? as f32,
+                    _ => default,
+                };
+                self.builder.node(&node.path);
+                self.builder
+                    .constant(x)
+                    .map_err(Self::graph_error(&node.path))
+            }
+        }
+    }
+
+    /// A vector input; unauthored: `default`, or the object-space position when that
+    /// is `None` (a texture's Vector: Blender's default there is Generated coordinates,
+    /// which the add-on always writes as a link).
+    fn vector(
+        &mut self,
+        node: &ShaderNode,
+        name: &str,
+        default: Option<[f32; 3]>,
+    ) -> Result<Reg, SceneError> {
+        match Self::source(node, name) {
+            Some(Ok(o)) => {
+                let v = self.output(&o)?;
+                self.builder.node(&node.path);
+                self.builder
+                    .splat3(v)
+                    .map_err(Self::graph_error(&node.path))
+            }
+            Some(Err(v)) => {
+                let c = colour(node, name, &v)?;
+                self.builder.node(&node.path);
+                self.builder
+                    .vector3(c.map(|x| x as f32))
+                    .map_err(Self::graph_error(&node.path))
+            }
+            None => match default {
+                None => Ok(self.builder.position()),
+                Some(c) => {
+                    self.builder.node(&node.path);
+                    self.builder
+                        .vector3(c)
+                        .map_err(Self::graph_error(&node.path))
+                }
+            },
+        }
+    }
+
+    /// An input that shapes the program (a noise's Detail, a ramp's table): a value.
+    fn constant(&self, node: &ShaderNode, name: &str, default: f64) -> Result<f64, SceneError> {
+        match Self::source(node, name) {
+            Some(Ok(o)) => Err(prim_error_str(
+                &node.path,
+                format!(
+                    "`inputs:{name}` is linked to {}.outputs:{}; Nimbus needs it unlinked",
+                    o.0, o.1
+                ),
+            )),
+            Some(Err(v)) => number(node, name, &v),
+            None => Ok(default),
+        }
+    }
+
+    fn text(node: &ShaderNode, name: &str, default: &str) -> Result<String, SceneError> {
+        match node.input(name) {
+            None => Ok(default.to_string()),
+            Some(Input::Value(ParamValue::Text(t))) => Ok(t.clone()),
+            Some(_) => Err(prim_error_str(
+                &node.path,
+                format!("`inputs:{name}` should be a constant token"),
+            )),
+        }
+    }
+
+    fn table(node: &ShaderNode, name: &str) -> Result<Vec<f32>, SceneError> {
+        match node.input(name) {
+            Some(Input::Value(ParamValue::Numbers(v))) => {
+                Ok(v.iter().map(|&x| x as f32).collect())
+            }
+            _ => Err(prim_error_str(
+                &node.path,
+                format!("`inputs:{name}` should be a float[] table (the add-on writes the ramp sampled at i/256)"),
+            )),
+        }
+    }
+
+    fn refuse(node: &ShaderNode, what: &str, value: &str) -> SceneError {
+        prim_error_str(
+            &node.path,
+            format!("{} {what} `{value}` is not compiled", node.id),
+        )
+    }
+
+    fn compile(&mut self, node: &ShaderNode, output: &str) -> Result<Reg, SceneError> {
+        if !NODES.contains(&node.id.as_str()) {
+            return Err(prim_error_str(
+                &node.path,
+                format!(
+                    "node `{}` is not one Nimbus compiles into a density graph (it reads: {})",
+                    node.id,
+                    NODES.join(", ")
+                ),
+            ));
+        }
+        let at = node.path.clone();
+        let err = Self::graph_error(&at);
+        let wrong_output = || {
+            prim_error_str(
+                &node.path,
+                format!("{}: output `{output}` is not compiled", node.id),
+            )
+        };
+        let v = match node.id.as_str() {
+            "ShaderNodeTexCoord" => match output {
+                "Object" => self.builder.position(),
+                "Generated" => {
+                    // Cycles' generated coordinates of a mesh: the object-space position
+                    // through the texture space, p × scale − offset (the add-on computes
+                    // both from the mesh's texture space as Cycles does).
+                    if node.input("generated_scale").is_none()
+                        || node.input("generated_offset").is_none()
+                    {
+                        return Err(prim_error_str(
+                            &node.path,
+                            "Generated needs `inputs:generated_scale` and `inputs:generated_offset` (the texture space, which the add-on writes)",
+                        ));
+                    }
+                    let scale = self.vector(node, "generated_scale", None)?;
+                    let offset = self.vector(node, "generated_offset", None)?;
+                    let p = self.builder.position();
+                    self.builder.node(&at);
+                    let s = self.builder.binary(Binary::Mul, p, scale).map_err(&err)?;
+                    self.builder.binary(Binary::Sub, s, offset).map_err(&err)?
+                }
+                _ => return Err(wrong_output()),
+            },
+            "ShaderNodeTexNoise" => {
+                if output != "Fac" {
+                    return Err(wrong_output());
+                }
+                let dims = Self::text(node, "noise_dimensions", "3D")?;
+                let dimensions = match dims.as_str() {
+                    "3D" => Dimensions::D3,
+                    "4D" => Dimensions::D4,
+                    d => return Err(Self::refuse(node, "noise_dimensions", d)),
+                };
+                let kind = Self::text(node, "noise_type", "FBM")?;
+                if kind != "FBM" {
+                    return Err(Self::refuse(
+                        node,
+                        "noise_type (only fBM has a range analysis)",
+                        &kind,
+                    ));
+                }
+                let texture = NoiseTexture {
+                    dimensions,
+                    kind: NoiseType::Fbm,
+                    normalize: self.constant(node, "normalize", 1.0)? != 0.0,
+                    scale: self.constant(node, "Scale", 5.0)? as f32,
+                    detail: self.constant(node, "Detail", 2.0)? as f32,
+                    roughness: self.constant(node, "Roughness", 0.5)? as f32,
+                    lacunarity: self.constant(node, "Lacunarity", 2.0)? as f32,
+                    distortion: self.constant(node, "Distortion", 0.0)? as f32,
+                    ..NoiseTexture::default()
+                };
+                let p = self.vector(node, "Vector", None)?;
+                let w = self.float(node, "W", 0.0)?;
+                self.builder.node(&at);
+                self.builder.blender_noise(p, w, texture).map_err(&err)?
+            }
+            "ShaderNodeTexGradient" => {
+                if output != "Fac" && output != "Color" {
+                    return Err(wrong_output());
+                }
+                let p = self.vector(node, "Vector", None)?;
+                let kind = Self::text(node, "gradient_type", "LINEAR")?;
+                self.builder.node(&at);
+                let b = &mut self.builder;
+                let x = b.component(p, 0).map_err(&err)?;
+                // svm_gradient, then saturated.
+                let g = match kind.as_str() {
+                    "LINEAR" => x,
+                    "QUADRATIC" => {
+                        let zero = b.constant(0.0).map_err(&err)?;
+                        let r = b.binary(Binary::Max, x, zero).map_err(&err)?;
+                        b.binary(Binary::Mul, r, r).map_err(&err)?
+                    }
+                    "EASING" => {
+                        let (zero, one) = (
+                            b.constant(0.0).map_err(&err)?,
+                            b.constant(1.0).map_err(&err)?,
+                        );
+                        b.smoothstep(x, zero, one).map_err(&err)?
+                    }
+                    "DIAGONAL" => {
+                        let y = b.component(p, 1).map_err(&err)?;
+                        let s = b.binary(Binary::Add, x, y).map_err(&err)?;
+                        let half = b.constant(0.5).map_err(&err)?;
+                        b.binary(Binary::Mul, s, half).map_err(&err)?
+                    }
+                    "SPHERICAL" | "QUADRATIC_SPHERE" => {
+                        let len = b.magnitude(p).map_err(&err)?;
+                        let edge = b.constant(0.999_999).map_err(&err)?;
+                        let zero = b.constant(0.0).map_err(&err)?;
+                        let d = b.binary(Binary::Sub, edge, len).map_err(&err)?;
+                        let r = b.binary(Binary::Max, d, zero).map_err(&err)?;
+                        if kind == "SPHERICAL" {
+                            r
+                        } else {
+                            b.binary(Binary::Mul, r, r).map_err(&err)?
+                        }
+                    }
+                    k => return Err(Self::refuse(node, "gradient_type", k)),
+                };
+                let (zero, one) = (
+                    b.constant(0.0).map_err(&err)?,
+                    b.constant(1.0).map_err(&err)?,
+                );
+                b.clamp(g, zero, one).map_err(&err)?
+            }
+            "ShaderNodeValToRGB" => {
+                let table = match output {
+                    "Color" => Self::table(node, "gray_table")?,
+                    "Alpha" => Self::table(node, "alpha_table")?,
+                    _ => return Err(wrong_output()),
+                };
+                let interpolate = self.constant(node, "interpolate", 1.0)? != 0.0;
+                let x = self.float(node, "Fac", 0.5)?;
+                self.builder.node(&at);
+                self.builder.ramp(x, table, interpolate).map_err(&err)?
+            }
+            "ShaderNodeMath" => {
+                if output != "Value" {
+                    return Err(wrong_output());
+                }
+                let op = Self::text(node, "operation", "ADD")?;
+                let a = self.float(node, "Value", 0.5)?;
+                let b = self.float(node, "Value_001", 0.5)?;
+                let c = if op == "MULTIPLY_ADD" {
+                    Some(self.float(node, "Value_002", 0.5)?)
+                } else {
+                    None
+                };
+                let clamp = self.constant(node, "use_clamp", 0.0)? != 0.0;
+                self.builder.node(&at);
+                let bl = &mut self.builder;
+                let binary = |o| match o {
+                    "ADD" => Some(Binary::Add),
+                    "SUBTRACT" => Some(Binary::Sub),
+                    "MULTIPLY" => Some(Binary::Mul),
+                    "DIVIDE" => Some(Binary::SafeDiv),
+                    "MINIMUM" => Some(Binary::Min),
+                    "MAXIMUM" => Some(Binary::Max),
+                    "LESS_THAN" => Some(Binary::Less),
+                    "GREATER_THAN" => Some(Binary::Greater),
+                    _ => None,
+                };
+                let v = if let Some(o) = binary(op.as_str()) {
+                    bl.binary(o, a, b).map_err(&err)?
+                } else {
+                    match op.as_str() {
+                        "MULTIPLY_ADD" => {
+                            let m = bl.binary(Binary::Mul, a, b).map_err(&err)?;
+                            bl.binary(Binary::Add, m, c.expect("read above"))
+                                .map_err(&err)?
+                        }
+                        "ABSOLUTE" => bl.unary(Unary::Abs, a).map_err(&err)?,
+                        "SQRT" => bl.unary(Unary::Sqrt, a).map_err(&err)?,
+                        "FLOOR" => bl.unary(Unary::Floor, a).map_err(&err)?,
+                        o => return Err(Self::refuse(node, "operation", o)),
+                    }
+                };
+                if clamp {
+                    let (zero, one) = (
+                        bl.constant(0.0).map_err(&err)?,
+                        bl.constant(1.0).map_err(&err)?,
+                    );
+                    bl.clamp(v, zero, one).map_err(&err)?
+                } else {
+                    v
+                }
+            }
+            "ShaderNodeMapRange" => {
+                if output != "Result" {
+                    return Err(wrong_output());
+                }
+                let ty = Self::text(node, "data_type", "FLOAT")?;
+                if ty != "FLOAT" {
+                    return Err(Self::refuse(node, "data_type", &ty));
+                }
+                let interpolation = Self::text(node, "interpolation_type", "LINEAR")?;
+                let x = self.float(node, "Value", 1.0)?;
+                let fmin = self.float(node, "From_Min", 0.0)?;
+                let fmax = self.float(node, "From_Max", 1.0)?;
+                let tmin = self.float(node, "To_Min", 0.0)?;
+                let tmax = self.float(node, "To_Max", 1.0)?;
+                let clamp = self.constant(node, "clamp", 1.0)? != 0.0;
+                self.builder.node(&at);
+                let b = &mut self.builder;
+                // svm_map_range: the factor (x − from min)/(from max − from min), 0 for an
+                // empty range; smoothstep shapes it; then to min + factor × (to max − to min).
+                let num = b.binary(Binary::Sub, x, fmin).map_err(&err)?;
+                let den = b.binary(Binary::Sub, fmax, fmin).map_err(&err)?;
+                let mut f = b.binary(Binary::SafeDiv, num, den).map_err(&err)?;
+                match interpolation.as_str() {
+                    "LINEAR" => {}
+                    "SMOOTHSTEP" => {
+                        let (zero, one) = (
+                            b.constant(0.0).map_err(&err)?,
+                            b.constant(1.0).map_err(&err)?,
+                        );
+                        f = b.smoothstep(f, zero, one).map_err(&err)?;
+                    }
+                    i => return Err(Self::refuse(node, "interpolation_type", i)),
+                }
+                let span = b.binary(Binary::Sub, tmax, tmin).map_err(&err)?;
+                let scaled = b.binary(Binary::Mul, f, span).map_err(&err)?;
+                let r = b.binary(Binary::Add, tmin, scaled).map_err(&err)?;
+                if clamp && interpolation == "LINEAR" {
+                    // Between to min and to max, whichever is larger.
+                    let lo = b.binary(Binary::Min, tmin, tmax).map_err(&err)?;
+                    let hi = b.binary(Binary::Max, tmin, tmax).map_err(&err)?;
+                    b.clamp(r, lo, hi).map_err(&err)?
+                } else {
+                    r
+                }
+            }
+            "ShaderNodeVectorMath" => {
+                let op = Self::text(node, "operation", "ADD")?;
+                let a = self.vector(node, "Vector", None)?;
+                let v = match op.as_str() {
+                    "ADD" | "SUBTRACT" | "MULTIPLY" | "DOT_PRODUCT" | "DISTANCE" => {
+                        let b = self.vector(node, "Vector_001", Some([0.0; 3]))?;
+                        self.builder.node(&at);
+                        let bl = &mut self.builder;
+                        match op.as_str() {
+                            "ADD" => bl.binary(Binary::Add, a, b),
+                            "SUBTRACT" => bl.binary(Binary::Sub, a, b),
+                            "MULTIPLY" => bl.binary(Binary::Mul, a, b),
+                            "DOT_PRODUCT" => bl.dot(a, b),
+                            _ => bl.binary(Binary::Sub, a, b).and_then(|d| bl.magnitude(d)),
+                        }
+                        .map_err(&err)?
+                    }
+                    "SCALE" => {
+                        let s = self.float(node, "Scale", 1.0)?;
+                        self.builder.node(&at);
+                        self.builder.binary(Binary::Mul, a, s).map_err(&err)?
+                    }
+                    "LENGTH" => {
+                        self.builder.node(&at);
+                        self.builder.magnitude(a).map_err(&err)?
+                    }
+                    o => return Err(Self::refuse(node, "operation", o)),
+                };
+                match (output, v) {
+                    ("Vector", Reg::Vector3(_)) | ("Value", Reg::Float(_)) => v,
+                    _ => return Err(wrong_output()),
+                }
+            }
+            "ShaderNodeMapping" => {
+                if output != "Vector" {
+                    return Err(wrong_output());
+                }
+                let ty = Self::text(node, "vector_type", "POINT")?;
+                if ty != "POINT" {
+                    return Err(Self::refuse(node, "vector_type", &ty));
+                }
+                if let Some(Input::Value(v)) = node.input("Rotation") {
+                    if colour(node, "Rotation", v)? != [0.0; 3] {
+                        return Err(prim_error_str(
+                            &node.path,
+                            "ShaderNodeMapping: a Rotation other than 0 is not compiled",
+                        ));
+                    }
+                } else if node.input("Rotation").is_some() {
+                    return Err(prim_error_str(
+                        &node.path,
+                        "ShaderNodeMapping: a linked Rotation is not compiled",
+                    ));
+                }
+                let p = self.vector(node, "Vector", None)?;
+                let s = self.vector(node, "Scale", Some([1.0; 3]))?;
+                let l = self.vector(node, "Location", Some([0.0; 3]))?;
+                self.builder.node(&at);
+                // svm_mapping, point: (v × scale) rotated, + location.
+                let ps = self.builder.binary(Binary::Mul, p, s).map_err(&err)?;
+                self.builder.binary(Binary::Add, ps, l).map_err(&err)?
+            }
+            "ShaderNodeSeparateXYZ" => {
+                let k = match output {
+                    "X" => 0,
+                    "Y" => 1,
+                    "Z" => 2,
+                    _ => return Err(wrong_output()),
+                };
+                let p = self.vector(node, "Vector", None)?;
+                self.builder.node(&at);
+                self.builder.component(p, k).map_err(&err)?
+            }
+            "ShaderNodeAttribute" => {
+                if output != "Fac" {
+                    return Err(wrong_output());
+                }
+                let name = Self::text(node, "attribute_name", "")?;
+                match &self.attribute {
+                    Some(a) if *a != name => {
+                        return Err(prim_error_str(
+                            &node.path,
+                            format!("reads `{name}` where the graph already reads `{a}`; Nimbus reads one field per density graph"),
+                        ))
+                    }
+                    _ => self.attribute = Some(name),
+                }
+                self.builder.attribute()
+            }
+            "ShaderNodeValue" => {
+                if output != "Value" {
+                    return Err(wrong_output());
+                }
+                self.float(node, "value", 0.0)?
+            }
+            _ => unreachable!("every id of NODES is compiled above"),
+        };
+        Ok(v)
+    }
+}
