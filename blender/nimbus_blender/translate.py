@@ -274,16 +274,20 @@ def _graph(socket, obj, owner, folder_prim):
                 lines.append(f"float3 inputs:Vector.connect = <{generated()}.outputs:Generated>")
             elif sock.type in ("VALUE", "INT", "BOOLEAN", "VECTOR", "RGBA"):
                 lines.append(_value_line(sock, name))
-        if kind == "ShaderNodeTexCoord" and obj.type == "MESH":
+        if kind == "ShaderNodeTexCoord" and obj.type in ("MESH", "VOLUME"):
             lines += generated_lines()
         prims[path] = ([], lines, "def Shader")
         return path
 
     def generated_lines():
+        if obj.type == "VOLUME":
+            # Cycles gives a Volume object no texture space: its Generated coordinates
+            # are the object-space position (measured: bpy 5.0.1's Cycles renders a
+            # smoke VDB's noise on Generated and on Object to the same pixels).
+            return ["float3 inputs:generated_scale = (1.0, 1.0, 1.0)",
+                    "float3 inputs:generated_offset = (0.0, 0.0, 0.0)"]
         if obj.type != "MESH":
-            raise _Untranslatable(
-                "Generated texture coordinates of a Volume object (link a Texture "
-                "Coordinate's Object output)")
+            raise _Untranslatable(f"Generated texture coordinates of a {obj.type} object")
         scale, offset = _texture_space(obj)
         return [f"float3 inputs:generated_scale = {_c(scale)}",
                 f"float3 inputs:generated_offset = {_c(offset)}"]
