@@ -50,6 +50,7 @@ fn both_sources() -> (Emission, [f64; 3]) {
         Some(emission_grid("temperature", 1500.0)),
         Some(emission_grid("flames", 0.5)),
         params,
+        None,
     )
     .unwrap()
     .unwrap();
@@ -224,7 +225,7 @@ fn source_emission_of_a_thin_cube_matches_closed_form() {
     let cases = [
         (
             "constant field",
-            Emission::new("/Cube", None, None, constant).unwrap(),
+            Emission::new("/Cube", None, None, constant, None).unwrap(),
             [0.4, 0.8, 1.6],
         ),
         (
@@ -234,6 +235,7 @@ fn source_emission_of_a_thin_cube_matches_closed_form() {
                 Some(emission_grid("temperature", 1500.0)),
                 Some(emission_grid("flames", 0.5)),
                 both_params,
+                None,
             )
             .unwrap(),
             both,
@@ -293,6 +295,7 @@ fn emitting_cube_in_matching_environment_is_invisible() {
             emission_scale: 0.5,
             ..Default::default()
         },
+        None,
     )
     .unwrap();
     m.set_emission(e);
@@ -409,6 +412,7 @@ fn emission_radiance_combines_both_sources() {
             blackbody_intensity: 3.0,
             ..Default::default()
         },
+        None,
     )
     .unwrap()
     .unwrap();
@@ -463,7 +467,7 @@ fn bad_emission_parameters_are_errors() {
         ),
     ];
     for (attr, p) in cases {
-        let e = Emission::new("/Fire", None, Some(emission_grid("flames", 1.0)), p)
+        let e = Emission::new("/Fire", None, Some(emission_grid("flames", 1.0)), p, None)
             .err()
             .unwrap_or_else(|| panic!("{attr}: accepted"))
             .to_string();
@@ -471,7 +475,7 @@ fn bad_emission_parameters_are_errors() {
     }
     // No grid at all: no emission.
     assert!(
-        Emission::new("/Fire", None, None, EmissionParams::default())
+        Emission::new("/Fire", None, None, EmissionParams::default(), None)
             .unwrap()
             .is_none()
     );

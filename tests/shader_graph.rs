@@ -528,7 +528,7 @@ fn a_graph_reads_the_exact_density_where_ratio_tracking_would_read_one_voxel() {
 /// A fog cube as the Blender add-on writes it (blender/nimbus_blender/translate.py):
 /// NimbusVolumeAPI coefficients, and `nimbus:densityScale` connected to a Blender node
 /// tree: Noise Texture (Scale 2, Detail 4) on Generated coordinates → Color Ramp (the
-/// 3-entry table 0, 0.2, 1 interpolated) → Math Multiply × 2 → Math Multiply × 1.5 (the
+/// 3-entry grey table 0, 0.2, 1 interpolated, read through RGB to BW) → Math Multiply × 2 → Math Multiply × 1.5 (the
 /// add-on's coefficient scale). `noise_id` is the noise node's type.
 fn blender_cube_stage(dir: &Path, noise_id: &str) -> PathBuf {
     let body = format!(
@@ -556,16 +556,23 @@ fn blender_cube_stage(dir: &Path, noise_id: &str) -> PathBuf {
     def Shader "ramp"
     {{
         uniform token info:id = "ShaderNodeValToRGB"
-        float[] inputs:gray_table = [0, 0.2, 1]
+        float[] inputs:red_table = [0, 0.2, 1]
+        float[] inputs:green_table = [0, 0.2, 1]
+        float[] inputs:blue_table = [0, 0.2, 1]
         float[] inputs:alpha_table = [1, 1, 1]
         float inputs:interpolate = 1
         float inputs:Fac.connect = </Graphs/noise.outputs:Fac>
+    }}
+    def Shader "bw"
+    {{
+        uniform token info:id = "ShaderNodeRGBToBW"
+        float3 inputs:Color.connect = </Graphs/ramp.outputs:Color>
     }}
     def Shader "times"
     {{
         uniform token info:id = "ShaderNodeMath"
         uniform token inputs:operation = "MULTIPLY"
-        float inputs:Value.connect = </Graphs/ramp.outputs:Color>
+        float inputs:Value.connect = </Graphs/bw.outputs:Val>
         float inputs:Value_001 = 2
     }}
     def Shader "scale"

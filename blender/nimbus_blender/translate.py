@@ -148,6 +148,8 @@ class _Medium:
         # (overlay prims, output "path.outputs:name") of the node tree driving the
         # Density input, when there is one (_graph).
         self.density_graph = None
+        # The same for a node tree driving the emission colour.
+        self.emission_graph = None
         self.emission = None  # (color, strength, attribute or None = constant)
         self.blackbody = None  # (intensity, temperature, attribute, tint)
 
@@ -171,6 +173,8 @@ _GRAPH_NODES = {
     "ShaderNodeTexNoise": ("noise_dimensions", "noise_type", "normalize"),
     "ShaderNodeTexGradient": ("gradient_type",),
     "ShaderNodeValToRGB": (),
+    "ShaderNodeRGBToBW": (),
+    "ShaderNodeCombineXYZ": (),
     "ShaderNodeMath": ("operation", "use_clamp"),
     "ShaderNodeMapRange": ("data_type", "interpolation_type", "clamp"),
     "ShaderNodeVectorMath": ("operation",),
@@ -181,8 +185,6 @@ _GRAPH_NODES = {
 }
 # Texture nodes whose unlinked Vector is Blender's Generated coordinates.
 _TEXTURES = ("ShaderNodeTexNoise", "ShaderNodeTexGradient")
-# Cycles' luminance weights (linear Rec. 709): a ramp's colour read as a float.
-_LUMINANCE = (0.2126729, 0.7151522, 0.0721750)
 # Cycles bakes a Color Ramp into this many intervals (RAMP_TABLE_SIZE).
 _RAMP_TABLE = 256
 
@@ -243,10 +245,9 @@ def _graph(socket, obj, owner, folder_prim):
                     f"node '{node.name}': Color Ramp mode {ramp.color_mode}, interpolation "
                     f"{ramp.interpolation} (Nimbus reads RGB with Linear, Ease or Constant)")
             rows = [ramp.evaluate(i / _RAMP_TABLE) for i in range(_RAMP_TABLE + 1)]
-            gray = [sum(w * c for w, c in zip(_LUMINANCE, row[:3])) for row in rows]
-            alpha = [row[3] for row in rows]
-            lines.append("float[] inputs:gray_table = [{}]".format(", ".join(map(_f, gray))))
-            lines.append("float[] inputs:alpha_table = [{}]".format(", ".join(map(_f, alpha))))
+            for k, channel in enumerate(("red", "green", "blue", "alpha")):
+                lines.append("float[] inputs:{}_table = [{}]".format(
+                    channel, ", ".join(_f(row[k]) for row in rows)))
             lines.append(f"float inputs:interpolate = {_f(ramp.interpolation != 'CONSTANT')}")
         if kind == "ShaderNodeValue":
             lines.append(f"float inputs:value = {_f(node.outputs[0].default_value)}")
@@ -267,9 +268,11 @@ def _graph(socket, obj, owner, folder_prim):
                         raise _Untranslatable(f"reroute '{src.name}' is not linked")
                     link = src.inputs[0].links[0]
                     src = link.from_node
-                up = define(src)
+                up = f"{define(src)}.outputs:{_ident(link.from_socket)}"
                 kind_line = "float3" if link.from_socket.type in ("VECTOR", "RGBA") else "float"
-                lines.append(f"{kind_line} inputs:{name}.connect = <{up}.outputs:{_ident(link.from_socket)}>")
+                if link.from_socket.type == "RGBA" and sock.type == "VALUE":
+                    up, kind_line = to_bw(up), "float"
+                lines.append(f"{kind_line} inputs:{name}.connect = <{up}>")
             elif kind in _TEXTURES and name == "Vector":
                 lines.append(f"float3 inputs:Vector.connect = <{generated()}.outputs:Generated>")
             elif sock.type in ("VALUE", "INT", "BOOLEAN", "VECTOR", "RGBA"):
@@ -292,6 +295,14 @@ def _graph(socket, obj, owner, folder_prim):
         return [f"float3 inputs:generated_scale = {_c(scale)}",
                 f"float3 inputs:generated_offset = {_c(offset)}"]
 
+    def to_bw(output):
+        """A colour linked into a float socket: Cycles converts it by its luminance,
+        what an RGB to BW node computes; the overlay writes that node."""
+        path = output.split(".outputs:")[0] + "_" + output.split(".outputs:")[1] + "_bw"
+        prims[path] = ([], ['uniform token info:id = "ShaderNodeRGBToBW"',
+                            f"float3 inputs:Color.connect = <{output}>"], "def Shader")
+        return f"{path}.outputs:Val"
+
     def generated():
         path = f"{folder_prim}/nimbus_generated"
         if path not in prims:
@@ -306,8 +317,10 @@ def _graph(socket, obj, owner, folder_prim):
         src, out = link.from_node, link.from_socket
     if out.type not in ("VALUE", "RGBA", "VECTOR"):
         raise _Untranslatable(f"output '{out.name}' of node '{src.name}'")
-    path = define(src)
-    return prims, f"{path}.outputs:{_ident(out)}"
+    output = f"{define(src)}.outputs:{_ident(out)}"
+    if out.type == "RGBA" and socket.type == "VALUE":
+        output = to_bw(output)
+    return prims, output
 
 
 # What a fog (no grids) is called in warnings, by its kind.
@@ -367,6 +380,28 @@ def _density(node, sock_name, owner, warnings, default_attribute, fog=None, medi
     return float(sock.default_value), default_attribute
 
 
+def _emission_color_graph(node, owner, medium, warnings, graph):
+    """A node tree linked into Principled Volume's Emission Color: compiled by Nimbus
+    (`medium.emission_graph`, the colour then replaced by white) when `graph` is given
+    and it translates; else a warning, and the socket's colour."""
+    sock = node.inputs["Emission Color"]
+    src = _linked(sock)
+    if src is None:
+        return
+    reason = "not translated here (a world volume)"
+    if graph is not None:
+        try:
+            medium.emission_graph = _graph(sock, graph[0], owner, graph[1])
+            color, strength, field = medium.emission
+            medium.emission = ((1.0, 1.0, 1.0), strength, field)
+            return
+        except _Untranslatable as e:
+            reason = f"{e}"
+    warnings.append(
+        f"{owner}: node '{src.name}' ({src.bl_idname}) drives '{node.name}'.Emission Color: "
+        f"{reason}; Nimbus uses the socket's colour")
+
+
 def _closure(node, owner, medium, warnings, weight=1.0, fog=None, graph=None):
     """Adds the volume closure `node` (Cycles' meaning) to `medium`. `owner` names the
     node tree in warnings ("material 'M'", "world 'W'"); `fog` as in _density."""
@@ -407,6 +442,7 @@ def _closure(node, owner, medium, warnings, weight=1.0, fog=None, graph=None):
         if strength > 0:
             medium.emission = (_socket_value(node.inputs["Emission Color"]),
                                weight * strength, field)
+            _emission_color_graph(node, owner, medium, warnings, graph if fog != "world" else None)
         bb = float(node.inputs["Blackbody Intensity"].default_value)
         if bb > 0 and fog:
             temperature = float(node.inputs["Temperature"].default_value)
@@ -505,8 +541,12 @@ def _medium_attrs(medium, who, warnings, density_field=None):
         k = max(source)
         if field is not None:
             attrs["token nimbus:emissionField"] = f'"{field}"'
-        attrs["color3f nimbus:emissionColor"] = _c(
-            [c / k for c in source] if k > 0 else [1.0, 1.0, 1.0])
+        if medium.emission_graph is not None:
+            # The colour graph times emissionScale (the strength): source is white.
+            attrs["color3f nimbus:emissionColor.connect"] = f"<{medium.emission_graph[1]}>"
+        else:
+            attrs["color3f nimbus:emissionColor"] = _c(
+                [c / k for c in source] if k > 0 else [1.0, 1.0, 1.0])
         # 0 turns the constant field off (blackbody only).
         attrs["float nimbus:emissionScale"] = _f(k)
     if medium.blackbody is not None:
@@ -532,13 +572,15 @@ def _graph_target(obj, prims):
 
 
 def _add_graph(medium, prims):
-    """Adds the overlay prims of `medium`'s density node tree to `prims`."""
-    if medium.density_graph is None:
-        return
-    graph_prims, output = medium.density_graph
-    prims[GRAPHS] = ([], [], "def Scope")
-    prims[output.rsplit("/", 1)[0]] = ([], [], "def Scope")
-    prims.update(graph_prims)
+    """Adds the overlay prims of `medium`'s node trees (density, emission colour) to
+    `prims`."""
+    for graph in (medium.density_graph, medium.emission_graph):
+        if graph is None:
+            continue
+        graph_prims, output = graph
+        prims[GRAPHS] = ([], [], "def Scope")
+        prims[output.rsplit("/", 1)[0]] = ([], [], "def Scope")
+        prims.update(graph_prims)
 
 
 def volume_medium(obj, warnings, prims=None):

@@ -15,7 +15,7 @@ use crate::track::free_path::{FreePathSampler, TransmittanceEstimator};
 use crate::track::select::{Dispatch, LightSampling, TrackerKind, TrackerSettings};
 use crate::volume::albedo::AlbedoGrid;
 use crate::volume::boundary::{InsideRule, MediumRegion};
-use crate::volume::emission::{Emission, EmissionGrid};
+use crate::volume::emission::{ColorGraph, Emission, EmissionGrid};
 use crate::volume::graph_density::DensityShader;
 use crate::volume::grid::Grid;
 use crate::volume::majorant::MajorantSpec;
@@ -210,6 +210,8 @@ fn same_medium(a: &Volume, b: &Volume) -> bool {
         && ea.params() == eb.params()
         && same_named(&ea.temperature, &eb.temperature)
         && same_named(&ea.emission, &eb.emission)
+        && ea.color_graph.as_ref().map(|g| &g.program)
+            == eb.color_graph.as_ref().map(|g| &g.program)
         && same_named(&a.albedo, &b.albedo)
         && a.density_graph.as_ref().map(|g| &g.program)
             == b.density_graph.as_ref().map(|g| &g.program)
@@ -417,10 +419,15 @@ pub fn emission_for_volume(volume: &Volume) -> anyhow::Result<Option<Emission>> 
     };
     let temperature = load(tokens::TEMPERATURE_FIELD, &e.temperature)?;
     let field = load(tokens::EMISSION_FIELD, &e.emission)?;
+    let color_graph = e.color_graph.as_ref().map(|g| ColorGraph {
+        program: g.program.clone(),
+        world_to_shading: g.shading_to_world.inverse(),
+    });
     Ok(Emission::new(
         &volume.prim_path,
         temperature,
         field,
         params,
+        color_graph,
     )?)
 }

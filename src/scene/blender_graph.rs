@@ -31,6 +31,8 @@ pub const NODES: &[&str] = &[
     "ShaderNodeTexNoise",
     "ShaderNodeTexGradient",
     "ShaderNodeValToRGB",
+    "ShaderNodeRGBToBW",
+    "ShaderNodeCombineXYZ",
     "ShaderNodeMath",
     "ShaderNodeMapRange",
     "ShaderNodeVectorMath",
@@ -48,6 +50,25 @@ pub struct BlenderDensity {
     pub program: Program,
     /// The field an Attribute node reads (one per graph).
     pub attribute: Option<String>,
+}
+
+/// The colour graph whose output `output` of the shader prim `shader` is connected to
+/// a medium's emission colour (read with [`Program::eval_rgb`]).
+pub fn usd_color(
+    shader: &Prim,
+    output: &str,
+    time: Option<TimeCode>,
+) -> Result<BlenderDensity, SceneError> {
+    let network = usd_network(shader, time)?;
+    let node = shader.path().as_str();
+    let mut reader = Reader::new(&network);
+    let v = reader.output(&(node.to_string(), output.to_string()))?;
+    let attribute = reader.attribute.take();
+    let program = reader
+        .builder
+        .finish_rgb(v)
+        .map_err(|e| prim_error_str(node, e))?;
+    Ok(BlenderDensity { program, attribute })
 }
 
 /// The Blender graph whose output `output` of the shader prim `shader` is connected
@@ -71,13 +92,7 @@ pub fn compile(
     output: &str,
     times_field: bool,
 ) -> Result<BlenderDensity, SceneError> {
-    let mut reader = Reader {
-        network,
-        builder: Builder::default(),
-        done: HashMap::new(),
-        attribute: None,
-        depth: 0,
-    };
+    let mut reader = Reader::new(network);
     let v = reader.output(&(node.to_string(), output.to_string()))?;
     let mut v = reader.scalar(node, v)?;
     if times_field {
@@ -103,7 +118,22 @@ struct Reader<'a> {
     depth: usize,
 }
 
+/// Cycles' luminance weights of its working space (linear Rec. 709, Blender's default
+/// scene-linear space): RGB to BW, and a colour linked into a float socket (the add-on
+/// writes that conversion as an RGB to BW node).
+const LUMINANCE: [f32; 3] = [0.212_672_9, 0.715_152_2, 0.072_175];
+
 impl<'a> Reader<'a> {
+    fn new(network: &'a ShaderNetwork) -> Self {
+        Reader {
+            network,
+            builder: Builder::default(),
+            done: HashMap::new(),
+            attribute: None,
+            depth: 0,
+        }
+    }
+
     fn node(&self, path: &str) -> Result<&'a ShaderNode, SceneError> {
         self.network.node(path).ok_or_else(|| {
             prim_error_str(
@@ -254,6 +284,37 @@ impl<'a> Reader<'a> {
         }
     }
 
+    /// RGB to BW of a Color Ramp's Color, compiled as one lookup in the table of the
+    /// channels' luminance (the ramp is linear in its entries, so this is the same
+    /// function to rounding); `None` when the input is anything else.
+    fn ramp_luminance(&mut self, node: &ShaderNode) -> Result<Option<Reg>, SceneError> {
+        let Some(Ok((path, out))) = Self::source(node, "Color") else {
+            return Ok(None);
+        };
+        let ramp = self.node(&path)?;
+        if ramp.id != "ShaderNodeValToRGB" || out != "Color" {
+            return Ok(None);
+        }
+        let [r, g, b] = ["red_table", "green_table", "blue_table"].map(|t| Self::table(ramp, t));
+        let (r, g, b) = (r?, g?, b?);
+        if r.len() != g.len() || r.len() != b.len() {
+            return Err(prim_error_str(
+                &ramp.path,
+                "the ramp's channel tables differ in length",
+            ));
+        }
+        let table = (0..r.len())
+            .map(|i| LUMINANCE[0] * r[i] + LUMINANCE[1] * g[i] + LUMINANCE[2] * b[i])
+            .collect();
+        let interpolate = self.constant(ramp, "interpolate", 1.0)? != 0.0;
+        let x = self.float(ramp, "Fac", 0.5)?;
+        self.builder.node(&node.path);
+        self.builder
+            .ramp(x, table, interpolate)
+            .map(Some)
+            .map_err(Self::graph_error(&node.path))
+    }
+
     fn refuse(node: &ShaderNode, what: &str, value: &str) -> SceneError {
         prim_error_str(
             &node.path,
@@ -386,18 +447,57 @@ impl<'a> Reader<'a> {
                     b.constant(0.0).map_err(&err)?,
                     b.constant(1.0).map_err(&err)?,
                 );
-                b.clamp(g, zero, one).map_err(&err)?
+                let fac = b.clamp(g, zero, one).map_err(&err)?;
+                if output == "Color" {
+                    b.splat3(fac).map_err(&err)?
+                } else {
+                    fac
+                }
             }
             "ShaderNodeValToRGB" => {
-                let table = match output {
-                    "Color" => Self::table(node, "gray_table")?,
-                    "Alpha" => Self::table(node, "alpha_table")?,
-                    _ => return Err(wrong_output()),
-                };
                 let interpolate = self.constant(node, "interpolate", 1.0)? != 0.0;
                 let x = self.float(node, "Fac", 0.5)?;
+                let tables = match output {
+                    "Color" => vec![
+                        Self::table(node, "red_table")?,
+                        Self::table(node, "green_table")?,
+                        Self::table(node, "blue_table")?,
+                    ],
+                    "Alpha" => vec![Self::table(node, "alpha_table")?],
+                    _ => return Err(wrong_output()),
+                };
                 self.builder.node(&at);
-                self.builder.ramp(x, table, interpolate).map_err(&err)?
+                let mut channels = Vec::new();
+                for t in tables {
+                    channels.push(self.builder.ramp(x, t, interpolate).map_err(&err)?);
+                }
+                match channels[..] {
+                    [r, g, b] => self.builder.combine3(r, g, b).map_err(&err)?,
+                    _ => channels[0],
+                }
+            }
+            "ShaderNodeRGBToBW" => {
+                if output != "Val" {
+                    return Err(wrong_output());
+                }
+                if let Some(ramp) = self.ramp_luminance(node)? {
+                    ramp
+                } else {
+                    let c = self.vector(node, "Color", Some([0.5; 3]))?;
+                    self.builder.node(&at);
+                    let w = self.builder.vector3(LUMINANCE).map_err(&err)?;
+                    self.builder.dot(c, w).map_err(&err)?
+                }
+            }
+            "ShaderNodeCombineXYZ" => {
+                if output != "Vector" {
+                    return Err(wrong_output());
+                }
+                let x = self.float(node, "X", 0.0)?;
+                let y = self.float(node, "Y", 0.0)?;
+                let z = self.float(node, "Z", 0.0)?;
+                self.builder.node(&at);
+                self.builder.combine3(x, y, z).map_err(&err)?
             }
             "ShaderNodeMath" => {
                 if output != "Value" {

@@ -519,6 +519,9 @@ pub struct VolumeEmission {
     /// `nimbus:emissionKind`: whether the model's value is radiance (source μa·Le) or
     /// the source term itself.
     pub kind: EmissionKind,
+    /// `nimbus:emissionColor` connected to a colour graph (the Blender add-on's node
+    /// trees): it replaces the constant colour.
+    pub color_graph: Option<DensityGraph>,
 }
 
 impl Default for VolumeEmission {
@@ -533,6 +536,7 @@ impl Default for VolumeEmission {
             emission_color: p.emission_color,
             emission_scale: p.emission_scale,
             kind: p.kind,
+            color_graph: None,
         }
     }
 }

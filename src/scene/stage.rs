@@ -526,6 +526,9 @@ impl Loader<'_> {
         if let Some(g) = &mut p.density_graph {
             g.shading_to_world = *to_world;
         }
+        if let Some(g) = &mut p.emission.color_graph {
+            g.shading_to_world = *to_world;
+        }
         if let Some(problem) = problem {
             self.warnings
                 .borrow_mut()
@@ -711,9 +714,12 @@ impl Loader<'_> {
         let density_name = read_string(prim, tokens::DENSITY_FIELD, t)?
             .unwrap_or_else(|| DEFAULT_DENSITY_FIELD.to_string());
         let density = self.density_field(prim, &density_name, &fields)?;
-        let emission = self.emission(prim, &fields)?;
+        let mut emission = self.emission(prim, &fields)?;
         let albedo = self.named_field(prim, tokens::ALBEDO_FIELD, &fields)?;
         let volume_to_world = self.world_transform(prim)?;
+        if let Some(g) = &mut emission.color_graph {
+            g.shading_to_world = volume_to_world;
+        }
         let graph = self.density_scale_graph(prim, true)?;
         if let Some((g, source)) = &graph {
             if let Some(a) = g.attribute.as_ref().filter(|a| **a != density_name) {
@@ -757,10 +763,47 @@ impl Loader<'_> {
         prim: &Prim,
         times_field: bool,
     ) -> Result<Option<(blender_graph::BlenderDensity, String)>, SceneError> {
+        let Some((shader, output, source)) = self.connected_shader(prim, tokens::DENSITY_SCALE)?
+        else {
+            return Ok(None);
+        };
+        let graph = blender_graph::usd_density(&shader, &output, self.time, times_field)?;
+        Ok(Some((graph, source)))
+    }
+
+    /// The colour graph `nimbus:emissionColor` is connected to (the Blender add-on's
+    /// node trees), placed in the prim's object space by the caller. A graph reading a
+    /// field is refused (the emission colour reads none).
+    fn emission_color_graph(&self, prim: &Prim) -> Result<Option<DensityGraph>, SceneError> {
+        let Some((shader, output, source)) = self.connected_shader(prim, tokens::EMISSION_COLOR)?
+        else {
+            return Ok(None);
+        };
+        let graph = blender_graph::usd_color(&shader, &output, self.time)?;
+        if let Some(a) = graph.attribute {
+            return Err(prim_error(
+                prim.path(),
+                format!("{source}: the emission colour graph reads the field `{a}` (an Attribute node); Nimbus reads fields in density graphs only"),
+            ));
+        }
+        Ok(Some(DensityGraph {
+            program: graph.program,
+            shading_to_world: DMat4::IDENTITY,
+            source,
+        }))
+    }
+
+    /// The shader prim and output `attr` of `prim` is connected to, and a description
+    /// of it for messages; `None` when it is not connected.
+    fn connected_shader(
+        &self,
+        prim: &Prim,
+        attr: &str,
+    ) -> Result<Option<(Prim, String, String)>, SceneError> {
         let sources = prim
-            .attribute(tokens::DENSITY_SCALE)
+            .attribute(attr)
             .connections()
-            .map_err(|e| prim_error(prim.path(), format!("{}: {e}", tokens::DENSITY_SCALE)))?;
+            .map_err(|e| prim_error(prim.path(), format!("{attr}: {e}")))?;
         let Some(source) = sources.first() else {
             return Ok(None);
         };
@@ -768,18 +811,18 @@ impl Loader<'_> {
         let Some(output) = property.strip_prefix("outputs:") else {
             return Err(prim_error(
                 prim.path(),
-                format!(
-                    "{} is connected to {source}, which is not a shader output",
-                    tokens::DENSITY_SCALE
-                ),
+                format!("{attr} is connected to {source}, which is not a shader output"),
             ));
         };
         let shader = self
             .stage
             .prim(path.clone())
-            .map_err(|e| prim_error(prim.path(), format!("{}: {e}", tokens::DENSITY_SCALE)))?;
-        let graph = blender_graph::usd_density(&shader, output, self.time, times_field)?;
-        Ok(Some((graph, format!("{path} (Blender nodes)"))))
+            .map_err(|e| prim_error(prim.path(), format!("{attr}: {e}")))?;
+        Ok(Some((
+            shader,
+            output.to_string(),
+            format!("{path} (Blender nodes)"),
+        )))
     }
 
     /// World fog: a Volume with `nimbus:fill = "world"` (its fields are not read).
@@ -864,6 +907,7 @@ impl Loader<'_> {
             emission: self.named_field(prim, tokens::EMISSION_FIELD, fields)?,
             emission_color: read_vec3(prim, tokens::EMISSION_COLOR, t)?.unwrap_or(d.emission_color),
             emission_scale: read_f64(prim, tokens::EMISSION_SCALE, t)?.unwrap_or(d.emission_scale),
+            color_graph: self.emission_color_graph(prim)?,
             kind: match read_string(prim, tokens::EMISSION_KIND, t)? {
                 None => d.kind,
                 Some(k) => EmissionKind::from_token(&k).ok_or_else(|| {

@@ -137,6 +137,8 @@ pub struct Program {
     ramps: Vec<Vec<f32>>,
     registers: usize,
     output: Reg,
+    /// 1 (a float: a density) or 3 (a colour: [`Program::eval_rgb`]).
+    output_width: u16,
     /// Whether any instruction reads the attribute: the grid's value then bounds the
     /// result (else the grid only says where the medium is).
     reads_attribute: bool,
@@ -271,6 +273,20 @@ impl Builder {
                 Ok(Value::Vector3(dst))
             }
         }
+    }
+
+    /// A vector of three floats (Blender's Combine XYZ; a colour of three channels).
+    pub fn combine3(&mut self, x: Value, y: Value, z: Value) -> Result<Value, GraphError> {
+        let dst = self.alloc(3)?;
+        for (k, v) in [x, y, z].into_iter().enumerate() {
+            let a = self.float(v, "a component")?;
+            self.push(Instr::Unary {
+                op: Unary::Copy,
+                dst: dst + k as Reg,
+                a,
+            });
+        }
+        Ok(Value::Vector3(dst))
     }
 
     /// One component of a vector (a float passes through).
@@ -514,10 +530,23 @@ impl Builder {
 
     /// The program computing `output` (a float).
     pub fn finish(self, output: Value) -> Result<Program, GraphError> {
-        let Value::Float(output) = output else {
+        let Value::Float(_) = output else {
             return Err(self.error("the graph's output must be a float"));
         };
+        self.finish_any(output)
+    }
+
+    /// The program computing the colour `output` (a vector3, or a float as grey), read
+    /// with [`Program::eval_rgb`].
+    pub fn finish_rgb(mut self, output: Value) -> Result<Program, GraphError> {
+        let output = self.splat3(output)?;
+        self.finish_any(output)
+    }
+
+    fn finish_any(self, output: Value) -> Result<Program, GraphError> {
+        let (output_width, output) = (output.width(), output.reg());
         Ok(Program {
+            output_width,
             instrs: self.instrs,
             noises: self.noises,
             ramps: self.ramps,
@@ -587,9 +616,28 @@ impl Program {
         self.reads_attribute
     }
 
+    /// Whether the output is a colour ([`Program::eval_rgb`]) rather than a float.
+    pub fn outputs_rgb(&self) -> bool {
+        self.output_width == 3
+    }
+
     /// The graph's value at `position` with the attribute `attribute`.
     #[inline]
     pub fn eval(&self, position: [f32; 3], attribute: f32) -> f32 {
+        self.run(position, attribute)[self.output as usize]
+    }
+
+    /// A colour graph's value ([`Builder::finish_rgb`]) at `position`.
+    #[inline]
+    pub fn eval_rgb(&self, position: [f32; 3], attribute: f32) -> [f32; 3] {
+        let r = self.run(position, attribute);
+        let o = self.output as usize;
+        [r[o], r[o + 1], r[o + 2]]
+    }
+
+    /// The registers after the program ran.
+    #[inline(always)]
+    fn run(&self, position: [f32; 3], attribute: f32) -> [f32; MAX_REGISTERS] {
         let mut r = [0.0f32; MAX_REGISTERS];
         r[0] = position[0];
         r[1] = position[1];
@@ -677,7 +725,7 @@ impl Program {
                 }
             }
         }
-        r[self.output as usize]
+        r
     }
 
     /// Bounds of the graph's value over the position box `[lo, hi]` with the attribute

@@ -17,6 +17,7 @@
 //! the free-path loops never touch emission.
 
 use crate::color::usd_blackbody_rgb;
+use crate::shader::graph::Program;
 use crate::volume::counters::Tally;
 use crate::volume::grid::Grid;
 use crate::volume::grid::{world_to_index, MediumError};
@@ -148,12 +149,34 @@ impl EmissionParams {
     }
 }
 
+/// A compiled colour graph ([`Program::eval_rgb`]) and where its positions are.
+#[derive(Clone, Debug)]
+pub struct ColorGraph {
+    pub program: Program,
+    /// World → the graph's position space (the prim's object space).
+    pub world_to_shading: DMat4,
+}
+
+impl ColorGraph {
+    #[inline]
+    fn rgb(&self, p: DVec3) -> [f64; 3] {
+        let q = self
+            .world_to_shading
+            .transform_point3(p)
+            .as_vec3()
+            .to_array();
+        self.program.eval_rgb(q, 0.0).map(|c| f64::from(c.max(0.0)))
+    }
+}
+
 /// The emission of a medium: at least one of the two grids, or a source-kind emission
 /// whose field is the constant 1.
 pub struct Emission {
     pub temperature: Option<EmissionGrid>,
     pub field: Option<EmissionGrid>,
     pub params: EmissionParams,
+    /// A colour graph in place of `emissionColor` (the Blender add-on's node trees).
+    pub color_graph: Option<ColorGraph>,
     /// emissionScale · emissionColor.
     field_rgb: [f64; 3],
     /// No emission grid and [`EmissionKind::Source`]: the field is the constant 1.
@@ -169,6 +192,7 @@ impl Emission {
         temperature: Option<EmissionGrid>,
         field: Option<EmissionGrid>,
         params: EmissionParams,
+        color_graph: Option<ColorGraph>,
     ) -> Result<Option<Emission>, MediumError> {
         params.check(prim)?;
         let source = params.kind == EmissionKind::Source;
@@ -180,6 +204,7 @@ impl Emission {
             constant_field: field.is_none() && source,
             field,
             params,
+            color_graph,
             field_rgb: params.emission_color.map(|c| c * params.emission_scale),
         }))
     }
@@ -195,6 +220,11 @@ impl Emission {
             temperature: place(&self.temperature)?,
             field: place(&self.field)?,
             params: self.params,
+            // A Volume's graph is in its volume space.
+            color_graph: self.color_graph.as_ref().map(|g| ColorGraph {
+                program: g.program.clone(),
+                world_to_shading: volume_to_world.inverse(),
+            }),
             field_rgb: self.field_rgb,
             constant_field: self.constant_field,
         })
@@ -209,15 +239,19 @@ impl Emission {
             let kelvin = self.params.temperature_scale * t.sample(p, c);
             le = blackbody_radiance(kelvin, self.params.blackbody_intensity);
         }
+        let field_rgb = || match &self.color_graph {
+            Some(g) => g.rgb(p).map(|x| x * self.params.emission_scale),
+            None => self.field_rgb,
+        };
         if let Some(f) = &self.field {
             let e = f.sample(p, c);
             if e > 0.0 {
-                for (l, f) in le.iter_mut().zip(self.field_rgb) {
+                for (l, f) in le.iter_mut().zip(field_rgb()) {
                     *l += f * e;
                 }
             }
         } else if self.constant_field {
-            for (l, f) in le.iter_mut().zip(self.field_rgb) {
+            for (l, f) in le.iter_mut().zip(field_rgb()) {
                 *l += f;
             }
         }

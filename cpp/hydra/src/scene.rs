@@ -539,6 +539,8 @@ fn emission(
                 )
             })?,
         },
+        // Hydra hands materials over as networks (MaterialX): no colour graph here.
+        color_graph: None,
     })
 }
 
