@@ -6,8 +6,9 @@
 #     each frame); `openjd check` validates it and `openjd run` runs the render and
 #     merge steps locally.
 #  2. Slurm: a real slurmctld + slurmd on loopback (as root, auth/none), `nimbus farm
-#     slurm --submit` of 2 frames x 4 tiles; one render task is killed mid-render and
-#     requeued; the merge jobs (afterany) must end with both frames complete.
+#     slurm --submit` of 2 frames x 4 tiles, denoised too (the merge jobs denoise);
+#     one render task is killed mid-render and requeued; the merge jobs (afterany)
+#     must end with both frames complete.
 # Both frames must equal one-machine renders bit for bit in every channel. The job's
 # folder and output paths hold a space, quotes and `$` (quoting must survive). Exits
 # non-zero on any failure; never skips.
@@ -41,7 +42,7 @@ py="$venv/bin/python"
 
 # One-machine reference renders of frames 1 and 2 (the Slurm tasks take more samples,
 # so that one can be killed while it renders).
-slow=(--res 48x36 --spp 800 --seed 7)
+slow=(--res 48x36 --spp 800 --seed 7 --denoise)
 for f in 1 2; do
     "$nimbus" render scenes/cloud/cloud.usda -o "$work/ref.$f.exr" --frame $f "${flags[@]}" 2>/dev/null
     "$nimbus" render scenes/cloud/cloud.usda -o "$work/slow.$f.exr" --frame $f "${slow[@]}" 2>/dev/null
@@ -137,6 +138,8 @@ while squeue -h -j "$render,$merge" 2>/dev/null | grep -q .; do
     sleep 1
 done
 grep -l "killed\|Killed\|error" "$odd"/slurm-job/logs/render-* 2>/dev/null | head -3 || true
+# Denoised by the merge jobs (the tiles were not), as the one-machine renders were.
+grep -q "denoised in" "$odd"/slurm-job/logs/merge-* || { tail -20 "$odd"/slurm-job/logs/merge-*; echo "a merge job did not denoise" >&2; exit 1; }
 same "$odd/slurm.0001.exr" "$work/slow.1.exr" || { tail -20 "$odd"/slurm-job/logs/*; exit 1; }
 same "$odd/slurm.0002.exr" "$work/slow.2.exr" || { tail -20 "$odd"/slurm-job/logs/*; exit 1; }
 # The killed task really ran twice (a second start after the kill).

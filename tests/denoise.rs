@@ -8,7 +8,8 @@
 //!   direct / indirect, and the two lights' groups) still sum to the denoised beauty
 //!   within the tolerance derived in docs/sampling.md ("Denoising").
 //! - Farm: 4 adaptive tiles (not denoised, carrying the albedo) merge into exactly the
-//!   one-machine denoised frame, every channel bit for bit.
+//!   one-machine denoised frame, every channel bit for bit; `farm merge` writes the
+//!   frame's stats with the merge's `denoise_seconds`.
 //! - Errors: a library that does not load is one clean line and no file; a build
 //!   without OIDN says "denoising is not built in" (checked in such a build; in
 //!   this one the message's function is checked).
@@ -304,6 +305,81 @@ fn denoised_tiles_merge_into_the_one_machine_denoised_frame() {
     for ((name, x), (_, y)) in a.iter().zip(&b) {
         assert_eq!(bits(x), bits(y), "channel {name}");
     }
+}
+
+/// `farm merge` of a denoised job whose render flags write stats: the frame's stats are
+/// merged from its tiles' and record the merge's denoising (`denoise` "denoised",
+/// `denoise_seconds` the time it took); `nimbus merge` of the stats alone marks them
+/// denoised with `denoise_seconds` null (it did not time the image's merge).
+#[test]
+fn farm_merge_records_the_denoising_in_the_frame_stats() {
+    if !oidn("the test") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let stage = root().join(CLOUD).display().to_string();
+    let out = d.join("shot.####.exr").display().to_string();
+    let stats = d.join("shot.####.json").display().to_string();
+    let job = d.join("job").display().to_string();
+    let o = nimbus(&[
+        "farm",
+        "openjd",
+        &stage,
+        "-o",
+        &out,
+        "--frames",
+        "2-2",
+        "--tiles",
+        "2",
+        "--dir",
+        &job,
+        "--",
+        "--res",
+        "24x18",
+        "--spp",
+        "8",
+        "--denoise",
+        "--stats",
+        &stats,
+    ]);
+    assert!(o.status.success(), "{}", common::cli::stderr(&o));
+    let job_file = d.join("job/job.json").display().to_string();
+    for i in ["0", "1"] {
+        let o = nimbus(&["farm", "task", "--job", &job_file, "--index", i]);
+        assert!(o.status.success(), "task {i}: {}", common::cli::stderr(&o));
+    }
+    let tile_stats: Vec<PathBuf> = (0..2)
+        .map(|i| d.join(format!("shot.0002.tile{i}.json")))
+        .collect();
+    for t in &tile_stats {
+        let js = stats_json(t);
+        assert_eq!(js["denoise"], "merge", "{js}");
+    }
+    let o = nimbus(&["farm", "merge", "--job", &job_file, "--frame", "2"]);
+    assert!(o.status.success(), "{}", common::cli::stderr(&o));
+    assert!(
+        common::cli::stderr(&o).contains("denoised in"),
+        "{}",
+        common::cli::stderr(&o)
+    );
+    let js = stats_json(&d.join("shot.0002.json"));
+    assert_eq!(js["denoise"], "denoised", "{js}");
+    assert_eq!(js["tiles_merged"], 2, "{js}");
+    assert_eq!(js["tile"], serde_json::Value::Null, "{js}");
+    let secs = js["denoise_seconds"]
+        .as_f64()
+        .expect("denoise_seconds a number");
+    assert!(secs > 0.0 && secs < 60.0, "{js}");
+    // The stats alone: denoised, time unknown.
+    let alone = d.join("alone.json");
+    let mut args = vec!["merge".to_string(), alone.display().to_string()];
+    args.extend(tile_stats.iter().map(|p| p.display().to_string()));
+    let o = nimbus(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(o.status.success(), "{}", common::cli::stderr(&o));
+    let js = stats_json(&alone);
+    assert_eq!(js["denoise"], "denoised", "{js}");
+    assert_eq!(js["denoise_seconds"], serde_json::Value::Null, "{js}");
 }
 
 /// The stage's `nimbus:denoise`, and `--no-denoise` over it.

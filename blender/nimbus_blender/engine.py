@@ -52,6 +52,10 @@ class NimbusRenderEngine(bpy.types.RenderEngine):
     bl_use_preview = False
     bl_use_postprocess = True
 
+    def status(self, text):
+        """The status line (Blender's render info text)."""
+        self.update_stats("", text)
+
     def update_render_passes(self, scene=None, renderlayer=None):
         self.register_pass(scene, renderlayer, "Combined", 4, "RGBA", "COLOR")
         vl = renderlayer.nimbus
@@ -87,7 +91,7 @@ class NimbusRenderEngine(bpy.types.RenderEngine):
         scene = depsgraph.scene
         view_layer = depsgraph.view_layer
         settings = scene.nimbus
-        self.update_stats("", "Nimbus: exporting the scene")
+        self.status("Nimbus: exporting the scene")
         folder = tempfile.mkdtemp(prefix="nimbus-blender-")
         try:
             t = translate.translate(depsgraph, folder)
@@ -161,13 +165,22 @@ class NimbusRenderEngine(bpy.types.RenderEngine):
         opaque = not t.transparent
         total = settings.samples
 
+        # The estimated error after the last pass, as the CLI's progress line says it.
+        noise = {}
+
+        def on_noise(spp, estimate, converged):
+            noise["text"] = pass_noise(estimate, converged)
+
         def show(spp, total_spp, rgba):
             if opaque:
                 rgba = rgba.copy()
                 rgba[..., 3] = 1.0
             combined.rect.foreach_set(_blender_rows(rgba))
             self.update_result(result)
-            self.update_stats("", f"Nimbus: {spp} / {total_spp or '-'} samples")
+            text = f"Nimbus: {spp} / {total_spp or '-'} samples"
+            if "text" in noise:
+                text += ", " + noise["text"]
+            self.status(text)
             return None
 
         def progress(done, total_rows):
@@ -177,11 +190,11 @@ class NimbusRenderEngine(bpy.types.RenderEngine):
         def cancel():
             return self.test_break() or (break_hook is not None and break_hook())
 
-        self.update_stats("", "Nimbus: loading the stage")
+        self.status("Nimbus: loading the stage")
         render_start = time.perf_counter()
         try:
-            r = nimbus.render(t.stage, on_pass=show, progress=progress,
-                              cancel=cancel, **kwargs)
+            r = nimbus.render(t.stage, on_pass=show, on_noise=on_noise,
+                              progress=progress, cancel=cancel, **kwargs)
         except nimbus.Cancelled:
             self.end_result(result)
             raise
@@ -223,8 +236,18 @@ class NimbusRenderEngine(bpy.types.RenderEngine):
         if r.stats.get("converged_pixels") is not None:
             noise = (f"mean {r.stats['mean_samples_per_pixel']:.1f} samples, " + noise +
                      f"{100 * r.stats['converged_pixels']:.0f}% converged, ")
-        self.update_stats("", f"Nimbus: {r.spp} samples in {r.stats['passes']} passes, "
-                              f"{noise}{end - start:.2f} s")
+        self.status(f"Nimbus: {r.spp} samples in {r.stats['passes']} passes, "
+                    f"{noise}{end - start:.2f} s")
+
+
+def pass_noise(estimate, converged):
+    """The status line's error: "noise 0.0123" (the mean per-pixel noise estimate
+    adaptive sampling stops on, the CLI's progress line's), and with adaptive sampling
+    the share of pixels converged."""
+    text = f"noise {estimate:.4f}"
+    if converged is not None:
+        text += f", {100 * converged:.0f}% converged"
+    return text
 
 
 def _blenders_oidn():

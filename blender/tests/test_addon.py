@@ -127,6 +127,37 @@ def test_adaptive_sampling_is_nimbus_render_with_the_same_threshold(addon, smoke
         assert same_bits(passes["Combined"][..., i], cli[c]), f"channel {c} differs"
 
 
+def test_the_status_line_shows_the_estimated_noise(addon, smoke_vdb, tmp_path, monkeypatch):
+    """While F12 renders, the status line after each pass shows the estimated noise the
+    CLI's progress line shows (and, with adaptive sampling, the share of pixels
+    converged); the last pass's is the render's stats' `estimated_noise`, which the final
+    line repeats."""
+    import re
+
+    scene, _, _ = smoke_scene(smoke_vdb, res=32, world=False, lights=("sun",))
+    s = scene.nimbus
+    s.samples = 64
+    s.use_adaptive_sampling = True
+    s.adaptive_threshold = 0.05
+    s.adaptive_min_samples = 8
+    lines = []
+    original = addon.NimbusRenderEngine.status
+
+    def record(self, text):
+        lines.append(text)
+        original(self, text)
+
+    monkeypatch.setattr(addon.NimbusRenderEngine, "status", record)
+    render(scene, tmp_path / "addon.exr")
+    during = [x for x in lines if " / 64 samples" in x]
+    pattern = r"noise (\d+\.\d{4}), (\d+)% converged"
+    assert during and all(re.search(pattern, x) for x in during), lines
+    noises = [float(re.search(pattern, x).group(1)) for x in during]
+    assert len(set(noises)) > 1, during  # it changes as samples come in
+    final = re.search(r"noise (\d+\.\d{4})", lines[-1])
+    assert final and float(final.group(1)) == noises[-1], (during[-1], lines[-1])
+
+
 def test_an_opaque_film_is_nimbus_render_with_alpha_one(addon, smoke_vdb, nimbus_bin, tmp_path):
     """Film not transparent, a world colour: R, G, B are `nimbus render`'s bit for bit
     (the dome seen behind the volume, as Cycles shows the world), alpha is 1."""

@@ -107,6 +107,7 @@ def render(
     on_pass: Optional[
         Callable[[int, Optional[int], npt.NDArray[np.float32]], Optional[bool]]
     ] = None,
+    on_noise: Optional[Callable[[int, float, Optional[float]], Any]] = None,
     cancel: Optional[Callable[[], bool]] = None,
 ) -> RenderResult:
     """Render a stage (a .usda/.usdc/.usdz path, a .vdb file, or usda text in
@@ -126,7 +127,10 @@ def render(
     The GIL is released while the stage loads and renders. On the calling thread:
     ``progress(done, total)`` as rows finish (``total`` is spp * rows, None with a time
     limit alone); ``on_pass(spp, total_spp, rgba)`` after each pass of the progressive
-    render with a copy of the image so far; ``cancel()`` every 20 ms. ``on_pass``
+    render with a copy of the image so far; ``on_noise(spp, noise, converged)`` after
+    each pass, before ``on_pass`` (``noise``: the mean of adaptive sampling's per-pixel
+    noise estimate, the stats' ``estimated_noise``; ``converged``: the share of pixels
+    adaptive sampling stopped, None without it); ``cancel()`` every 20 ms. ``on_pass``
     returning False or ``cancel()`` returning True raises Cancelled at once; Ctrl-C
     raises KeyboardInterrupt at once.
 

@@ -9,6 +9,7 @@
 use crate::arrays::{interleaved_rgba, rgba_array};
 use crate::errors::{guarded, Cancelled, Error};
 use crate::wait::{check_stop, recv};
+use nimbus::render::adaptive::Convergence;
 use nimbus::render::film::{Film, Region};
 use nimbus::render::progressive::{Clock, Progress};
 use nimbus::render::session::{ExtraOutputs, Session};
@@ -28,6 +29,8 @@ pub struct Callbacks {
     pub progress: Option<Py<PyAny>>,
     /// `on_pass(spp, total_spp, rgba)` after each pass.
     pub on_pass: Option<Py<PyAny>>,
+    /// `on_noise(spp, noise, converged)` after each pass, before `on_pass`.
+    pub on_noise: Option<Py<PyAny>>,
     /// `cancel()` every [`crate::wait::POLL`].
     pub cancel: Option<Py<PyAny>>,
 }
@@ -35,8 +38,8 @@ pub struct Callbacks {
 /// What the render thread sends the calling thread.
 enum Msg {
     /// A pass finished: samples per pixel so far, passes so far, the image so far
-    /// (only when `on_pass` wants it).
-    Pass(u32, u32, Option<Vec<f32>>),
+    /// (only when `on_pass` wants it), the pixels' convergence.
+    Pass(u32, u32, Option<Vec<f32>>, Convergence),
     Done(PyResult<Rendered>),
 }
 
@@ -76,10 +79,14 @@ pub fn render_passes(
     let rendered = loop {
         let r = match recv(py, &rx) {
             Ok(Msg::Done(r)) => break r?,
-            Ok(Msg::Pass(spp_done, _passes, image)) => {
-                // The rows of this pass are done: report them before the image.
+            Ok(Msg::Pass(spp_done, _passes, image, convergence)) => {
+                // The rows of this pass are done: report them, then the noise, before
+                // the image.
                 rows_report
                     .report(py, shared.done.load(Ordering::Relaxed))
+                    .and_then(|_| {
+                        show_noise(py, callbacks.on_noise.as_ref(), spp_done, convergence)
+                    })
                     .and_then(|_| {
                         show_pass(
                             py,
@@ -150,7 +157,7 @@ fn spawn_worker(
                         let image = want_image.then(|| interleaved_rgba(film));
                         // The caller may have returned already (a stop): no one
                         // listens then, which is fine.
-                        let _ = pass_tx.send(Msg::Pass(p.spp, p.passes, image));
+                        let _ = pass_tx.send(Msg::Pass(p.spp, p.passes, image, p.convergence));
                         Ok::<(), anyhow::Error>(())
                     },
                 )?;
@@ -188,6 +195,22 @@ impl<'a> RowReport<'a> {
         }
         Ok(())
     }
+}
+
+/// Hands a finished pass's noise estimate to `on_noise`: the mean over the pixels of
+/// the estimate adaptive sampling stops on (the stats' `estimated_noise`, the CLI
+/// progress line's "noise"), and the share of pixels stopped (None without adaptive
+/// sampling).
+fn show_noise(
+    py: Python<'_>,
+    on_noise: Option<&Py<PyAny>>,
+    spp_done: u32,
+    c: Convergence,
+) -> PyResult<()> {
+    if let Some(cb) = on_noise {
+        cb.call1(py, (spp_done, c.mean_error, c.stopped))?;
+    }
+    Ok(())
 }
 
 /// Hands a finished pass's image to `on_pass`. Only an explicit False stops the render

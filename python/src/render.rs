@@ -56,7 +56,11 @@ use std::time::Instant;
 /// limit alone); `on_pass(spp, total_spp, rgba)` after each pass of the progressive
 /// render (the CLI's passes: 1 sample, then doubling, each at most about 2 s;
 /// `spp` samples per pixel so far, `total_spp` the cap or None, `rgba` a float32
-/// (H, W, 4) copy of the image so far); `cancel()` every 20 ms while the stage loads
+/// (H, W, 4) copy of the image so far); `on_noise(spp, noise, converged)` after each
+/// pass, before `on_pass` (`noise` the mean over the pixels of adaptive sampling's
+/// noise estimate, as the CLI's progress line and the stats' `estimated_noise`;
+/// `converged` the share of pixels adaptive sampling stopped, None without it);
+/// `cancel()` every 20 ms while the stage loads
 /// and renders. A callback that raises stops the render and its exception
 /// propagates; `on_pass` returning False or `cancel()` returning True stops it and
 /// raises Cancelled at once, as Ctrl-C raises KeyboardInterrupt.
@@ -72,7 +76,7 @@ use std::time::Instant;
     reduced_termination=false, no_absorption_events=false, majorant_scale=1.0,
     profile=false, no_specialise=false, aovs=None, time_limit=None,
     noise_threshold=None, min_spp=None, denoise=None, strict=false, no_default_lights=false, grid=None, camera=None, frame=None, output=None, stats=None, preview=None,
-    progress=None, on_pass=None, cancel=None
+    progress=None, on_pass=None, on_noise=None, cancel=None
 ))]
 #[allow(clippy::too_many_arguments)]
 pub fn render(
@@ -114,6 +118,7 @@ pub fn render(
     preview: Option<PathBuf>,
     progress: Option<Py<PyAny>>,
     on_pass: Option<Py<PyAny>>,
+    on_noise: Option<Py<PyAny>>,
     cancel: Option<Py<PyAny>>,
 ) -> PyResult<RenderResult> {
     let wall = Instant::now();
@@ -185,6 +190,7 @@ pub fn render(
     let callbacks = Callbacks {
         progress,
         on_pass,
+        on_noise,
         cancel,
     };
     let (film, p, threads, counting) =

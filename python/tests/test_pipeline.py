@@ -76,6 +76,25 @@ def test_on_pass_sees_each_pass_and_the_last_is_the_result(stage):
     assert not same_bits(seen[0][2], r.rgba)
 
 
+def test_on_noise_gives_each_pass_noise_estimate_before_its_image(stage):
+    """on_noise(spp, noise, converged) after each pass, before on_pass: the last is the
+    stats' estimated_noise and converged_pixels; converged is None without adaptive
+    sampling."""
+    calls = []
+    on_noise = lambda spp, noise, converged: calls.append(("noise", spp, noise, converged))
+    on_pass = lambda spp, total, rgba: calls.append(("pass", spp))
+    r = nimbus.render(stage, spp=40, seed=5, noise_threshold=0.05, min_spp=8,
+                      on_noise=on_noise, on_pass=on_pass)
+    assert [c[0] for c in calls] == ["noise", "pass"] * r.stats["passes"]
+    assert all(n[1] == p[1] for n, p in zip(calls[::2], calls[1::2]))
+    last = calls[-2]
+    assert last[2] == r.stats["estimated_noise"] and last[3] == r.stats["converged_pixels"]
+    assert len({c[2] for c in calls[::2]}) > 1 and all(0 <= c[3] <= 1 for c in calls[::2])
+    plain = []
+    nimbus.render(stage, spp=3, on_noise=lambda *a: plain.append(a))
+    assert plain and all(a[2] is None and a[1] > 0 for a in plain)
+
+
 def test_on_pass_returning_false_cancels(stage):
     calls = []
 

@@ -3,7 +3,9 @@
 
 use super::render::{parse_frame_range, FrameRange, RenderArgs};
 use crate::farm::{openjd, slurm, FarmJob};
-use crate::output::merge::merge;
+use crate::output::merge::{merge, merge_frame_stats};
+use crate::output::products::frame_path;
+use crate::render::tiles::Tile;
 use anyhow::{bail, Result};
 use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
@@ -165,11 +167,44 @@ fn merge_frame(a: TaskArgs) -> Result<()> {
     let (out, tiles) = job.frame_files(frame);
     let m = merge(&out, &tiles)?;
     eprintln!(
-        "nimbus: frame {frame}: wrote {} ({}x{}, {} tiles)",
+        "nimbus: frame {frame}: wrote {} ({}x{}, {} tiles{})",
         out.display(),
         m.width,
         m.height,
-        m.tiles
+        m.tiles,
+        m.denoise_seconds
+            .map_or(String::new(), |s| format!(", denoised in {s:.2} s"))
     );
+    // With --stats among the render flags, the frame's stats too, from its tiles'
+    // (named as `render --frame F --tile T/N` names them), with the merge's denoising.
+    let first = Tile {
+        index: 0,
+        count: job.tiles,
+    };
+    let args = parse_render(&job.render_command(frame, first))?;
+    if let Some(stats) = &args.stats {
+        let stats = if stats.to_string_lossy().contains('#') {
+            frame_path(stats, frame)
+        } else {
+            stats.clone()
+        };
+        let name = stats
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let tiles: Vec<PathBuf> = (0..job.tiles)
+            .map(|index| {
+                stats.with_file_name(
+                    Tile {
+                        index,
+                        count: job.tiles,
+                    }
+                    .file_name(&name),
+                )
+            })
+            .collect();
+        merge_frame_stats(&stats, &tiles, m.denoise_seconds)?;
+        eprintln!("nimbus: frame {frame}: wrote {}", stats.display());
+    }
     Ok(())
 }

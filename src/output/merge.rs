@@ -102,10 +102,30 @@ pub fn merge(out: &Path, inputs: &[PathBuf]) -> Result<Merged> {
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("json"));
     if is_json {
-        merge_stats(out, inputs)
+        merge_stats(out, inputs, None)
     } else {
         merge_images(out, inputs)
     }
+}
+
+/// Merges a frame's tile stats into `out` as [`merge`] does (the same checks), and
+/// records the merged frame's denoising: `denoise_seconds` is the time the merge of
+/// the frame's EXR tiles took to denoise it ([`Merged::denoise_seconds`]), written as
+/// the merged stats' `denoise_seconds` when the tiles' `denoise` says their merge
+/// denoises (`farm merge` merges a frame's stats after its image).
+pub fn merge_frame_stats(
+    out: &Path,
+    inputs: &[PathBuf],
+    denoise_seconds: Option<f64>,
+) -> Result<Merged> {
+    if inputs.is_empty() {
+        bail!("no tile stats to merge");
+    }
+    if inputs.iter().any(|p| p == out) {
+        bail!("{} is both the output and a tile's stats", out.display());
+    }
+    super::check_writable(out)?;
+    merge_stats(out, inputs, denoise_seconds)
 }
 
 fn merge_images(out: &Path, inputs: &[PathBuf]) -> Result<Merged> {
@@ -372,7 +392,7 @@ const LARGEST: &[&str] = &["max_pass_seconds", "max_throughput_peak"];
 /// Merges tile stats: counts and seconds summed, maxima kept, the mean throughput
 /// weighted by pixels, the frame's size; the rest as in tile 0. The same checks as for
 /// images (one stats file per tile, same settings hash, complete).
-fn merge_stats(out: &Path, inputs: &[PathBuf]) -> Result<Merged> {
+fn merge_stats(out: &Path, inputs: &[PathBuf], denoise_seconds: Option<f64>) -> Result<Merged> {
     let mut stats = Vec::new();
     for p in inputs {
         let text =
@@ -472,17 +492,24 @@ fn merge_stats(out: &Path, inputs: &[PathBuf]) -> Result<Merged> {
     merged.insert("height".into(), Value::from(h));
     merged.insert("tile".into(), Value::Null);
     merged.insert("tiles_merged".into(), Value::from(count));
-    // The tiles' `"merge"`: the merged image is denoised, by `merge` of the EXRs
-    // (its time is not in these stats).
+    // The tiles' `"merge"`: the merged image is denoised, by `merge` of the EXRs. Its
+    // time is known when the caller merged the EXRs (`farm merge`); a merge of the
+    // stats alone does not know it: null then, not the tiles' 0.
     let by_merge = Denoise::ByMerge.attribute();
-    if by_merge.is_some() && merged.get("denoise").and_then(Value::as_str) == by_merge {
+    let denoised_by_merge =
+        by_merge.is_some() && merged.get("denoise").and_then(Value::as_str) == by_merge;
+    if denoised_by_merge {
         merged.insert("denoise".into(), Value::from(Denoise::Done.attribute()));
+        merged.insert(
+            "denoise_seconds".into(),
+            denoise_seconds.map_or(Value::Null, Value::from),
+        );
     }
     write_json(out, &Value::Object(merged))?;
     Ok(Merged {
         tiles: count,
         width: w,
         height: h,
-        denoise_seconds: None,
+        denoise_seconds: denoise_seconds.filter(|_| denoised_by_merge),
     })
 }
