@@ -39,18 +39,24 @@ def noise_ramp_material(name="cloud"):
     return m
 
 
+def _sun(strength):
+    """A sun of `strength` W/m^2, angle 0, from rotation (0.6, 0.2, 0) (both scenes')."""
+    data = bpy.data.lights.new("sun", "SUN")
+    data.energy = strength
+    data.angle = 0.0
+    sun = bpy.data.objects.new("sun", data)
+    sun.rotation_euler = (0.6, 0.2, 0.0)
+    bpy.context.scene.collection.objects.link(sun)
+    return sun
+
+
 def noise_cube_scene():
     """Scene (a): a cube [-1, 1]^3 of that material lit by a sun (strength 3, angle 0),
     black world, film transparent, camera 5.5 units away, 32 x 32."""
     scene = _render_settings((32, 32), True)
     _world()
     _mesh_object("noise cube", "cube", noise_ramp_material())
-    data = bpy.data.lights.new("sun", "SUN")
-    data.energy = 3.0
-    data.angle = 0.0
-    sun = bpy.data.objects.new("sun", data)
-    sun.rotation_euler = (0.6, 0.2, 0.0)
-    scene.collection.objects.link(sun)
+    _sun(3.0)
     _camera((0.0, -5.5, 0.5), (1.5, 0.0, 0.0))
     return scene
 
@@ -201,12 +207,7 @@ def test_a_glowing_gradient_noise_sphere_against_cycles(addon, tmp_path):
     scene = _render_settings((32, 32), True)
     _world()
     _mesh_object("glow", "sphere", gradient_emission_material())
-    data = bpy.data.lights.new("sun", "SUN")
-    data.energy = 1.0
-    data.angle = 0.0
-    sun = bpy.data.objects.new("sun", data)
-    sun.rotation_euler = (0.6, 0.2, 0.0)
-    scene.collection.objects.link(sun)
+    _sun(1.0)
     _camera((0.0, -5.5, 0.0), (math.pi / 2, 0.0, 0.0))
     (tmp_path / "overlay").mkdir()
     t, _ = translated(tmp_path / "overlay")
