@@ -164,6 +164,8 @@ fn full_path(c: &mut Criterion) {
         projection: Default::default(),
         f_stop: 0.0,
         focus_distance: 0.0,
+        shutter: None,
+        motion: None,
     };
     let camera = CameraRays::new(&cam, 64, 64);
     let lights = Lights {
@@ -198,6 +200,7 @@ fn full_path(c: &mut Criterion) {
             extras: Default::default(),
             select_segments: SelectSegments::Off,
             locals: Vec::new(),
+            shutter: None,
         };
         let mut rng = pixel_sampler(5, 6);
         let mut counters = Counters::default();

@@ -10,6 +10,7 @@ pub mod bench;
 pub mod cli;
 pub mod color;
 pub mod farm;
+pub mod motion;
 pub mod output;
 pub mod render;
 pub mod scene;

@@ -51,6 +51,8 @@ fn camera(away: bool) -> CameraRays {
         projection: Default::default(),
         f_stop: 0.0,
         focus_distance: 0.0,
+        shutter: None,
+        motion: None,
     };
     CameraRays::new(&cam, 32, 24)
 }

@@ -1015,6 +1015,7 @@ fn check_grey_emission<F: FreePathSampler, E: TransmittanceEstimator>(
         extras: Default::default(),
         select_segments,
         locals: Vec::new(),
+        shutter: None,
     };
     let mut rng = pixel_sampler(5, 0);
     let mut c = Counters::default();

@@ -335,6 +335,8 @@ fn camera(position: DVec3, near: f64, far: f64) -> CameraRays {
         projection: Default::default(),
         f_stop: 0.0,
         focus_distance: 0.0,
+        shutter: None,
+        motion: None,
     };
     CameraRays::new(&cam, 9, 9)
 }
@@ -410,6 +412,7 @@ fn samples_with_locals(
         extras: Default::default(),
         select_segments: select,
         locals,
+        shutter: None,
     };
     let mut rng = pixel_sampler(seed, 40);
     let mut c = Counters::default();

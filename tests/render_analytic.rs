@@ -32,6 +32,8 @@ fn camera() -> CameraRays {
         projection: Default::default(),
         f_stop: 0.0,
         focus_distance: 0.0,
+        shutter: None,
+        motion: None,
     };
     CameraRays::new(&cam, 9, 9)
 }
@@ -77,6 +79,7 @@ fn integrator_with<'a, F: FreePathSampler>(
         extras: Default::default(),
         select_segments: SelectSegments::Off,
         locals: Vec::new(),
+        shutter: None,
     }
 }
 

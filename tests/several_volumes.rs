@@ -411,6 +411,7 @@ fn render(
                 extras: Default::default(),
                 select_segments: SelectSegments::Off,
                 locals: Vec::new(),
+                shutter: None,
             };
             let mut rng = nimbus::render::sampler::pixel_sampler(self.seed, 0);
             let mut out: [Vec<f64>; 3] = Default::default();

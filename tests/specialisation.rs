@@ -402,6 +402,8 @@ fn sky_scene(media: Vec<Medium>) -> Scene {
         projection: Default::default(),
         f_stop: 0.0,
         focus_distance: 0.0,
+        shutter: None,
+        motion: None,
     };
     Scene {
         media,

@@ -88,6 +88,8 @@ fn camera(near: f64, far: f64) -> CameraRays {
         projection: Default::default(),
         f_stop: 0.0,
         focus_distance: 0.0,
+        shutter: None,
+        motion: None,
     };
     CameraRays::new(&cam, 9, 9)
 }
@@ -185,6 +187,7 @@ impl Slab {
             extras,
             select_segments: SelectSegments::Off,
             locals,
+            shutter: None,
         };
         let mut rng = pixel_sampler(seed, 40);
         let mut c = Counters::default();

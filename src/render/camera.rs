@@ -25,6 +25,7 @@
 //! space direction falls `D` units in depth per unit parameter reaches depth z at
 //! parameter z / D.
 
+use crate::motion::TransformMotion;
 use crate::scene::{Camera, Projection};
 use glam::{DMat4, DVec2, DVec3};
 use std::f64::consts::FRAC_PI_4;
@@ -45,6 +46,10 @@ pub struct CameraRays {
     height: u32,
     /// The thin lens, when the camera has depth of field.
     lens: Option<ThinLens>,
+    /// `camera_to_world` over the shutter, when the camera moves while it is open.
+    motion: Option<TransformMotion>,
+    /// `shutter:open`, `shutter:close`, when open.
+    shutter: Option<(f64, f64)>,
 }
 
 /// A thin lens: its radius and the depth of the plane in focus, in camera-space units.
@@ -90,6 +95,8 @@ impl CameraRays {
             width,
             height,
             lens,
+            motion: cam.motion.clone(),
+            shutter: cam.shutter,
         }
     }
 
@@ -105,25 +112,54 @@ impl CameraRays {
     }
 
     /// The ray through image position (`px + jx`, `py + jy`), y down, from the centre of
-    /// the lens (the pinhole ray; the only ray without depth of field).
+    /// the lens (the pinhole ray; the only ray without depth of field), at the frame.
     pub fn ray(&self, px: f64, py: f64) -> PrimaryRay {
+        self.ray_at(px, py, 0.0)
+    }
+
+    /// [`Self::ray`] with the camera where it is at frame-relative `time`.
+    pub fn ray_at(&self, px: f64, py: f64, time: f64) -> PrimaryRay {
         let (o, v, depth) = self.pinhole(px, py);
-        self.to_world(o, v, depth)
+        self.to_world(o, v, depth, time)
+    }
+
+    /// The shutter interval (frame-relative open, close), when it is open.
+    pub fn shutter(&self) -> Option<(f64, f64)> {
+        self.shutter
+    }
+
+    /// Whether the camera moves while the shutter is open.
+    pub fn moves(&self) -> bool {
+        self.motion.is_some()
     }
 
     /// The ray through image position (`px`, `py`) from the lens point that
     /// (`u1`, `u2`) ∈ [0,1)² picks (uniform over the lens disk); [`Self::ray`] for a
     /// camera without depth of field.
     pub fn ray_through_lens(&self, px: f64, py: f64, u1: f64, u2: f64) -> PrimaryRay {
+        self.ray_through_lens_at(px, py, u1, u2, 0.0)
+    }
+
+    /// [`Self::ray_through_lens`] with the camera where it is at frame-relative `time`.
+    pub fn ray_through_lens_at(&self, px: f64, py: f64, u1: f64, u2: f64, time: f64) -> PrimaryRay {
         let (o, v, depth) = self.pinhole(px, py);
         let Some(lens) = self.lens else {
-            return self.to_world(o, v, depth);
+            return self.to_world(o, v, depth, time);
         };
         // The point the lens-centre ray reaches at the focus depth stays sharp.
         let focus = o + v * (lens.focus / depth);
         let d = concentric_disk(u1, u2) * lens.radius;
         let from = o + DVec3::new(d.x, d.y, 0.0);
-        self.to_world(from, focus - from, lens.focus)
+        self.to_world(from, focus - from, lens.focus, time)
+    }
+
+    /// Camera → world at frame-relative `time`.
+    #[inline]
+    fn camera_to_world_at(&self, time: f64) -> DMat4 {
+        match &self.motion {
+            None => self.camera_to_world,
+            Some(m) => m.at(time),
+        }
     }
 
     /// The lens-centre ray of image position (`px`, `py`) in camera space: its origin
@@ -148,9 +184,10 @@ impl CameraRays {
     /// The world ray from camera-space origin `o` along `v`, which falls `depth` in
     /// depth per unit: clipped to the clipping range's depths.
     #[inline]
-    fn to_world(&self, o: DVec3, v: DVec3, depth: f64) -> PrimaryRay {
-        let origin = self.camera_to_world.transform_point3(o);
-        let d_world = self.camera_to_world.transform_vector3(v);
+    fn to_world(&self, o: DVec3, v: DVec3, depth: f64, time: f64) -> PrimaryRay {
+        let to_world = self.camera_to_world_at(time);
+        let origin = to_world.transform_point3(o);
+        let d_world = to_world.transform_vector3(v);
         let len = d_world.length();
         // The point at depth z lies at parameter z/depth along v, i.e. world distance
         // (z/depth)·|d_world|.
@@ -160,7 +197,11 @@ impl CameraRays {
             dir,
             tmin: self.near / depth * len,
             tmax: self.far / depth * len,
-            depth_per_t: dir.dot(self.view_axis()),
+            depth_per_t: dir.dot(
+                to_world
+                    .transform_vector3(-DVec3::Z)
+                    .normalize_or(-DVec3::Z),
+            ),
         }
     }
 
@@ -211,6 +252,8 @@ mod tests {
             clipping_range: (0.5, 40.0),
             f_stop,
             focus_distance: focus,
+            shutter: None,
+            motion: None,
         }
     }
 

@@ -61,6 +61,10 @@ impl Tracked {
     }
 }
 
+/// What a query of the media needs of its path: the cross-sections it tracks and the
+/// sample's time (where moving media are).
+type At = (Tracked, f64);
+
 /// What a path carries from vertex to vertex.
 struct PathState {
     tracked: Tracked,
@@ -73,6 +77,8 @@ struct PathState {
     g: f64,
     /// Cosine of the last phase-sampled turn, for the MIS weight of an escaping ray.
     last_cos: f64,
+    /// The camera sample's frame-relative time: where moving media and the camera are.
+    time: f64,
 }
 
 /// What a render adds beside the beauty and the counters: split layers (light groups,
@@ -172,6 +178,11 @@ pub struct Integrator<'a, F: FreePathSampler, E: TransmittanceEstimator> {
     /// sample per path segment combined with the trackers' collisions by MIS
     /// ([`crate::render::equiangular`]); empty: the collisions alone.
     pub locals: Vec<LocalLight>,
+    /// The shutter interval (frame-relative `open`, `close`) each camera sample draws
+    /// its time from, when something the render blurs moves while it is open; `None`:
+    /// every sample is at the frame and draws no time (renders without motion are
+    /// unchanged).
+    pub shutter: Option<(f64, f64)>,
 }
 
 /// A path segment's equiangular side: its unit-speed line `o + s·ω` (s = t·speed),
@@ -339,7 +350,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
     fn sample_dims(&self) -> u32 {
         match self.qmc_dims {
             0 => 0,
-            d => d + self.camera.lens_dims(),
+            d => d + self.camera.lens_dims() + self.shutter.is_some() as u32,
         }
     }
 
@@ -363,9 +374,19 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         counters: &mut C,
         split: Option<(&SplitMap, &mut [[f64; 3]])>,
     ) -> SampleResult {
-        let ray = match self.camera.lens_dims() {
-            0 => self.camera.ray(fx, fy),
-            _ => self.camera.ray_through_lens(fx, fy, rng.gen(), rng.gen()),
+        let lens: Option<(f64, f64)> = match self.camera.lens_dims() {
+            0 => None,
+            _ => Some((rng.gen(), rng.gen())),
+        };
+        // The sample's time, uniform over the shutter (a box shutter, as UsdGeomCamera
+        // describes it): its own dimension, after the pixel and lens ones.
+        let time = match self.shutter {
+            None => 0.0,
+            Some((open, close)) => open + (close - open) * rng.gen::<f64>(),
+        };
+        let ray = match lens {
+            None => self.camera.ray_at(fx, fy, time),
+            Some((u1, u2)) => self.camera.ray_through_lens_at(fx, fy, u1, u2, time),
         };
         let mut origin = ray.origin;
         let mut dir = ray.dir;
@@ -386,7 +407,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             .media
             .iter()
             .filter_map(|m| {
-                let r = m.index_ray(origin, dir);
+                let r = m.index_ray_at(origin, dir, time);
                 m.entry(&r, tmin, tmax)
             })
             .fold(f32::INFINITY, f32::min);
@@ -416,6 +437,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             depth: 0,
             g: 0.0,
             last_cos: 1.0,
+            time,
         };
         let mut radiance = Radiance {
             total: [0f64; 3],
@@ -438,9 +460,8 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             let step = self.with_queries(
                 origin,
                 dir,
-                tmin,
-                tmax,
-                path.tracked,
+                (tmin, tmax),
+                (path.tracked, path.time),
                 |qs, ids, whole| match qs {
                     [] => Step::Tracked(FreePath::Escape, 0),
                     // A ratio-select walk estimates what lies past the segment's end:
@@ -514,7 +535,8 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                     // applied the absorption weight μa(λ)/(μ̄·Pa), so path.throughput × Le is
                     // the collision estimate of ∫ T·μa·Le (the source term μa·Le).
                     let p = origin + dir * t as f64;
-                    self.add_emission(id, p, path.throughput, path.depth, &mut radiance, counters);
+                    let (w, depth) = (path.throughput, path.depth);
+                    self.add_emission(id, p, path.time, w, depth, &mut radiance, counters);
                     break;
                 }
                 FreePath::Scatter { t } => {
@@ -531,7 +553,10 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                     // c(x) turns its estimate of ∫T·μs·Ls into ∫T·c·μs·Ls, and the
                     // (1 − c) part is absorbed (see volume::albedo).
                     let c = match &medium.albedo {
-                        Some(albedo) => albedo.sample(p, counters),
+                        Some(albedo) => {
+                            let at_frame = medium.at_frame(p, path.time, counters);
+                            albedo.sample(at_frame, counters)
+                        }
                         None => [1.0; 3],
                     };
                     if medium.albedo.is_some() {
@@ -599,7 +624,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         self.add_escape(tr, path, dir, blocked, radiance);
         if let Some((t, w)) = s.emit {
             let p = origin + dir * t as f64;
-            self.add_emission(id, p, w, path.depth, radiance, counters);
+            self.add_emission(id, p, path.time, w, path.depth, radiance, counters);
         }
     }
 
@@ -630,10 +655,12 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
     /// Adds the emission of medium `id` at `p` with `weight`, the estimate of the
     /// source term ∫ T·μa·Le the tracker's event made (an absorption event's weight, or
     /// ratio-select's emission collision).
+    #[allow(clippy::too_many_arguments)]
     fn add_emission<C: Tally>(
         &self,
         id: usize,
         p: DVec3,
+        time: f64,
         weight: Spectrum,
         depth: u32,
         radiance: &mut Radiance,
@@ -641,13 +668,14 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
     ) {
         let medium = &self.media[id];
         if let Some(emission) = &medium.emission {
-            let mut le = emission.radiance(p, counters);
+            let at_frame = medium.at_frame(p, time, counters);
+            let mut le = emission.radiance(at_frame, counters);
             if emission.params.kind == EmissionKind::Source {
                 // The model gives the source term S itself; the event's weight estimates
                 // ∫T·μa·(·), so S/μa(λ, x) makes it an estimate of ∫T·S. One more density
                 // lookup (the trackers do not hand the event's density over). Where
                 // μa(λ, x) = 0 the event cannot happen in that channel: nothing emits.
-                let d = medium.density_at_world(p, counters) as f64;
+                let d = medium.density_at_world(p, time, counters) as f64;
                 for (l, a) in le.iter_mut().zip(medium.sigma.a) {
                     let mu_a = d * a as f64;
                     *l = if mu_a > 0.0 { *l / mu_a } else { 0.0 };
@@ -707,7 +735,8 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         rng: &mut Sampler,
         counters: &mut C,
     ) {
-        let (g, tracked, throughput) = (path.g, path.tracked, path.throughput);
+        let (g, throughput) = (path.g, path.throughput);
+        let tracked = (path.tracked, path.time);
         let (events, sources) = (path.depth, &self.lights.sources);
         // The tracker's collision density here (its stand-in) against each light's
         // equiangular one: the balance heuristic.
@@ -852,7 +881,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             p,
             s.wi,
             s.distance as f32,
-            path.tracked,
+            (path.tracked, path.time),
             link,
             rng,
             counters,
@@ -966,14 +995,15 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         let mut f = [0f64; 3];
         let mut sigma_t = 0.0;
         let cos = seg.omega.dot(ls.wi);
-        self.media_at(x, seg.omega, None, counters, |id, m, d, counters| {
+        let time = path.time;
+        self.media_at(x, seg.omega, None, time, counters, |id, m, d, counters| {
             sigma_t += d * crate::track::free_path::avg(path.tracked.sigma(m).t) as f64;
             if link.lights(id) {
                 let phase = hg(m.g as f64, cos);
-                let c = m
-                    .albedo
-                    .as_ref()
-                    .map_or([1.0; 3], |a| a.sample(x, counters));
+                let c = m.albedo.as_ref().map_or([1.0; 3], |a| {
+                    let at_frame = m.at_frame(x, time, counters);
+                    a.sample(at_frame, counters)
+                });
                 for ch in 0..3 {
                     f[ch] += d * m.sigma.s[ch] as f64 * c[ch] as f64 * phase;
                 }
@@ -984,7 +1014,10 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         }
         let w = balance(
             pdf,
-            tracker_density(sigma_t, self.optical_depth_guess(seg, s, path.tracked)),
+            tracker_density(
+                sigma_t,
+                self.optical_depth_guess(seg, s, (path.tracked, time)),
+            ),
         );
         // Transmittance from where the media begin to x, then from x to the light.
         let (ta, tx) = (seg.a / seg.speed, s / seg.speed);
@@ -994,7 +1027,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             start,
             dir,
             (tx - ta) as f32,
-            path.tracked,
+            (path.tracked, time),
             &Link::ALL,
             rng,
             counters,
@@ -1006,7 +1039,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             x,
             ls.wi,
             ls.distance as f32,
-            path.tracked,
+            (path.tracked, time),
             link,
             rng,
             counters,
@@ -1022,7 +1055,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
     /// segment's length times the midpoint of its density bounds. Exact where the
     /// bounds are equal (fog boxes, world fog); a deterministic function of `s`
     /// everywhere, which is all the weights need to keep the sum unbiased.
-    fn optical_depth_guess(&self, seg: &LightSegment, s: f64, tracked: Tracked) -> f64 {
+    fn optical_depth_guess(&self, seg: &LightSegment, s: f64, (tracked, time): At) -> f64 {
         let dir = seg.omega * seg.speed;
         let (t0, t1) = ((seg.a / seg.speed) as f32, (s / seg.speed) as f32);
         let mut tau = 0.0;
@@ -1032,7 +1065,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                 // World fog: no cells to walk.
                 Some(d) => d as f64 * (tb - ta),
                 None => {
-                    let ray = m.index_ray(seg.o, dir);
+                    let ray = m.index_ray_at(seg.o, dir, time);
                     m.walk(&ray, ta as f32, tb as f32)
                         .map(|g| 0.5 * (g.dmin + g.dmax) as f64 * (g.t1 - g.t0) as f64)
                         .sum()
@@ -1050,11 +1083,11 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         p: DVec3,
         dir: DVec3,
         known: usize,
-        tracked: Tracked,
+        (tracked, time): At,
         counters: &mut C,
     ) -> f64 {
         let mut sigma_t = 0.0;
-        self.media_at(p, dir, Some(known), counters, |_, m, d, _| {
+        self.media_at(p, dir, Some(known), time, counters, |_, m, d, _| {
             sigma_t += d * crate::track::free_path::avg(tracked.sigma(m).t) as f64;
         });
         sigma_t
@@ -1069,13 +1102,14 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         p: DVec3,
         dir: DVec3,
         known: Option<usize>,
+        time: f64,
         counters: &mut C,
         mut f: impl FnMut(usize, &Medium, f64, &mut C),
     ) {
         let mut take = |i: usize| {
             let m = &self.media[i];
             if known == Some(i) || m.contains(p, dir) {
-                let d = m.density_at_world(p, counters) as f64;
+                let d = m.density_at_world(p, time, counters) as f64;
                 if d > 0.0 {
                     f(i, m, d, counters);
                 }
@@ -1096,7 +1130,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         p: DVec3,
         wi: DVec3,
         tmax: f32,
-        tracked: Tracked,
+        at: At,
         link: &Link,
         rng: &mut Sampler,
         counters: &mut C,
@@ -1118,9 +1152,8 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         let tr = self.with_queries_in(
             p,
             wi,
-            0.0,
-            tmax,
-            tracked,
+            (0.0, tmax),
+            at,
             link.shadowing,
             |qs, _, _| {
                 let t = if let [q] = qs {
@@ -1143,13 +1176,12 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         &self,
         origin: DVec3,
         dir: DVec3,
-        tmin: f32,
-        tmax: f32,
-        tracked: Tracked,
+        range: (f32, f32),
+        at: At,
         f: impl FnMut(&[Query], &[usize], bool) -> T,
         go_on: impl Fn(&T) -> bool,
     ) -> T {
-        self.with_queries_in(origin, dir, tmin, tmax, tracked, u64::MAX, f, go_on)
+        self.with_queries_in(origin, dir, range, at, u64::MAX, f, go_on)
     }
 
     /// Calls `f(queries, ids, true)` with one tracker query per medium in `mask` (bit
@@ -1166,19 +1198,19 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         &self,
         origin: DVec3,
         dir: DVec3,
-        tmin: f32,
-        tmax: f32,
-        tracked: Tracked,
+        (tmin, tmax): (f32, f32),
+        at: At,
         mask: u64,
         mut f: impl FnMut(&[Query], &[usize], bool) -> T,
         go_on: impl Fn(&T) -> bool,
     ) -> T {
+        let (tracked, time) = at;
         if let [m] = self.media {
             // One volume (the common stage): its query built directly.
             if mask & 1 == 0 {
                 return f(&[], &[], true);
             }
-            let (ray, sigma) = (m.index_ray(origin, dir), tracked.sigma(m));
+            let (ray, sigma) = (m.index_ray_at(origin, dir, time), tracked.sigma(m));
             let q = [Query {
                 medium: m,
                 sigma: &sigma,
@@ -1201,16 +1233,14 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             }
         });
         if overflow {
-            return self.spans(origin, dir, tmin, tmax, tracked, mask, &mut f, &go_on);
+            return self.spans(origin, dir, tmin, tmax, at, mask, &mut f, &go_on);
         }
         // Media order, whatever order the index found them in: the race draws each
         // lane's random numbers in lane order, so the image depends on it.
         if self.extras.media_index.is_some() {
             ids[..k].sort_unstable();
         }
-        self.queries_sized(origin, dir, tmin, tmax, tracked, &ids[..k], |q, i| {
-            f(q, i, true)
-        })
+        self.queries_sized(origin, dir, tmin, tmax, at, &ids[..k], |q, i| f(q, i, true))
     }
 
     /// A ray meeting more than [`MAX_MEDIA`] volumes (a cloudscape seen edge-on), cut
@@ -1231,7 +1261,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         dir: DVec3,
         tmin: f32,
         tmax: f32,
-        tracked: Tracked,
+        at: At,
         mask: u64,
         f: &mut impl FnMut(&[Query], &[usize], bool) -> T,
         go_on: &impl Fn(&T) -> bool,
@@ -1279,8 +1309,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                     .fold(tmax, f32::min);
             }
             ids[..k].sort_unstable();
-            let r =
-                self.queries_sized(origin, dir, s, e, tracked, &ids[..k], |q, i| f(q, i, false));
+            let r = self.queries_sized(origin, dir, s, e, at, &ids[..k], |q, i| f(q, i, false));
             if e >= tmax || !go_on(&r) {
                 if dropped {
                     MEDIA_OVERFLOW.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
@@ -1329,16 +1358,16 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         dir: DVec3,
         tmin: f32,
         tmax: f32,
-        tracked: Tracked,
+        at: At,
         ids: &[usize],
         f: impl FnOnce(&[Query], &[usize]) -> T,
     ) -> T {
         match ids.len() {
-            0..=2 => self.queries::<2, T>(origin, dir, tmin, tmax, tracked, ids, f),
-            3..=4 => self.queries::<4, T>(origin, dir, tmin, tmax, tracked, ids, f),
-            5..=8 => self.queries::<8, T>(origin, dir, tmin, tmax, tracked, ids, f),
-            9..=16 => self.queries::<16, T>(origin, dir, tmin, tmax, tracked, ids, f),
-            _ => self.queries::<MAX_MEDIA, T>(origin, dir, tmin, tmax, tracked, ids, f),
+            0..=2 => self.queries::<2, T>(origin, dir, tmin, tmax, at, ids, f),
+            3..=4 => self.queries::<4, T>(origin, dir, tmin, tmax, at, ids, f),
+            5..=8 => self.queries::<8, T>(origin, dir, tmin, tmax, at, ids, f),
+            9..=16 => self.queries::<16, T>(origin, dir, tmin, tmax, at, ids, f),
+            _ => self.queries::<MAX_MEDIA, T>(origin, dir, tmin, tmax, at, ids, f),
         }
     }
 
@@ -1352,13 +1381,14 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         dir: DVec3,
         tmin: f32,
         tmax: f32,
-        tracked: Tracked,
+        (tracked, time): At,
         ids: &[usize],
         f: impl FnOnce(&[Query], &[usize]) -> T,
     ) -> T {
         let k = ids.len().min(N);
         let medium = |i: usize| &self.media[if i < k { ids[i] } else { 0 }];
-        let rays: [IndexRay; N] = std::array::from_fn(|i| medium(i).index_ray(origin, dir));
+        let rays: [IndexRay; N] =
+            std::array::from_fn(|i| medium(i).index_ray_at(origin, dir, time));
         let sigmas: [Sigma; N] = std::array::from_fn(|i| tracked.sigma(medium(i)));
         let qs: [Query; N] = std::array::from_fn(|i| Query {
             medium: medium(i),

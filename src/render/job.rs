@@ -21,6 +21,7 @@ use crate::volume::grid::Grid;
 use crate::volume::majorant::MajorantSpec;
 use crate::volume::medium::Medium;
 use crate::volume::vdb;
+use crate::volume::velocity::VelocityGrid;
 use anyhow::{bail, Context};
 use glam::DVec3;
 use std::sync::Arc;
@@ -51,6 +52,13 @@ impl RenderJob<'_> {
         let mut film = self.new_film(None);
         self.render_pass(&mut film, self.spp, progress);
         film
+    }
+
+    /// The shutter interval camera samples draw their time from: the camera's, when
+    /// the camera or a medium moves while it is open (else `None`: no time is drawn).
+    pub fn shutter(&self) -> Option<(f64, f64)> {
+        let moves = self.camera.moves() || self.media.iter().any(Medium::moves);
+        self.camera.shutter().filter(|_| moves)
     }
 
     /// Whether the media are tracked as grey (the analysis' test, on the
@@ -136,6 +144,7 @@ impl RenderJob<'_> {
                         _ => SelectSegments::Off,
                     },
                     locals: j.local_lights(),
+                    shutter: j.shutter(),
                 }
                 .render_pass(self.film, self.n, self.progress)
             }
@@ -169,20 +178,31 @@ pub fn media_for_scene_with(scene: &Scene, spec: MajorantSpec) -> anyhow::Result
     // a PointInstancer prototype, or the same asset placed twice) shares its grids and
     // majorant structure: each is loaded once whatever the count.
     let mut media: Vec<Option<Medium>> = Vec::with_capacity(scene.volumes.len());
+    let shutter = scene.camera.shutter;
     for (i, volume) in scene.volumes.iter().enumerate() {
         let prototype = scene.volumes[..i]
             .iter()
             .position(|earlier| same_medium(earlier, volume));
-        let medium = match (&volume.shape, prototype) {
+        let mut medium = match (&volume.shape, prototype) {
             (VolumeShape::World, _) => None,
+            // Its prototype's grids, majorants and velocity grid, placed anew.
             (VolumeShape::Field(_), Some(j)) => {
                 let Some(p) = &media[j] else {
                     unreachable!("a field volume's prototype is built")
                 };
                 Some(p.instance(&volume.prim_path, volume.volume_to_world)?)
             }
-            _ => Some(medium_for_volume(volume, spec)?),
+            _ => {
+                let mut m = medium_for_volume(volume, spec)?;
+                if let (Some(v), Some(shutter)) = (velocity_for_volume(volume, &m)?, shutter) {
+                    m.set_velocity(v, shutter);
+                }
+                Some(m)
+            }
         };
+        if let (Some(m), Some(motion)) = (&mut medium, &volume.motion) {
+            m.set_motion(motion.clone(), volume.volume_to_world);
+        }
         media.push(medium);
     }
     for (slot, volume) in media.iter_mut().zip(&scene.volumes) {
@@ -213,6 +233,12 @@ fn same_medium(a: &Volume, b: &Volume) -> bool {
         && ea.color_graph.as_ref().map(|g| &g.program)
             == eb.color_graph.as_ref().map(|g| &g.program)
         && same_named(&a.albedo, &b.albedo)
+        && a.velocity
+            .as_ref()
+            .map(|v| (&v.field.1, v.seconds_per_time_code))
+            == b.velocity
+                .as_ref()
+                .map(|v| (&v.field.1, v.seconds_per_time_code))
         && a.density_graph.as_ref().map(|g| &g.program)
             == b.density_graph.as_ref().map(|g| &g.program)
 }
@@ -363,6 +389,33 @@ pub fn albedo_for_volume(volume: &Volume) -> anyhow::Result<Option<AlbedoGrid>> 
         );
     }
     Ok(Some(albedo))
+}
+
+/// The velocity grid (issue 45) of a volume whose medium is `medium`, placed in its
+/// density grid's index space; `None` when the volume has none.
+fn velocity_for_volume(volume: &Volume, medium: &Medium) -> anyhow::Result<Option<VelocityGrid>> {
+    let Some(v) = &volume.velocity else {
+        return Ok(None);
+    };
+    let (name, field) = &v.field;
+    let what = || {
+        format!(
+            "volume {}: velocity field `{name}` ({})",
+            volume.prim_path, field.prim_path
+        )
+    };
+    let raw = vdb::read_vec3s_grid(&field.file, &field.field_name, field.field_index)
+        .with_context(what)?;
+    let density_index_to_volume = medium.density.index_to_world;
+    let grid = VelocityGrid::new(name, raw, density_index_to_volume, v.seconds_per_time_code)
+        .with_context(|| format!("{}: {}", field.file, field.prim_path))?;
+    if grid.sanitized > 0 {
+        eprintln!(
+            "nimbus: warning: {}: velocity grid '{}' has {} NaN or infinite component values; they are treated as 0",
+            field.file, field.field_name, grid.sanitized
+        );
+    }
+    Ok(Some(grid))
 }
 
 /// The box around a mesh's points, `None` without a triangle.

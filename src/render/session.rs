@@ -911,6 +911,7 @@ fn scene_for_vdb(path: &Path, grid: Option<&str>) -> Result<Scene> {
         prim_path: format!("/{}", chosen.name),
         light_group: None,
         volume_to_world: glam::DMat4::IDENTITY,
+        motion: None,
         shape: crate::scene::VolumeShape::Field(field.clone()),
         // NimbusVolumeAPI's fallbacks (schemas/schema.usda).
         density_scale: 1.0,
@@ -920,6 +921,7 @@ fn scene_for_vdb(path: &Path, grid: Option<&str>) -> Result<Scene> {
         fields: vec![(chosen.name.clone(), field)],
         emission: VolumeEmission::default(),
         albedo: None,
+        velocity: None,
         material_shader: None,
         density_graph: None,
     };

@@ -69,6 +69,8 @@ pub(super) fn read_camera(
         clipping_range: (clip[0], clip[1]),
         f_stop,
         focus_distance,
+        shutter: None,
+        motion: None,
     })
 }
 

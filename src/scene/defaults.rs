@@ -27,6 +27,8 @@ pub fn placeholder_camera() -> Camera {
         projection: Default::default(),
         f_stop: 0.0,
         focus_distance: 0.0,
+        shutter: None,
+        motion: None,
     }
 }
 

@@ -4,6 +4,7 @@
 //! world-space transforms already evaluated and asset paths already resolved.
 
 use super::diagnostics::Diagnostics;
+use crate::motion::TransformMotion;
 use crate::volume::asset::AssetLocation;
 use crate::volume::emission::{EmissionKind, EmissionParams};
 use glam::DMat4;
@@ -91,6 +92,11 @@ pub struct Camera {
     pub f_stop: f64,
     /// `focusDistance`: depth of the plane in focus (used when `f_stop` > 0).
     pub focus_distance: f64,
+    /// `shutter:open`, `shutter:close` (time codes from the frame) when open < close.
+    pub shutter: Option<(f64, f64)>,
+    /// `camera_to_world` over the shutter, when it moves while the shutter is open
+    /// (`camera_to_world` is its value at the frame).
+    pub motion: Option<TransformMotion>,
 }
 
 /// UsdGeomCamera's `projection`.
@@ -384,6 +390,9 @@ pub struct Volume {
     pub light_group: Option<String>,
     /// Volume → world (the prim's local-to-world transform at the scene's time).
     pub volume_to_world: DMat4,
+    /// `volume_to_world` over the camera's shutter, when the volume moves while it is
+    /// open (a UsdVolVolume's; fog boxes and world fog are not blurred).
+    pub motion: Option<TransformMotion>,
     /// What the density is and where the medium is.
     pub shape: VolumeShape,
     /// `nimbus:densityScale`: extinction per unit density is scaled by this.
@@ -403,12 +412,26 @@ pub struct Volume {
     /// float grid, an albedo multiplier c ∈ [0,1]³: σs → c·σs, σa → σa + (1 − c)·σs).
     /// `None` = constant albedo; a `Cd` field is not used unless named.
     pub albedo: Option<(String, Field)>,
+    /// The velocity field whose flow blurs the volume's fields over the shutter
+    /// (`nimbus:velocityField`, else a field `vel` or `velocity`), and the seconds of
+    /// flow per time code from the frame (`nimbus:velocityScale` × `motion:blurScale`
+    /// / `timeCodesPerSecond`). `None` without an open shutter and a frame.
+    pub velocity: Option<Velocity>,
     /// When the parameters come from a bound material (no `NimbusVolumeAPI`): the
     /// volume shader read, as "prim path (info:id)".
     pub material_shader: Option<String>,
     /// A shader graph the density goes through (issue 47): the medium's density is the
     /// graph's value, reading the density field (or 1 in fog) as its attribute.
     pub density_graph: Option<DensityGraph>,
+}
+
+/// A volume's velocity field, as read.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Velocity {
+    /// The relationship name (`field:<name>`) and its field.
+    pub field: (String, Field),
+    /// Seconds of flow per time code from the frame.
+    pub seconds_per_time_code: f64,
 }
 
 /// A compiled shader graph for a volume's density, as a reader found it.
@@ -470,6 +493,7 @@ impl FogParams {
             prim_path: prim_path.to_string(),
             light_group,
             volume_to_world: DMat4::IDENTITY,
+            motion: None,
             shape,
             density_scale: self.density_scale,
             absorption: self.absorption,
@@ -478,6 +502,7 @@ impl FogParams {
             fields: Vec::new(),
             emission: self.emission,
             albedo: None,
+            velocity: None,
             material_shader: self.material_shader,
             density_graph: self.density_graph,
         }

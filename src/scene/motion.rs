@@ -1,11 +1,13 @@
-//! What moves while the camera's shutter is open. Nimbus renders every prim at the
-//! scene's one time code (no motion blur), so a transform that changes within the
-//! shutter interval is rendered sharp where the stage asks for a blur: a warning names
-//! the prim and the xformOp that moves it.
+//! What moves while the camera's shutter is open. The camera's and the volumes'
+//! transforms are sampled over the shutter ([`transform_motion`]) and blurred; any
+//! other prim is rendered at the scene's one time code, so a transform of it that
+//! changes within the shutter is rendered sharp where the stage asks for a blur: a
+//! warning names the prim and the xformOp that moves it.
 
-use super::attrs::{prim_error, read_value, SceneError};
+use super::attrs::{prim_error, read_value, to_dmat4, SceneError};
+use crate::motion::TransformMotion;
 use openusd::usd::{Prim, TimeCode};
-use openusd_schemas::geom::{Xformable, XformableExt};
+use openusd_schemas::geom::{self, Xformable, XformableExt};
 
 /// The first prim, from `prim` up its ancestors (as far as its transform inherits),
 /// with an xformOp whose value changes within `shutter` (frame-relative) around `time`,
@@ -39,6 +41,49 @@ pub(super) fn moving_op(
         current = p.parent();
     }
     Ok(None)
+}
+
+/// The local → world transform of `prim` over the shutter around the frame `time`
+/// (frame-relative keys), as UsdGeomXformable interpolates its ops' time samples:
+/// `None` when nothing above it moves within the shutter.
+pub(super) fn transform_motion(
+    prim: &Prim,
+    time: TimeCode,
+    (open, close): (f64, f64),
+) -> Result<Option<TransformMotion>, SceneError> {
+    let frame = time.value();
+    let mut authored = Vec::new();
+    let mut current = Some(prim.clone());
+    while let Some(p) = current.filter(|p| !p.path().is_abs_root()) {
+        let err = |e: openusd::Error| prim_error(p.path(), e);
+        if let Some(xformable) = Xformable::from_prim(p.clone()).map_err(err)? {
+            let (ops, resets) = xformable.ordered_xform_ops().map_err(err)?;
+            for op in &ops {
+                let times = op.attribute().time_sample_times().map_err(err)?;
+                authored.extend(times.into_iter().map(|t| t - frame));
+            }
+            if resets {
+                break;
+            }
+        }
+        current = p.parent();
+    }
+    authored.sort_by(f64::total_cmp);
+    let at = |t: f64| -> Result<glam::DMat4, String> {
+        let mut cache = geom::XformCache::new(Some(TimeCode::new(frame + t)));
+        let m = cache
+            .local_to_world_transform(prim)
+            .map_err(|e| format!("cannot compute its transform at time {}: {e}", frame + t))?;
+        let m = to_dmat4(&m);
+        match m.is_finite() {
+            true => Ok(m),
+            false => Err(format!(
+                "its world transform at time {} is not finite (a NaN or infinite value in its xformOps or an ancestor's)",
+                frame + t
+            )),
+        }
+    };
+    TransformMotion::sample(open, close, &authored, at).map_err(|e| prim_error(prim.path(), e))
 }
 
 /// Whether the time-sampled attribute `name` of `prim` takes more than one value over

@@ -21,6 +21,7 @@ use super::motion;
 use super::schema::{self, tokens};
 use super::shading;
 use super::unsupported;
+use crate::motion::TransformMotion;
 use crate::volume::emission::EmissionKind;
 use glam::DMat4;
 use openusd::sdf;
@@ -380,6 +381,7 @@ impl Loader<'_> {
             // Per prototype: its volumes and their transforms relative to the
             // prototype root's parent (root transform included).
             let mut prototypes: Vec<Vec<(Volume, DMat4)>> = Vec::new();
+            let mut to_parents = Vec::new();
             for root in &placed.prototypes {
                 let parent_world = match root.parent().filter(|p| !p.is_abs_root()) {
                     Some(parent) => {
@@ -392,6 +394,7 @@ impl Loader<'_> {
                     None => DMat4::IDENTITY,
                 };
                 let to_parent = parent_world.inverse();
+                to_parents.push(to_parent);
                 let mut volumes = Vec::new();
                 for prim in inventory
                     .volumes
@@ -407,7 +410,10 @@ impl Loader<'_> {
             for (proto, m) in placed.placed {
                 for (volume, relative) in &prototypes[proto] {
                     let mut v = volume.clone();
+                    let place = instancer_world * m * to_parents[proto];
                     v.volume_to_world = instancer_world * m * *relative;
+                    // The prototype's own motion, carried by the instance's placement.
+                    v.motion = v.motion.map(|motion| motion.placed(place));
                     out.push(v);
                 }
             }
@@ -564,14 +570,35 @@ impl Loader<'_> {
     }
 
     /// Local → world of `prim` as a column-vector matrix. Every prim the render uses
-    /// (camera, volumes, lights, holdouts) comes through here, so this is where a
-    /// transform that moves while the shutter is open warns.
+    /// (camera, volumes, lights, holdouts) comes through here or through
+    /// [`Self::blurred_transform`], so this is where a transform that moves while the
+    /// shutter is open, and is not blurred, warns.
     fn world_transform(&mut self, prim: &Prim) -> Result<DMat4, SceneError> {
         if let Some(shutter) = self.shutter {
             if let Some((owner, op)) = motion::moving_op(prim, self.time, shutter)? {
                 self.motion_warning(&owner, &op, shutter);
             }
         }
+        self.frame_transform(prim)
+    }
+
+    /// Local → world of a prim Nimbus blurs (the camera, a UsdVolVolume): its
+    /// transform at the frame and, when it moves while the shutter is open, its motion
+    /// over the shutter. Without a frame (`--frame`) there is no shutter interval to
+    /// sample: it warns as any moving prim does.
+    fn blurred_transform(
+        &mut self,
+        prim: &Prim,
+    ) -> Result<(DMat4, Option<TransformMotion>), SceneError> {
+        let (Some(time), Some(shutter)) = (self.time, self.shutter) else {
+            return Ok((self.world_transform(prim)?, None));
+        };
+        let m = self.frame_transform(prim)?;
+        Ok((m, motion::transform_motion(prim, time, shutter)?))
+    }
+
+    /// Local → world of `prim` at the scene's time, refused when not finite.
+    fn frame_transform(&mut self, prim: &Prim) -> Result<DMat4, SceneError> {
         let m = self
             .xforms
             .local_to_world_transform(prim)
@@ -630,17 +657,26 @@ impl Loader<'_> {
                 self.motion_warning(prim, name, shutter);
             }
         }
-        let to_world = self.world_transform(prim)?;
-        camera::read_camera(prim, self.time, to_world, &mut self.warnings.borrow_mut())
+        let (to_world, motion) = self.blurred_transform(prim)?;
+        let mut camera =
+            camera::read_camera(prim, self.time, to_world, &mut self.warnings.borrow_mut())?;
+        camera.shutter = self.shutter;
+        camera.motion = motion;
+        Ok(camera)
     }
 
-    /// One "motion blur" warning: `attribute` of `prim` changes while the shutter is open.
+    /// One "motion blur" warning: `attribute` of `prim` changes while the shutter is
+    /// open and is rendered at the frame's time.
     fn motion_warning(&self, prim: &Prim, attribute: &str, (open, close): (f64, f64)) {
+        let why = match self.time {
+            None => "no frame was given (--frame), so there is no shutter interval to blur over and nothing is blurred",
+            Some(_) => "Nimbus blurs the camera's and UsdVolVolumes' transforms, not this one (nor lens attributes, lights, holdouts, fog boxes or instancers)",
+        };
         self.warnings.borrow_mut().warn(
             "motion blur",
             prim.path().to_string(),
             Some(attribute),
-            format!("time-sampled, and it changes while the camera's shutter is open ({open} to {close}): Nimbus renders no motion blur, only the scene at the frame's time"),
+            format!("time-sampled, and it changes while the camera's shutter is open ({open} to {close}): {why}; it is rendered at the frame's time"),
         );
     }
 
@@ -689,12 +725,14 @@ impl Loader<'_> {
         }
         if let Some(m) = material {
             let density = self.density_field(prim, &m.density_field, &fields)?;
-            let volume_to_world = self.world_transform(prim)?;
+            let (volume_to_world, motion) = self.blurred_transform(prim)?;
+            let velocity = self.velocity(prim, &fields)?;
             let source = format!("{} ({})", m.shader, m.shader_id);
             return Ok(Volume {
                 prim_path: prim.path().to_string(),
                 light_group: self.light_group(prim)?,
                 volume_to_world,
+                motion,
                 shape: VolumeShape::Field(density),
                 density_scale: m.density_scale,
                 absorption: m.absorption,
@@ -703,6 +741,7 @@ impl Loader<'_> {
                 fields,
                 emission: VolumeEmission::default(),
                 albedo: None,
+                velocity,
                 density_graph: m.density_graph.map(|g| DensityGraph {
                     program: g.program,
                     shading_to_world: volume_to_world,
@@ -716,7 +755,8 @@ impl Loader<'_> {
         let density = self.density_field(prim, &density_name, &fields)?;
         let mut emission = self.emission(prim, &fields)?;
         let albedo = self.named_field(prim, tokens::ALBEDO_FIELD, &fields)?;
-        let volume_to_world = self.world_transform(prim)?;
+        let (volume_to_world, motion) = self.blurred_transform(prim)?;
+        let velocity = self.velocity(prim, &fields)?;
         if let Some(g) = &mut emission.color_graph {
             g.shading_to_world = volume_to_world;
         }
@@ -737,12 +777,14 @@ impl Loader<'_> {
             prim_path: prim.path().to_string(),
             light_group: self.light_group(prim)?,
             volume_to_world,
+            motion,
             shape: VolumeShape::Field(density),
             density_scale,
             absorption: read_vec3(prim, tokens::ABSORPTION, t)?.unwrap_or([0.1; 3]),
             scattering: read_vec3(prim, tokens::SCATTERING, t)?.unwrap_or([0.9; 3]),
             anisotropy: read_f64(prim, tokens::ANISOTROPY, t)?.unwrap_or(0.0),
             fields,
+            velocity,
             emission,
             albedo,
             material_shader: None,
@@ -926,6 +968,47 @@ impl Loader<'_> {
     /// The field a token attribute names (`attr` = "flames" → `field:flames`), `None`
     /// when the attribute is empty or unset. A name with no OpenVDBAsset field is an
     /// error listing the volume's fields.
+    /// The velocity field that blurs `prim`'s fields over the shutter:
+    /// `nimbus:velocityField` when it names one, else a field `vel` or `velocity` (the
+    /// names Houdini and Blender write). None without a frame and an open shutter, or
+    /// with a velocity scale of 0.
+    fn velocity(
+        &self,
+        prim: &Prim,
+        fields: &[(String, Field)],
+    ) -> Result<Option<Velocity>, SceneError> {
+        let t = self.time;
+        if t.is_none() || self.shutter.is_none() {
+            return Ok(None);
+        }
+        let scale = read_f64(prim, tokens::VELOCITY_SCALE, t)?.unwrap_or(1.0);
+        let blur = read_f64(prim, "motion:blurScale", t)?.unwrap_or(1.0);
+        for (name, v) in [(tokens::VELOCITY_SCALE, scale), ("motion:blurScale", blur)] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(prim_error(
+                    prim.path(),
+                    format!("{name} = {v}: it must be finite and not negative"),
+                ));
+            }
+        }
+        if scale * blur == 0.0 {
+            return Ok(None);
+        }
+        let named = read_string(prim, tokens::VELOCITY_FIELD, t)?.unwrap_or_default();
+        let field = match named.is_empty() {
+            true => ["vel", "velocity"]
+                .iter()
+                .find_map(|n| fields.iter().find(|(f, _)| f == n))
+                .cloned(),
+            false => self.named_field(prim, tokens::VELOCITY_FIELD, fields)?,
+        };
+        let per_second = self.stage.time_codes_per_second();
+        Ok(field.map(|field| Velocity {
+            field,
+            seconds_per_time_code: scale * blur / per_second,
+        }))
+    }
+
     fn named_field(
         &self,
         prim: &Prim,

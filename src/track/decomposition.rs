@@ -75,7 +75,7 @@ impl Split {
     /// a majorant violation.
     #[inline(always)]
     pub(super) fn residual<C: Tally>(&self, q: &Query, t: f32, at_minimum: bool, c: &mut C) -> f32 {
-        let d = q.medium.density(q.ray.at(t), c);
+        let d = q.medium.density_on(q.ray, t, c);
         c.residual_lookup();
         let dr = d - self.dc;
         if dr > self.r || (at_minimum && dr < 0.0) {

@@ -125,7 +125,7 @@ pub(super) fn collide<R: Rng, C: Tally>(
     rng: &mut R,
     c: &mut C,
 ) -> Collision {
-    let d = q.medium.density(q.ray.at(t), c);
+    let d = q.medium.density_on(q.ray, t, c);
     if d * q.sigma.t_max > mu_bar * (1.0 + 1e-5) {
         c.majorant_violation();
     }

@@ -150,9 +150,9 @@ pub(super) fn ratio<T: Estimate, R: Rng, C: Tally, const STOCHASTIC: bool>(
                 tau = OpticalDepth::sample(rng);
                 prefetch_next(q, tau, t, seg.t1, mu_bar);
                 let d = if STOCHASTIC {
-                    q.medium.density_estimate(q.ray.at(t), rng.gen::<u64>(), c)
+                    q.medium.density_estimate_on(q.ray, t, rng.gen::<u64>(), c)
                 } else {
-                    q.medium.density(q.ray.at(t), c)
+                    q.medium.density_on(q.ray, t, c)
                 };
                 c.null_collision();
                 tr.attenuate(&sg.t, |st| 1.0 - d * st / mu_bar);
@@ -179,9 +179,9 @@ pub(super) fn ratio_walk<T: Estimate, R: Rng, C: Tally, const STOCHASTIC: bool>(
     let mut tr = T::ONE;
     walk_collisions(q, rng, c, |t, mu_bar, rng, c| {
         let d = if STOCHASTIC {
-            q.medium.density_estimate(q.ray.at(t), rng.gen::<u64>(), c)
+            q.medium.density_estimate_on(q.ray, t, rng.gen::<u64>(), c)
         } else {
-            q.medium.density(q.ray.at(t), c)
+            q.medium.density_on(q.ray, t, c)
         };
         c.null_collision();
         at(t, d, mu_bar, &tr, rng, c);
@@ -226,7 +226,7 @@ pub(super) fn residual_ratio<T: Estimate, R: Rng, C: Tally>(
                 t = tc;
                 tau = OpticalDepth::sample(rng);
                 prefetch_next(q, tau, t, seg.t1, mu_r);
-                let d = q.medium.density(q.ray.at(t), c);
+                let d = q.medium.density_on(q.ray, t, c);
                 c.residual_lookup();
                 c.null_collision();
                 tr.attenuate(&sg.t, |st| 1.0 - (d - seg.dmin) * st / mu_r);

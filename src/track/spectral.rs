@@ -70,7 +70,7 @@ impl<S: Scheme> Spectral<S> {
         rng: &mut R,
         c: &mut C,
     ) -> ControlFlow<FreePath> {
-        let d = q.medium.density(q.ray.at(t), c);
+        let d = q.medium.density_on(q.ray, t, c);
         let k = Coefficients::of(q.sigma, d, mu_bar);
         if k.mu_n.iter().any(|&m| m < 0.0) {
             c.majorant_violation();

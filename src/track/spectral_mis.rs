@@ -167,7 +167,7 @@ impl Mis {
         rng: &mut R,
         c: &mut C,
     ) -> ControlFlow<FreePath> {
-        let d = q.medium.density(q.ray.at(t), c);
+        let d = q.medium.density_on(q.ray, t, c);
         let k = Coefficients::of(q.sigma, d, mu_bar);
         if k.mu_n.iter().any(|&m| m < 0.0) {
             c.majorant_violation();

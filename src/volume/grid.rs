@@ -190,8 +190,10 @@ pub struct Grid {
     pub active_voxels: u64,
 }
 
-fn sanitize(v: f32, count: &mut u64) -> f32 {
-    if v.is_finite() && v >= 0.0 {
+/// `v`, or 0 (counted) where it is not finite or, unless `signed`, negative.
+#[inline]
+fn sanitize_as(v: f32, count: &mut u64, signed: bool) -> f32 {
+    if v.is_finite() && (signed || v >= 0.0) {
         v
     } else {
         *count += 1;
@@ -203,18 +205,32 @@ impl Grid {
     /// Builds the lookup layout from a reader's grid; the bricks are filled in
     /// parallel on the current rayon pool.
     pub fn from_raw(raw: &RawGrid) -> Result<Grid, GridError> {
-        Self::from_raw_with(raw, true)
+        Self::from_raw_with(raw, true, false)
+    }
+
+    /// As [`Grid::from_raw`] for a signed field (a velocity component): negative
+    /// values are kept; only non-finite ones become 0.
+    pub fn from_raw_signed(raw: &RawGrid) -> Result<Grid, GridError> {
+        Self::from_raw_with(raw, true, true)
+    }
+
+    /// The largest |value| stored (the background included).
+    pub fn max_abs(&self) -> f32 {
+        self.bricks
+            .iter()
+            .flat_map(|b| b.iter())
+            .fold(self.background.abs(), |m, v| m.max(v.abs()))
     }
 
     /// As [`Grid::from_raw`] on one thread (the reference the parallel build is
     /// tested and benchmarked against); the result is the same.
     pub fn from_raw_serial(raw: &RawGrid) -> Result<Grid, GridError> {
-        Self::from_raw_with(raw, false)
+        Self::from_raw_with(raw, false, false)
     }
 
-    fn from_raw_with(raw: &RawGrid, parallel: bool) -> Result<Grid, GridError> {
+    fn from_raw_with(raw: &RawGrid, parallel: bool, signed: bool) -> Result<Grid, GridError> {
         let mut sanitized = 0u64;
-        let background = sanitize(raw.background, &mut sanitized);
+        let background = sanitize_as(raw.background, &mut sanitized, signed);
         let bounds = raw.active_index_bounds();
         let (brick_min, brick_dims) = match bounds {
             Some((lo, hi)) => {
@@ -257,7 +273,7 @@ impl Grid {
         // Tiles first (largest regions), then leaves overwrite: in OpenVDB a leaf and a
         // tile never overlap, so the order only matters for robustness against odd input.
         for tile in &raw.tiles {
-            let value = sanitize(tile.value, &mut sanitized);
+            let value = sanitize_as(tile.value, &mut sanitized, signed);
             if value == background {
                 continue;
             }
@@ -296,7 +312,7 @@ impl Grid {
             let mut count = 0u64;
             // Fewer than 512 values means a reader bug; the missing ones read as background.
             for (d, &src) in dst.iter_mut().zip(leaf.values.iter()) {
-                *d = sanitize(src, &mut count);
+                *d = sanitize_as(src, &mut count, signed);
             }
             // A leaf that holds only the background (sims often keep such leaves
             // active) reads the same as no brick: it is not stored.

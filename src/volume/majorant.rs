@@ -223,6 +223,19 @@ impl MajorantTree {
         spec: MajorantSpec,
         bound: &(dyn Fn([i32; 3], [i32; 3]) -> (f32, f32) + Sync),
     ) -> MajorantTree {
+        Self::build_widened(grid, spec, [0; 3], bound)
+    }
+
+    /// [`build_bounded`](Self::build_bounded) over the grid's region widened by `widen`
+    /// voxels on each side per axis: where a field advected by a velocity grid can
+    /// carry density ([`crate::volume::velocity`]; `bound` then widens each cell's
+    /// voxel range by as much).
+    pub fn build_widened(
+        grid: &Grid,
+        spec: MajorantSpec,
+        widen: [i32; 3],
+        bound: &(dyn Fn([i32; 3], [i32; 3]) -> (f32, f32) + Sync),
+    ) -> MajorantTree {
         let start = Instant::now();
         let Some((lo, hi)) = grid.index_bounds else {
             return MajorantTree {
@@ -237,8 +250,8 @@ impl MajorantTree {
         };
         // The region where the field can differ from the background: the active voxel
         // centres, widened by one voxel (where interpolation falls off to background).
-        let rlo = [0, 1, 2].map(|a| lo[a] - 1);
-        let rhi = [0, 1, 2].map(|a| hi[a] + 1);
+        let rlo = [0, 1, 2].map(|a| lo[a].saturating_sub(1 + widen[a]));
+        let rhi = [0, 1, 2].map(|a| hi[a].saturating_add(1 + widen[a]));
         let extent = [0, 1, 2].map(|a| (rhi[a] as i64 - rlo[a] as i64).max(1));
         let (leaf_edge, hierarchical) = match spec {
             MajorantSpec::Uniform { cell_voxels: 0 } => (extent, false),

@@ -12,6 +12,7 @@
 //! the unbiasedness argument are in [`crate::volume::albedo`]).
 
 use crate::color::Spectrum;
+use crate::motion::TransformMotion;
 use crate::volume::albedo::AlbedoGrid;
 use crate::volume::boundary::{Inside, MediumRegion, MediumWalk};
 use crate::volume::counters::Tally;
@@ -20,6 +21,7 @@ use crate::volume::graph_density::DensityShader;
 use crate::volume::grid::{world_to_index, Grid, MediumError, RawGrid, RawLeaf};
 use crate::volume::majorant::{MajorantSpec, MajorantTree, PruneCost, Segment};
 use crate::volume::ticks;
+use crate::volume::velocity::VelocityGrid;
 use glam::{DMat4, DVec3, Vec3};
 use std::sync::Arc;
 
@@ -29,6 +31,9 @@ pub struct IndexRay {
     pub o: Vec3,
     /// Index-space displacement per world unit of `t`.
     pub d: Vec3,
+    /// Seconds the medium's velocity field advects its lookups by along this ray (the
+    /// sample's time from the frame, scaled; 0 without velocity blur).
+    pub advect: f32,
 }
 
 impl IndexRay {
@@ -128,6 +133,36 @@ pub struct Medium {
     /// ([`PREFETCH_BYTES`]), where a lookup waits on memory; below that the hint costs
     /// instructions and buys nothing.
     pub prefetch: bool,
+    /// How the volume moves while the camera's shutter is open (`None`: it stays where
+    /// `world_to_index` puts it). Set with [`Medium::set_motion`].
+    motion: Option<Arc<MediumMotion>>,
+    /// The velocity grid that advects the fields over the shutter, with the largest
+    /// time from the frame (in time codes) a sample can have. Set with
+    /// [`Medium::set_velocity`].
+    pub velocity: Option<Arc<VelocityGrid>>,
+    velocity_reach: f64,
+}
+
+/// A medium's transform motion: at frame-relative time τ its world → index map is
+/// `index_from_volume · V(τ)⁻¹`, V the volume → world keys. Everything else placed in
+/// world space at the frame (emission, albedo, colour graphs) is looked up at the
+/// point's place at the frame, `V(0) · V(τ)⁻¹ · p`. The grid, its majorants and the
+/// density graph live in index space and do not move.
+#[derive(Debug)]
+struct MediumMotion {
+    volume_to_world: TransformMotion,
+    /// Index ← volume (the VDB's own transform, inverted).
+    index_from_volume: DMat4,
+    /// Volume → world at the frame: where the medium's other lookups are placed.
+    at_frame: DMat4,
+}
+
+impl MediumMotion {
+    /// World → volume at `time`.
+    #[inline]
+    fn world_to_volume(&self, time: f64) -> DMat4 {
+        self.volume_to_world.at(time).inverse()
+    }
 }
 
 /// Grids holding more brick bytes than this get [`Medium::prefetch`]: the L3 of the
@@ -235,6 +270,9 @@ impl Medium {
             prefetch: density.memory_bytes() > PREFETCH_BYTES,
             shader: None,
             density,
+            motion: None,
+            velocity: None,
+            velocity_reach: 0.0,
         })
     }
 
@@ -397,7 +435,7 @@ impl Medium {
     /// Rebuilds the majorant structure (e.g. to compare octree depths on one grid).
     pub fn set_majorants(&mut self, spec: MajorantSpec) {
         self.majorants = Arc::new(self.tree(spec));
-        self.world_box = world_box(&self.majorants, self.world_to_index);
+        self.world_box = self.bounding_box();
     }
 
     /// The same medium (grids and majorant structure shared, not copied) placed by
@@ -427,7 +465,79 @@ impl Medium {
             constant: false,
             index_to_world: world_to_index.inverse(),
             prefetch: self.prefetch,
+            motion: None,
+            velocity: self.velocity.clone(),
+            velocity_reach: self.velocity_reach,
         })
+    }
+
+    /// Makes the medium move over the shutter: its volume → world transform follows
+    /// `motion` (the medium was built with `at_frame`, the transform at the frame).
+    /// Only a grid's region moves: a fog box's surface is in world space.
+    pub fn set_motion(&mut self, motion: TransformMotion, at_frame: DMat4) {
+        if !matches!(self.region, MediumRegion::Grid) {
+            return;
+        }
+        self.motion = Some(Arc::new(MediumMotion {
+            volume_to_world: motion,
+            index_from_volume: self.world_to_index * at_frame,
+            at_frame,
+        }));
+        self.world_box = self.bounding_box();
+    }
+
+    /// Whether the medium moves (or its fields flow) while the shutter is open.
+    pub fn moves(&self) -> bool {
+        self.motion.is_some() || self.velocity.is_some()
+    }
+
+    /// Advects the medium's fields by `velocity` over the shutter `(open, close)`
+    /// (frame-relative time codes) and rebuilds the majorants over the widened region.
+    /// Only a grid's density flows (fog has no grid to advect).
+    pub fn set_velocity(&mut self, velocity: VelocityGrid, (open, close): (f64, f64)) {
+        if !matches!(self.region, MediumRegion::Grid) {
+            return;
+        }
+        self.velocity = Some(Arc::new(velocity));
+        self.velocity_reach = open.abs().max(close.abs());
+        self.set_majorants(self.majorants.spec());
+    }
+
+    /// The world box around the majorant region: where it is, or everywhere it goes
+    /// over the shutter.
+    fn bounding_box(&self) -> Option<(DVec3, DVec3)> {
+        match &self.motion {
+            None => world_box(&self.majorants, self.world_to_index),
+            Some(m) => {
+                let (lo, hi) = self.majorants.index_region()?;
+                let to_volume = m.index_from_volume.inverse();
+                let corners = crate::volume::grid::box_corners(lo.as_dvec3(), hi.as_dvec3())
+                    .map(|c| to_volume.transform_point3(c));
+                let b = m.volume_to_world.swept_box(&corners);
+                let pad = DVec3::splat(1e-4 * (b.1 - b.0).length());
+                Some((b.0 - pad, b.1 + pad))
+            }
+        }
+    }
+
+    /// Where the world point `p` at frame-relative `time` is at the frame: the point
+    /// the medium's world-placed lookups (emission, albedo) take. `p` itself for a
+    /// medium that does not move.
+    #[inline]
+    pub fn at_frame<C: Tally>(&self, p: DVec3, time: f64, counters: &mut C) -> DVec3 {
+        let p = match &self.motion {
+            None => p,
+            Some(m) => (m.at_frame * m.world_to_volume(time)).transform_point3(p),
+        };
+        match &self.velocity {
+            Some(v) if time != 0.0 => {
+                let i = self.world_to_index.transform_point3(p).as_vec3();
+                let advect = time as f32 * v.seconds_per_time_code;
+                let moved = self.advected(i, advect, counters);
+                self.index_to_world.transform_point3(moved.as_dvec3())
+            }
+            _ => p,
+        }
     }
 
     /// The majorant structure `spec` over this medium's grid, pruned as
@@ -453,9 +563,25 @@ impl Medium {
     /// The majorant structure `spec` over the density: the grid's values, or the
     /// shader graph's range over them.
     fn tree(&self, spec: MajorantSpec) -> MajorantTree {
+        // Advected by a velocity grid, a cell's density comes from as far as the
+        // largest displacement over the shutter: its bounds cover that much more.
+        let w = match &self.velocity {
+            Some(v) => v.widening(self.velocity_reach * v.seconds_per_time_code as f64),
+            None => [0; 3],
+        };
+        let widen = |lo: [i32; 3], hi: [i32; 3]| {
+            let lo = [0, 1, 2].map(|a| lo[a].saturating_sub(w[a]));
+            let hi = [0, 1, 2].map(|a| hi[a].saturating_add(w[a]));
+            (lo, hi)
+        };
         match &self.shader {
-            None => MajorantTree::build(&self.density, spec),
-            Some(s) => MajorantTree::build_bounded(&self.density, spec, &|lo, hi| {
+            None if w == [0; 3] => MajorantTree::build(&self.density, spec),
+            None => MajorantTree::build_widened(&self.density, spec, w, &|lo, hi| {
+                let (lo, hi) = widen(lo, hi);
+                self.density.value_range(lo, hi)
+            }),
+            Some(s) => MajorantTree::build_widened(&self.density, spec, w, &|lo, hi| {
+                let (lo, hi) = widen(lo, hi);
                 let grid = self.density.value_range(lo, hi);
                 let [lo, hi] = [lo, hi].map(|v| DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64));
                 s.cell_bounds(lo, hi, grid)
@@ -495,7 +621,7 @@ impl Medium {
         let old = std::mem::replace(&mut self.majorants, tree);
         // World fog has no box: its brick covers only the scene, the fog all space.
         if !matches!(self.region, MediumRegion::Everywhere) {
-            self.world_box = world_box(&self.majorants, self.world_to_index);
+            self.world_box = self.bounding_box();
         }
         old
     }
@@ -548,13 +674,71 @@ impl Medium {
         self.albedo = albedo;
     }
 
-    /// Maps a world-space ray (any direction length; `t` is measured in units of it).
+    /// Maps a world-space ray (any direction length; `t` is measured in units of it)
+    /// at the frame.
     pub fn index_ray(&self, origin: DVec3, dir: DVec3) -> IndexRay {
-        let o = self.world_to_index.transform_point3(origin);
-        let d = self.world_to_index.transform_vector3(dir);
+        self.index_ray_with(self.world_to_index, origin, dir)
+    }
+
+    /// Maps a world-space ray at frame-relative `time` (the medium where it is then,
+    /// its fields advected to then).
+    #[inline]
+    pub fn index_ray_at(&self, origin: DVec3, dir: DVec3, time: f64) -> IndexRay {
+        let mut ray = self.index_ray_with(self.world_to_index_at(time), origin, dir);
+        if let Some(v) = &self.velocity {
+            ray.advect = time as f32 * v.seconds_per_time_code;
+        }
+        ray
+    }
+
+    /// Where the fields are read for index point `p` on a ray advecting by `advect`
+    /// seconds: `p − v(p)·advect` ([`crate::volume::velocity`]).
+    #[inline(always)]
+    fn advected<C: Tally>(&self, p: Vec3, advect: f32, c: &mut C) -> Vec3 {
+        match &self.velocity {
+            Some(v) if advect != 0.0 => p - v.index_velocity(p, c) * advect,
+            _ => p,
+        }
+    }
+
+    /// [`density`](Self::density) at `t` along `ray` (one density lookup, and one of
+    /// the velocity grid on a ray that advects).
+    #[inline(always)]
+    pub fn density_on<C: Tally>(&self, ray: &IndexRay, t: f32, counters: &mut C) -> f32 {
+        let p = self.advected(ray.at(t), ray.advect, counters);
+        self.density(p, counters)
+    }
+
+    /// [`density_estimate`](Self::density_estimate) at `t` along `ray`.
+    #[inline(always)]
+    pub fn density_estimate_on<C: Tally>(
+        &self,
+        ray: &IndexRay,
+        t: f32,
+        u: u64,
+        counters: &mut C,
+    ) -> f32 {
+        let p = self.advected(ray.at(t), ray.advect, counters);
+        self.density_estimate(p, u, counters)
+    }
+
+    /// World → index at frame-relative `time`.
+    #[inline]
+    fn world_to_index_at(&self, time: f64) -> DMat4 {
+        match &self.motion {
+            None => self.world_to_index,
+            Some(m) => m.index_from_volume * m.world_to_volume(time),
+        }
+    }
+
+    #[inline]
+    fn index_ray_with(&self, world_to_index: DMat4, origin: DVec3, dir: DVec3) -> IndexRay {
+        let o = world_to_index.transform_point3(origin);
+        let d = world_to_index.transform_vector3(dir);
         IndexRay {
             o: o.as_vec3(),
             d: d.as_vec3(),
+            advect: 0.0,
         }
     }
 
@@ -571,10 +755,12 @@ impl Medium {
         })
     }
 
-    /// [`density`](Self::density) at a world-space point (one density lookup).
+    /// [`density`](Self::density) at a world-space point at frame-relative `time`
+    /// (one density lookup).
     #[inline]
-    pub fn density_at_world<C: Tally>(&self, p: DVec3, counters: &mut C) -> f32 {
-        self.density(self.world_to_index.transform_point3(p).as_vec3(), counters)
+    pub fn density_at_world<C: Tally>(&self, p: DVec3, time: f64, counters: &mut C) -> f32 {
+        let ray = self.index_ray_at(p, DVec3::ZERO, time);
+        self.density_on(&ray, 0.0, counters)
     }
 
     /// Density (already scaled into extinction units by σ) at an index-space point.

@@ -14,3 +14,4 @@ pub mod procedural;
 pub mod ticks;
 pub mod upsample;
 pub mod vdb;
+pub mod velocity;

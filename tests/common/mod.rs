@@ -115,6 +115,8 @@ pub fn camera(camera_to_world: DMat4, focal: f64, aperture: f64, w: u32, h: u32)
         projection: Default::default(),
         f_stop: 0.0,
         focus_distance: 0.0,
+        shutter: None,
+        motion: None,
     };
     CameraRays::new(&cam, w, h)
 }
@@ -196,6 +198,7 @@ impl Dispatch<Output> for Run<'_, '_> {
                 LightSampling::EquiangularMis => s.lights.locals(),
                 LightSampling::Collisions | LightSampling::Auto => Vec::new(),
             },
+            shutter: None,
         };
         match self.mode {
             Mode::Film => Output::Film(it.render(&|| {})),

@@ -112,6 +112,9 @@ fn camera(c: &CameraDesc) -> Camera {
         clipping_range: (c.near, c.far),
         f_stop: c.f_stop,
         focus_distance: c.focus_distance,
+        // Hydra's shutter and sampled transforms are not read yet (issue 45).
+        shutter: None,
+        motion: None,
     }
 }
 
@@ -721,6 +724,7 @@ fn volume(v: &VolumeDesc, warnings: &mut Vec<String>) -> Result<Volume> {
             prim_path: v.path.clone(),
             light_group,
             volume_to_world,
+            motion: None,
             shape: VolumeShape::Field(named(&density_name)?),
             density_scale: m.density_scale,
             absorption: m.absorption,
@@ -729,6 +733,7 @@ fn volume(v: &VolumeDesc, warnings: &mut Vec<String>) -> Result<Volume> {
             fields,
             emission: VolumeEmission::default(),
             albedo: None,
+            velocity: None,
             material_shader: Some(material.shader_name()),
             density_graph: m.density_graph.map(|program| DensityGraph {
                 program,
@@ -751,6 +756,7 @@ fn volume(v: &VolumeDesc, warnings: &mut Vec<String>) -> Result<Volume> {
         prim_path: v.path.clone(),
         light_group,
         volume_to_world,
+        motion: None,
         shape: VolumeShape::Field(density),
         density_scale: scalar(path, pv, tokens::DENSITY_SCALE)?.unwrap_or(1.0),
         absorption: color3(path, pv, tokens::ABSORPTION)?.unwrap_or([0.1; 3]),
@@ -759,6 +765,7 @@ fn volume(v: &VolumeDesc, warnings: &mut Vec<String>) -> Result<Volume> {
         fields,
         emission,
         albedo,
+        velocity: None,
         material_shader: None,
         density_graph: None,
     })
