@@ -72,6 +72,12 @@ fn print_stage(d: &StageDescription) {
         c.vertical_aperture,
         c.clipping_range
     );
+    if let Some((open, close)) = c.shutter {
+        match c.motion_keys {
+            0 => println!("  shutter {open} to {close} (time codes from the frame); the camera does not move"),
+            n => println!("  shutter {open} to {close} (time codes from the frame); the camera moves: {n} transform keys"),
+        }
+    }
     for l in &d.lights {
         print_light(l);
     }
@@ -149,6 +155,19 @@ fn print_stage(d: &StageDescription) {
                 prim(name)
             ),
             None => println!("  albedo: constant (no albedoField)"),
+        }
+        if v.motion_keys > 0 {
+            println!(
+                "  motion blur: the volume moves over the shutter ({} transform keys)",
+                v.motion_keys
+            );
+        }
+        if let Some(name) = &v.velocity_field {
+            println!(
+                "  motion blur: fields advected by the velocity field {name} ({}), {} s of flow per time code",
+                prim(name),
+                v.velocity_seconds_per_time_code
+            );
         }
         if let Some(shader) = &v.material_shader {
             println!("  parameters from the bound material's volume shader {shader}");

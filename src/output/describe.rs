@@ -106,6 +106,10 @@ pub struct CameraDescription {
     /// `fStop` and `focusDistance`: depth of field when both are positive.
     pub f_stop: f64,
     pub focus_distance: f64,
+    /// `shutter:open`, `shutter:close` when open (time codes from the frame).
+    pub shutter: Option<(f64, f64)>,
+    /// Keys of the camera's transform over the shutter (0: it does not move).
+    pub motion_keys: usize,
 }
 
 /// A light as the renderer lists it ([`Scene::lights`], whose index is the light id),
@@ -241,6 +245,12 @@ pub struct VolumeDescription {
     /// `nimbus:emissionKind`: "radiance" or "source".
     pub emission_kind: &'static str,
     pub albedo_field: Option<String>,
+    /// Keys of the volume's transform over the shutter (0: it does not move).
+    pub motion_keys: usize,
+    /// The velocity field (a key of `fields`) that advects the fields over the shutter,
+    /// and its seconds of flow per time code.
+    pub velocity_field: Option<String>,
+    pub velocity_seconds_per_time_code: f64,
     /// The bound material's volume shader the parameters come from, if any.
     pub material_shader: Option<String>,
     /// The shader graph the density goes through, if any: its source and size.
@@ -381,6 +391,8 @@ pub fn describe_stage(path: &Path, o: &DescribeOptions) -> Result<StageDescripti
             clipping_range: c.clipping_range,
             f_stop: c.f_stop,
             focus_distance: c.focus_distance,
+            shutter: c.shutter,
+            motion_keys: c.motion.as_ref().map_or(0, |m| m.keys().len()),
         },
         lights: lights(&scene),
         render_settings: RenderSettingsDescription {
@@ -590,6 +602,12 @@ fn volume(v: &crate::scene::Volume, depth: u32) -> VolumeDescription {
         emission_scale: e.emission_scale,
         emission_kind: e.kind.token(),
         albedo_field: albedo.clone(),
+        motion_keys: v.motion.as_ref().map_or(0, |m| m.keys().len()),
+        velocity_field: v.velocity.as_ref().map(|x| x.field.0.clone()),
+        velocity_seconds_per_time_code: v
+            .velocity
+            .as_ref()
+            .map_or(0.0, |x| x.seconds_per_time_code),
         material_shader: v.material_shader.clone(),
         density_graph: v.density_graph.as_ref().map(|g| DensityGraphDescription {
             source: g.source.clone(),
