@@ -533,7 +533,13 @@ impl Medium {
             Some(v) if time != 0.0 => {
                 let i = self.world_to_index.transform_point3(p).as_vec3();
                 let advect = time as f32 * v.seconds_per_time_code;
-                let moved = self.advected(i, advect, counters);
+                let moved = match advect != 0.0 {
+                    true => {
+                        counters.density_lookup(0);
+                        self.advected(i, advect)
+                    }
+                    false => i,
+                };
                 self.index_to_world.transform_point3(moved.as_dvec3())
             }
             _ => p,
@@ -677,14 +683,23 @@ impl Medium {
     /// Maps a world-space ray (any direction length; `t` is measured in units of it)
     /// at the frame.
     pub fn index_ray(&self, origin: DVec3, dir: DVec3) -> IndexRay {
-        self.index_ray_with(self.world_to_index, origin, dir)
+        self.index_ray_with(&self.world_to_index, origin, dir)
     }
 
     /// Maps a world-space ray at frame-relative `time` (the medium where it is then,
-    /// its fields advected to then).
-    #[inline]
+    /// its fields advected to then). A medium that does not move maps it as
+    /// [`index_ray`](Self::index_ray) does, with no other work.
+    #[inline(always)]
     pub fn index_ray_at(&self, origin: DVec3, dir: DVec3, time: f64) -> IndexRay {
-        let mut ray = self.index_ray_with(self.world_to_index_at(time), origin, dir);
+        if self.motion.is_none() && self.velocity.is_none() {
+            return self.index_ray_with(&self.world_to_index, origin, dir);
+        }
+        self.moving_index_ray(origin, dir, time)
+    }
+
+    #[inline(never)]
+    fn moving_index_ray(&self, origin: DVec3, dir: DVec3, time: f64) -> IndexRay {
+        let mut ray = self.index_ray_with(&self.world_to_index_at(time), origin, dir);
         if let Some(v) = &self.velocity {
             ray.advect = time as f32 * v.seconds_per_time_code;
         }
@@ -692,12 +707,17 @@ impl Medium {
     }
 
     /// Where the fields are read for index point `p` on a ray advecting by `advect`
-    /// seconds: `p − v(p)·advect` ([`crate::volume::velocity`]).
-    #[inline(always)]
-    fn advected<C: Tally>(&self, p: Vec3, advect: f32, c: &mut C) -> Vec3 {
+    /// seconds: `p − v(p)·advect` ([`crate::volume::velocity`]). Only rays of a
+    /// medium with a velocity grid advect (the trackers test `advect` first, so a still
+    /// medium's lookups pay one comparison; `cold` keeps the call out of their loops,
+    /// and it takes no counters, which would otherwise have to live in memory there:
+    /// the callers count the velocity read).
+    #[cold]
+    #[inline(never)]
+    fn advected(&self, p: Vec3, advect: f32) -> Vec3 {
         match &self.velocity {
-            Some(v) if advect != 0.0 => p - v.index_velocity(p, c) * advect,
-            _ => p,
+            Some(v) => p - v.index_velocity(p) * advect,
+            None => p,
         }
     }
 
@@ -705,7 +725,11 @@ impl Medium {
     /// the velocity grid on a ray that advects).
     #[inline(always)]
     pub fn density_on<C: Tally>(&self, ray: &IndexRay, t: f32, counters: &mut C) -> f32 {
-        let p = self.advected(ray.at(t), ray.advect, counters);
+        let mut p = ray.at(t);
+        if ray.advect != 0.0 {
+            p = self.advected(p, ray.advect);
+            counters.density_lookup(0);
+        }
         self.density(p, counters)
     }
 
@@ -718,7 +742,11 @@ impl Medium {
         u: u64,
         counters: &mut C,
     ) -> f32 {
-        let p = self.advected(ray.at(t), ray.advect, counters);
+        let mut p = ray.at(t);
+        if ray.advect != 0.0 {
+            p = self.advected(p, ray.advect);
+            counters.density_lookup(0);
+        }
         self.density_estimate(p, u, counters)
     }
 
@@ -731,8 +759,8 @@ impl Medium {
         }
     }
 
-    #[inline]
-    fn index_ray_with(&self, world_to_index: DMat4, origin: DVec3, dir: DVec3) -> IndexRay {
+    #[inline(always)]
+    fn index_ray_with(&self, world_to_index: &DMat4, origin: DVec3, dir: DVec3) -> IndexRay {
         let o = world_to_index.transform_point3(origin);
         let d = world_to_index.transform_vector3(dir);
         IndexRay {

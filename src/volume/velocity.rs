@@ -14,7 +14,6 @@
 //! widened as much) bounds the advected density at every time of the shutter
 //! ([`crate::volume::majorant::MajorantTree::build_widened`]).
 
-use crate::volume::counters::Tally;
 use crate::volume::grid::{Grid, GridError, RawGrid};
 use glam::{DMat4, Mat3, Mat4, Vec3};
 use std::sync::Arc;
@@ -95,10 +94,9 @@ impl VelocityGrid {
     }
 
     /// The velocity at density index point `p`, in density index units per second
-    /// (one lookup of the vector grid, counted as one density lookup).
+    /// (one lookup of the vector grid; the caller counts it as one density lookup).
     #[inline(always)]
-    pub fn index_velocity<C: Tally>(&self, p: Vec3, c: &mut C) -> Vec3 {
-        c.density_lookup(0);
+    pub fn index_velocity(&self, p: Vec3) -> Vec3 {
         let q = self.to_velocity_index.transform_point3(p).to_array();
         let [x, y, z] = &*self.channels;
         let v = Vec3::new(
