@@ -309,7 +309,7 @@ def block_means(stacks, mask, block, bias, alpha=BLOCK_ALPHA, min_pixels=BLOCK_M
 
 
 def against_cycles(scene, tmp_path, seeds=(0, 1, 2, 3), spp=32, max_depth=8, z=5.0,
-                   bias=0.005, erode=0, block=0, exclude=None):
+                   bias=0.005, erode=0, block=0, exclude=None, keep=None):
     """test_addon.py's comparison with Cycles as a function: `scene` (set up for
     Nimbus) rendered through the add-on and by Cycles (blender_export_scene.set_cycles:
     the peer harness' settings), len(seeds) x spp each. Over the pixels where either's
@@ -320,7 +320,9 @@ def against_cycles(scene, tmp_path, seeds=(0, 1, 2, 3), spp=32, max_depth=8, z=5
     erode > 0 keeps only pixels whose (2 erode + 1)^2 neighbourhood is all in the mask
     (the volume's inside, away from its silhouette). block > 0 also compares the means
     of block x block pixel squares (block_means; ok then needs both). exclude: an (H, W)
-    boolean array of pixels left out of every comparison (row 0 at the top)."""
+    boolean array of pixels left out of every comparison (row 0 at the top). keep: a
+    dict that receives the image stacks ("stacks": {"nimbus", "cycles"}: (K, H, W, 4))
+    and the compared pixels ("mask")."""
     import numpy as np
     from blender_export_scene import set_cycles
 
@@ -354,6 +356,8 @@ def against_cycles(scene, tmp_path, seeds=(0, 1, 2, 3), spp=32, max_depth=8, z=5
     if exclude is not None:
         mask &= ~exclude
     n = int(mask.sum())
+    if keep is not None:
+        keep.update(stacks=stacks, mask=mask)
     k = len(seeds)
     report, ok = [], n > 0
     for ci, name in enumerate("RGBA"):
