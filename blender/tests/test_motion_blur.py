@@ -2,10 +2,12 @@
 camera's shutter, Cycles' motion steps as time samples of the camera's and Volume
 objects' transforms, a Volume's velocity grid as nimbus:velocityField /
 nimbus:velocityScale (docs/blender.md, "Motion blur"). The translation tests read the
-overlay; the render tests compare F12 with Cycles 5.0.1 through
-conftest.against_cycles (image and 8 x 8 block means, 5 combined standard errors + 0.5 %
-of Cycles for its null-scattering bias), and check that the blurred image is not the
-still one."""
+overlay; the render tests compare F12 with Cycles 5.0.1 (image and 8 x 8 block means, 5
+combined standard errors + 0.5 % of Cycles for its null-scattering bias:
+conftest.compare_stacks): the keyframed volume against Cycles' time average (renders
+with motion blur off at the shutter's sub-frames: Cycles' own transform blur of a
+Volume loses opacity, measured and printed), the velocity grid against Cycles'
+motion blur; both check that the blurred image is not the still one."""
 
 import math
 import re
@@ -14,7 +16,7 @@ import bpy
 import numpy as np
 import pytest
 
-from conftest import against_cycles, block_means, render
+from conftest import against_cycles, block_means, compare_stacks, render
 from test_fog import _camera, _mesh_object, _node_material, _render_settings, _spot, _world
 from test_fog import overlay_prims, translated
 from vdb_writer import write_vdb
@@ -27,13 +29,16 @@ SHAPE = (48, 24, 24)
 ORIGIN = tuple(-(n - 1) * VOXEL / 2 for n in SHAPE)
 
 
-def blob_vdb(path, velocity=None, velocity_name="velocity"):
+def blob_vdb(path, velocity=None, velocity_name="velocity", apron=0.0):
     """Writes the blob's `density` (and a constant Vec3s `velocity_name` grid of
-    `velocity`, local units per second or frame, over the whole box) to `path`."""
+    `velocity`, local units per second or frame, over the whole box) to `path`. apron >
+    0: the density is at least `apron` over the whole box (an apron of voxels with a
+    tiny positive density around the blob: Cycles bounds a volume by a mesh of its
+    voxels above the render clipping, so the apron makes that mesh the whole box)."""
     i, j, k = np.meshgrid(*[np.arange(n) for n in SHAPE], indexing="ij")
     x, y, z = (o + VOXEL * a for o, a in zip(ORIGIN, (i, j, k)))
     r2 = (x * x + y * y + z * z) / BLOB_R**2
-    density = np.where(r2 < 1.0, 3.0 * (1.0 - r2) ** 2, 0.0)
+    density = np.maximum(np.where(r2 < 1.0, 3.0 * (1.0 - r2) ** 2, 0.0), apron)
     grids = [("density", density, VOXEL, ORIGIN, "fog volume")]
     if velocity is not None:
         v = np.broadcast_to(np.asarray(velocity, float), SHAPE + (3,))
@@ -358,39 +363,204 @@ def still_against_blurred(scene, tmp_path, keep, spp, seeds, block=8):
     return ok, worst, report
 
 
-def test_a_keyframed_volume_with_motion_blur_against_cycles(addon, tmp_path):
+def set_time(scene, time):
+    whole = math.floor(time)
+    scene.frame_set(int(whole), subframe=time - whole)
+
+
+def nimbus_stack(scene, tmp_path, seeds, spp, max_depth=8, tag="n"):
+    """F12 through the add-on per seed: (K, H, W, 4)."""
+    scene.render.engine = "NIMBUS"
+    scene.nimbus.samples = spp
+    scene.nimbus.max_depth = max_depth
+    out = []
+    for seed in seeds:
+        scene.nimbus.seed = seed
+        out.append(render(scene, tmp_path / f"{tag}{seed}.exr")["Combined"])
+    return np.stack(out).astype(np.float64)
+
+
+def cycles_stack(scene, tmp_path, seeds, spp, times=None, max_depth=8, tag="c"):
+    """Cycles 5.0.1 with the peer harness' settings (blender_export_scene.set_cycles),
+    one image per seed: with `times`, Cycles' time average, each seed's image the mean
+    of len(times) renders with motion blur off at those times (scene.frame_set with
+    the sub-frame), each its own seed (seeds[s] * 1000 + k: every render independent),
+    spp samples each; else Cycles' render of the scene as it is (its motion blur if on),
+    spp samples. (K, H, W, 4); the frame, the motion blur setting and the engine are
+    restored."""
+    from blender_export_scene import set_cycles
+
+    w, h = scene.render.resolution_x, scene.render.resolution_y
+    frame, subframe = scene.frame_current, scene.frame_subframe
+    blur = scene.render.use_motion_blur
+    scene.render.image_settings.media_type = "IMAGE"
+    set_cycles((w, h), max_depth, scene.render.film_transparent)
+    scene.render.image_settings.media_type = "MULTI_LAYER_IMAGE"
+    scene.render.image_settings.color_depth = "32"
+    scene.cycles.samples = spp
+    if times is None:
+        out = []
+        for seed in seeds:
+            scene.cycles.seed = seed
+            out.append(render(scene, tmp_path / f"{tag}{seed}.exr")["Combined"])
+    else:
+        scene.render.use_motion_blur = False
+        out = [0.0] * len(seeds)
+        # Times outermost: Cycles' persistent data syncs each time once.
+        for k, time in enumerate(times):
+            set_time(scene, time)
+            for i, seed in enumerate(seeds):
+                scene.cycles.seed = seed * 1000 + k
+                img = render(scene, tmp_path / f"{tag}{seed}_{k}.exr")["Combined"]
+                out[i] = out[i] + img.astype(np.float64) / len(times)
+    scene.frame_set(frame, subframe=subframe)
+    scene.render.use_motion_blur = blur
+    scene.render.engine = "NIMBUS"
+    return np.stack(out).astype(np.float64)
+
+
+# The camera of blob_scene: 36 mm sensor, 50 mm lens, 48 pixels wide, the blob 8 units
+# away: 8 x 36 / 50 / 48 world units per pixel there.
+PIXEL = 8.0 * 36.0 / 50.0 / 48.0
+
+
+def blob_alpha_model(xs, res=(48, 32), scale=1.0, sub=4):
+    """The blob's alpha image averaged over its centres (x, 0, 0) for x in xs, as a model
+    for the time discretisation: 1 - exp(-tau), tau the optical depth along the view
+    through the analytic blob (density 3 (1 - r^2 / R^2)^2, R = BLOB_R scale: tau(b) =
+    (16 / 5) (R^2 - b^2)^(5/2) / R^4 at distance b from its centre), the view taken
+    parallel (the blob spans 11 degrees), PIXEL world units per pixel, sub x sub points
+    per pixel (the box filter). (H, W), row 0 at the top."""
+    w, h = res
+    u = (np.arange(w * sub) + 0.5) / sub * PIXEL - w * PIXEL / 2
+    v = h * PIXEL / 2 - (np.arange(h * sub) + 0.5) / sub * PIXEL
+    r = BLOB_R * scale
+    acc = np.zeros((h * sub, w * sub))
+    for x in xs:
+        b2 = (u[None, :] - x) ** 2 + v[:, None] ** 2
+        tau = 16.0 / 5.0 * np.clip(r * r - b2, 0.0, None) ** 2.5 / r**4
+        acc += 1.0 - np.exp(-tau)
+    acc /= len(xs)
+    return acc.reshape(h, sub, w, sub).mean(axis=(1, 3))
+
+
+def worst_block_fraction(image, keep, block=8):
+    """max over the compared blocks of |mean of image over the block's compared pixels|
+    / the block's alpha tolerance (keep of compare_stacks)."""
+    worst = 0.0
+    for (y, x, name), tol in keep["block_tols"].items():
+        if name != "A":
+            continue
+        m = keep["mask"][y:y + block, x:x + block]
+        worst = max(worst, abs(image[y:y + block, x:x + block][m].mean()) / tol)
+    return worst
+
+
+# Cycles' time average: TIME_SAMPLES renders at the shutter's midpoint sub-frames.
+TIME_SAMPLES = 16
+
+
+def test_a_keyframed_volume_with_motion_blur_against_cycles_time_average(addon, tmp_path):
     """The blob moving along X by keyframes (x = -1 at frame 1, 2 at frame 4, Bezier),
     Motion Steps 2 (5 steps), Start on Frame, shutter 1, frame 2: Nimbus through the
-    add-on and Cycles 5.0.1, 4 seeds x 32 spp, within 5 combined standard errors + 0.5 %
-    (image means) and the block test; the still blob (motion blur off) fails the same
-    block test against Cycles' blurred images."""
+    add-on (4 seeds x 32 spp) against Cycles 5.0.1's time average over the shutter, the
+    mean of TIME_SAMPLES = 16 renders with motion blur off at the sub-frames 2 + (k +
+    1/2) / 16 (4 seeds, each time 8 spp and its own seed: 128 spp per seed's image),
+    within 5 combined standard errors + 0.5 % of Cycles (image means) and the block
+    test (both: the spread of the 4 seeds' images, each a whole time average, so the 16
+    renders' combined standard error). Not against Cycles' own motion blur: that loses
+    opacity against its own time average (measured here and printed, not asserted;
+    docs/blender.md). 16 times: the blob moves about 0.8 pixel a step (printed); the
+    time discretisation (midpoint rule), in a model of the blob's alpha, is below 0.1
+    of every block's alpha tolerance (asserted), and so is the model's difference
+    between the 5 motion steps' piecewise-linear path Nimbus (like Cycles' blur)
+    follows and the Bezier path. Nimbus' still image (motion blur off) fails the block
+    test clearly."""
     scene, obj = blob_scene(blob_vdb(tmp_path / "b.vdb"))
     keyframe_x(obj, {1: -1.0, 4: 2.0})
     obj.cycles.motion_steps = 2
     scene.frame_set(2)
     motion_blur(scene, "START", 1.0)
     seeds, spp = (0, 1, 2, 3), 32
+    times = [2.0 + (k + 0.5) / TIME_SAMPLES for k in range(TIME_SAMPLES)]
+
+    nimbus = nimbus_stack(scene, tmp_path, seeds, spp)
+    average = cycles_stack(scene, tmp_path, seeds, spp // 4, times=times, tag="t")
     keep = {}
-    ok, report, n = against_cycles(scene, tmp_path, seeds=seeds, spp=spp, bias=CYCLES_BIAS,
+    ok, report, n = compare_stacks({"nimbus": nimbus, "cycles": average}, bias=CYCLES_BIAS,
                                    block=8, keep=keep)
-    print(f"\nkeyframed blob, Start on Frame, shutter 1 ({n} pixels):\n" + "\n".join(report))
+    print(f"\nkeyframed blob, Start on Frame, shutter 1 ({n} pixels), against Cycles' "
+          f"time average of {TIME_SAMPLES}:\n" + "\n".join(report))
+
+    # The time discretisation, in the model.
+    def x_at(time):
+        set_time(scene, time)
+        return float(world_at(obj, time)[0, 3])
+
+    fine = [2.0 + (k + 0.5) / 256 for k in range(256)]
+    xs_fine = np.array([x_at(t) for t in fine])
+    xs_mid = np.array([x_at(t) for t in times])
+    steps = np.array([x_at(2.0 + k / 4) for k in range(5)])
+    xs_linear = np.interp(fine, [2.0 + k / 4 for k in range(5)], steps)
+    scene.frame_set(2)
+    exact = blob_alpha_model(xs_fine)
+    discretisation = worst_block_fraction(blob_alpha_model(xs_mid) - exact, keep)
+    path = worst_block_fraction(blob_alpha_model(xs_linear) - exact, keep)
+    per_step = np.abs(np.diff(xs_mid)) / PIXEL
+    print(f"the blob moves {(xs_fine[-1] - xs_fine[0]) / PIXEL:.1f} pixels over the shutter, "
+          f"{per_step.min():.2f}-{per_step.max():.2f} pixels per time sample; model: "
+          f"worst block |16 times - 256| / alpha tol {discretisation:.3f}, |5 steps' "
+          f"linear path - Bezier| / tol {path:.3f}; model alpha sum "
+          f"{exact.sum():.2f}")
+
+    # Cycles' own motion blur against its time average (its bias; not asserted).
+    blurred = cycles_stack(scene, tmp_path, seeds, spp * 4, tag="cb")
+    cyc_ok, cyc_report, _ = compare_stacks({"nimbus": blurred, "cycles": average},
+                                           bias=CYCLES_BIAS, block=8)
+    sums = {name: s[..., 3].mean(0).sum() for name, s in
+            (("nimbus blurred", nimbus), ("cycles time average", average),
+             ("cycles blurred", blurred))}
+    print("alpha summed over the image: " + ", ".join(f"{k} {v:.2f}" for k, v in sums.items())
+          + f"\nCycles' motion blur ('nimbus' below) against Cycles' time average "
+          f"({'within' if cyc_ok else 'outside'} the tolerance):\n" + "\n".join(cyc_report))
+
     still_ok, worst, still_report = still_against_blurred(scene, tmp_path, keep, spp, seeds)
-    print(f"motion blur off against Cycles' blurred image: worst block |diff| / tol "
+    print(f"motion blur off against Cycles' time average: worst block |diff| / tol "
           f"{worst:.2f}\n" + "\n".join(still_report[:3]))
     assert n > 100
+    assert discretisation < 0.1 and path < 0.1
     assert ok, "\n".join(report)
     assert not still_ok and worst > 3.0
 
 
+# The velocity test's apron density and velocity (local units per second).
+APRON = 1e-4
+SPEED = 96.0
+
+
 @pytest.mark.parametrize("unit", ["SECOND"])
 def test_a_velocity_grid_with_motion_blur_against_cycles(addon, tmp_path, unit):
-    """The issue's acceptance: the blob with a constant velocity grid (48 local units
-    per second along X; Velocity Unit Second, Scale 1; the object scaled 1.25),
-    Center on Frame, shutter 0.5 at 24 fps (each side of the frame 0.5 local, 0.625
-    world units), against Cycles 5.0.1, 4 seeds x 32 spp, within 5 combined standard
-    errors + 0.5 % (image and 8 x 8 block means); the still blob fails the block test
-    against Cycles' blurred images."""
-    scene, obj = blob_scene(blob_vdb(tmp_path / "b.vdb", (48.0, 0.0, 0.0)), scale=1.25)
+    """The issue's acceptance: the blob with a constant velocity grid (SPEED = 96 local
+    units per second along X; Velocity Unit Second, Scale 1; the object scaled 1.25),
+    Center on Frame, shutter 0.5 at 24 fps (each side of the frame 1 local, 1.25 world
+    units, about 10 pixels), against Cycles 5.0.1's motion-blurred render, 4 seeds x 32
+    spp, within 5 combined standard errors + 0.5 % (image and 8 x 8 block means). The
+    density is at least APRON = 1e-4 over the whole box (4.7 local units wide: 1.55
+    beyond the blob each side, more than the 1-unit displacement) and the render
+    clipping (0) is below it, so Cycles' bounding mesh is the whole box and covers the
+    advected density (without the apron it is the blob's voxels, and Cycles loses what
+    the velocity moves out of them); the velocity grid covers the box. The Volume's
+    render Space is World: in Object space (Blender's default) Cycles divides the
+    density by the object's scale (`object_volume_density`), which the add-on does not
+    translate (measured: still images, alpha summed 99.7 Nimbus, 89.4 Cycles).
+    Measured and printed, not asserted: both against the time average of TIME_SAMPLES
+    renders with motion blur off of the blob translated by the displacement at the
+    shutter's midpoint times (a constant velocity is a translation). Nimbus' still
+    image (motion blur off) fails the block test clearly."""
+    scene, obj = blob_scene(blob_vdb(tmp_path / "b.vdb", (SPEED, 0.0, 0.0), apron=APRON),
+                            scale=1.25)
+    obj.data.render.space = "WORLD"
+    assert obj.data.render.clipping < APRON
     obj.data.velocity_unit = unit
     obj.data.velocity_scale = 1.0
     obj.data.update_tag()
@@ -399,10 +569,34 @@ def test_a_velocity_grid_with_motion_blur_against_cycles(addon, tmp_path, unit):
     keep = {}
     ok, report, n = against_cycles(scene, tmp_path, seeds=seeds, spp=spp, bias=CYCLES_BIAS,
                                    block=8, keep=keep)
-    print(f"\nvelocity blob, Center on Frame, shutter 0.5 ({n} pixels):\n" + "\n".join(report))
+    sums = {k: s[..., 3].mean(0).sum() for k, s in keep["stacks"].items()}
+    print(f"\nvelocity blob, Center on Frame, shutter 0.5 ({n} pixels):\n" + "\n".join(report)
+          + "\nalpha summed over the image: "
+          + ", ".join(f"{k} {v:.2f}" for k, v in sums.items()))
     still_ok, worst, still_report = still_against_blurred(scene, tmp_path, keep, spp, seeds)
     print(f"motion blur off against Cycles' blurred image: worst block |diff| / tol "
           f"{worst:.2f}\n" + "\n".join(still_report[:3]))
+
+    # Cycles' time average of the translated blob (Cycles moves a lookup by (t - 1/2) k v,
+    # k = s / fps: the density by +(t - 1/2) k v, local units, times the scale 1.25).
+    k = scene.render.motion_blur_shutter / scene.render.fps
+    scene.render.use_motion_blur = False
+    frames = []
+    for j in range(TIME_SAMPLES):
+        t = (j + 0.5) / TIME_SAMPLES
+        obj.location.x = 1.25 * (t - 0.5) * k * SPEED
+        frames.append(cycles_stack(scene, tmp_path, [s_ * 1000 + j for s_ in seeds],
+                                   spp // 4, tag=f"t{j}_"))
+    obj.location.x = 0.0
+    scene.render.use_motion_blur = True
+    average = np.mean(frames, axis=0)
+    for name, stack in (("Nimbus", keep["stacks"]["nimbus"]),
+                        ("Cycles' motion blur", keep["stacks"]["cycles"])):
+        a_ok, a_report, _ = compare_stacks({"nimbus": stack, "cycles": average},
+                                           bias=CYCLES_BIAS, block=8)
+        print(f"{name} ('nimbus' below) against Cycles' time average of the translated "
+              f"blob, alpha summed {average[..., 3].mean(0).sum():.2f} "
+              f"({'within' if a_ok else 'outside'} the tolerance):\n" + "\n".join(a_report))
     assert n > 100
     assert ok, "\n".join(report)
     assert not still_ok and worst > 3.0
