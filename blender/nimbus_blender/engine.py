@@ -94,7 +94,7 @@ class NimbusRenderEngine(bpy.types.RenderEngine):
         self.status("Nimbus: exporting the scene")
         folder = tempfile.mkdtemp(prefix="nimbus-blender-")
         try:
-            t = translate.translate(depsgraph, folder)
+            t = translate.translate(depsgraph, folder, frame_set=self.frame_set)
             translated = time.perf_counter()
             for w in t.warnings:
                 self.report({"WARNING"}, f"Nimbus: {w}")
@@ -141,6 +141,9 @@ class NimbusRenderEngine(bpy.types.RenderEngine):
             aovs=aovs,
             denoise=settings.use_denoising,
         )
+        if t.frame is not None:
+            # Motion blur: the frame the camera's shutter opens around (docs/blender.md).
+            kwargs["frame"] = t.frame
         if settings.use_denoising:
             _use_blenders_oidn()
         # Pass registration, then the result (Blender crops it to the border).

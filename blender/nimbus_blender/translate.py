@@ -66,6 +66,11 @@ class Translation:
     transparent: bool = False
     # Single-scattering albedo of the (first) volume, for the albedo pass.
     albedo: tuple = (0.0, 0.0, 0.0)
+    # With motion blur: the frame nimbus.render is given (frame_current + subframe), so
+    # the camera's shutter is used; None without motion blur.
+    frame: float = None
+    # With motion blur: the Shutter (motion_blur below).
+    shutter: object = None
 
 
 def prim_name(name):
@@ -766,11 +771,12 @@ def exported_prims(text, type_name):
     return found
 
 
-def write_overlay(path, exported, prims):
+def write_overlay(path, exported, prims, metadata=()):
     """`prims`: prim path -> (api schemas, attribute lines[, specifier]). An overlay
     layer that sublayers Blender's export and `over`s those prims, or defines them
     with the specifier given (e.g. "def Volume"); a defined prim's parents must be
-    defined too (an `over` alone is not rendered)."""
+    defined too (an `over` alone is not rendered). `metadata`: more layer metadata
+    lines (e.g. "timeCodesPerSecond = 24")."""
     tree = {}
     for prim, content in prims.items():
         node = tree
@@ -798,7 +804,9 @@ def write_overlay(path, exported, prims):
         return text
 
     with open(path, "w") as f:
-        f.write(f"#usda 1.0\n(\n    subLayers = [@./{exported}@]\n)\n\n" + emit(tree, ""))
+        header = "".join(f"    {line}\n" for line in metadata)
+        f.write(f"#usda 1.0\n(\n{header}    subLayers = [@./{exported}@]\n)\n\n"
+                + emit(tree, ""))
 
 
 def render_size(scene):
@@ -963,9 +971,218 @@ def holdout_mesh(obj, matrix, prims, warnings):
     ], "def Mesh")
 
 
-def translate(depsgraph, folder):
+# ---- motion blur (issue 45) -----------------------------------------------------------
+
+# The xformOp the overlay writes an object's motion in (it replaces the exporter's ops).
+MOTION_OP = "xformOp:transform:nimbus_motion"
+
+
+@dataclass
+class Shutter:
+    """Blender's Motion Blur as Cycles reads it (intern/cycles/blender/camera.cpp,
+    object.cpp's sync_motion): the shutter lasts `length` frames and, by Position,
+    starts on the frame (START: [F, F + length]), is centred on it (CENTER) or ends on
+    it (END: [F - length, F]), F = frame_current + subframe. `open`, `close`: its ends
+    relative to F, in frames (= the overlay's time codes: camera shutter:open/close)."""
+
+    frame: float
+    length: float
+    position: str
+    open: float
+    close: float
+    fps: float
+
+    @property
+    def middle(self):
+        return self.frame + 0.5 * (self.open + self.close)
+
+    def step_times(self, steps):
+        """Cycles' motion step times of an object with `steps` steps (object_motion_steps:
+        2^motion_steps + 1, evenly over the shutter, the middle one at its middle; 0:
+        not blurred, synced once at the shutter's middle)."""
+        if steps < 2:
+            return [self.middle]
+        # As Cycles: the middle plus relative times -1 .. 1 of half the shutter (the
+        # middle step exactly the middle).
+        return [self.middle + (2.0 * k / (steps - 1) - 1.0) * 0.5 * self.length
+                for k in range(steps)]
+
+
+def motion_blur(scene, view_layer):
+    """The scene's Shutter, or None when motion blur is off (Render > Motion Blur, and
+    the view layer's Use Motion Blur, as Cycles' integrator reads both)."""
+    r = scene.render
+    if not (r.use_motion_blur and getattr(view_layer, "use_motion_blur", True)):
+        return None
+    s = float(r.motion_blur_shutter)
+    if not s > 0:
+        return None
+    position = r.motion_blur_position
+    opened = {"START": 0.0, "CENTER": -0.5 * s, "END": -s}[position]
+    return Shutter(frame=scene.frame_current + scene.frame_subframe, length=s,
+                   position=position, open=opened, close=opened + s,
+                   fps=r.fps / r.fps_base)
+
+
+def motion_steps(obj):
+    """Cycles' number of motion steps of `obj` (object_motion_steps): 0 when its
+    Object > Motion Blur is off, else 2^Steps + 1 (3 by default). Without the Cycles
+    add-on's settings, Cycles' defaults."""
+    c = getattr(obj, "cycles", None)
+    if c is None:
+        return 3
+    if not getattr(c, "use_motion_blur", True):
+        return 0
+    return 2 ** max(1, int(getattr(c, "motion_steps", 1))) + 1
+
+
+def _default_frame_set(scene):
+    def frame_set(frame, subframe):
+        scene.frame_set(frame, subframe=subframe)
+    return frame_set
+
+
+def _at(frame_set, time):
+    whole = math.floor(time)
+    frame_set(int(whole), float(time - whole))
+
+
+def sample_motion(depsgraph, shutter, objects, frame_set):
+    """`objects`: {name: times}. Evaluates the scene at every time (frame_set(frame,
+    subframe), Blender's own evaluation, as Cycles' sync_motion does) and returns
+    {name: {time: matrix_world}}; the frame is restored to the shutter's frame."""
+    times = sorted({t for ts in objects.values() for t in ts})
+    out = {name: {} for name in objects}
+    try:
+        for time in times:
+            _at(frame_set, time)
+            for name, ts in objects.items():
+                if time in ts:
+                    obj = bpy.data.objects[name].evaluated_get(depsgraph)
+                    out[name][time] = obj.matrix_world.copy()
+    finally:
+        _at(frame_set, shutter.frame)
+    return out
+
+
+def _moves(matrices, reference):
+    return any(max(abs(m[r][c] - reference[r][c]) for r in range(4) for c in range(4))
+               > 1e-7 * (1.0 + max(abs(reference[r][c]) for r in range(4) for c in range(4)))
+               for m in matrices)
+
+
+def _matrix_value(m):
+    rows = ", ".join("(" + ", ".join(repr(float(m[r][c])) for r in range(4)) + ")"
+                     for c in range(4))
+    return f"({rows})"
+
+
+def motion_lines(samples, parent_world):
+    """An object's sampled world matrices as the overlay's time samples of its local
+    transform (the exported Xform's parent chain is the parents' at the frame:
+    local(t) = parent_world^-1 world(t)), replacing the exporter's xformOps."""
+    inverse = parent_world.inverted() if parent_world is not None else None
+    keys = []
+    for time in sorted(samples):
+        m = samples[time] if inverse is None else inverse @ samples[time]
+        keys.append(f"{time!r}: {_matrix_value(m)}")
+    return [f"matrix4d {MOTION_OP}.timeSamples = {{{', '.join(keys)}}}",
+            f'uniform token[] xformOpOrder = ["{MOTION_OP}"]']
+
+
+def shutter_warnings(scene, shutter, warnings):
+    """What of Blender's shutter Nimbus does not render."""
+    r = scene.render
+    curve = r.motion_blur_shutter_curve
+    try:
+        flat = all(abs(curve.evaluate(curve.curves[0], x / 16) - 1.0) < 1e-6
+                   for x in range(17))
+    except Exception:  # noqa: BLE001 - an unreadable curve is reported as not flat
+        flat = False
+    if not flat:
+        warnings.append(
+            f"scene '{scene.name}': the Motion Blur Shutter Curve is not flat; Nimbus' "
+            "shutter is open evenly over its interval (a box)")
+    rolling = getattr(getattr(scene, "cycles", None), "rolling_shutter_type", "NONE")
+    if rolling != "NONE":
+        warnings.append(
+            f"scene '{scene.name}': Rolling Shutter {rolling} is not translated; Nimbus "
+            "opens the whole frame's shutter at once")
+
+
+def velocity_lines(obj, shutter, warnings):
+    """A Volume object's velocity blur as Cycles renders it (blender/volume.cpp and the
+    kernel's volume_shader_motion_blur), in NimbusVolumeAPI attributes. Cycles picks
+    the grid named Velocity Grid, else one named `velocity`, and moves each lookup by
+    -(t - t0) k v(x), t the sample's time over the shutter in [0, 1], t0 = 0.5 for a
+    centred shutter and 0 otherwise, k = Velocity Scale x shutter / fps for Velocity
+    Unit Second and Velocity Scale itself for Frame (whatever the shutter). Nimbus
+    moves it by -(tau - F) nimbus:velocityScale / timeCodesPerSecond v(x), tau - F in
+    frames = (t - t0) x shutter and timeCodesPerSecond = the scene's fps (the overlay
+    authors it): Second -> Velocity Scale, Frame -> Velocity Scale x fps / shutter.
+    Without a usable grid, nimbus:velocityScale = 0 (Nimbus would otherwise take a
+    `vel` grid Cycles does not)."""
+    # The evaluated volume's, as Cycles reads them (loading a file sets Velocity Grid
+    # to the velocity grid Blender finds in it).
+    vol = settings = obj.data
+    grids = {g.name: g for g in vol.grids}
+    who = f"object '{obj.name}'"
+    named = settings.velocity_grid
+    chosen = None
+    if named and named in grids:
+        chosen = named
+    elif "velocity" in grids:
+        chosen = "velocity"
+        if named and named != "velocity":
+            warnings.append(
+                f"{who}: Velocity Grid '{named}' is not a grid of the volume; Nimbus "
+                "blurs by the grid 'velocity', as Cycles does")
+    components = [n for n in (vol.velocity_x_grid, vol.velocity_y_grid, vol.velocity_z_grid)
+                  if n]
+    off = ["float nimbus:velocityScale = 0.0"]
+    if chosen is None:
+        if components:
+            warnings.append(
+                f"{who}: the velocity is in three grids ({', '.join(components)}); Nimbus "
+                "reads one vector grid: the volume is not blurred by velocity (Cycles "
+                "combines them)")
+        elif named and named != "velocity":
+            warnings.append(
+                f"{who}: Velocity Grid '{named}' is not a grid of the volume (grids: "
+                f"{', '.join(sorted(grids)) or 'none'}); no velocity blur, as in Cycles")
+        return off
+    kind = getattr(grids[chosen], "data_type", "VECTOR_FLOAT")
+    if kind != "VECTOR_FLOAT":
+        warnings.append(
+            f"{who}: the velocity grid '{chosen}' is {kind}, not a vector grid; no "
+            "velocity blur")
+        return off
+    scale = float(settings.velocity_scale)
+    if scale < 0:
+        warnings.append(
+            f"{who}: Velocity Scale {scale:g} is negative; Nimbus' velocity scale cannot "
+            "be: no velocity blur")
+        return off
+    if settings.velocity_unit == "SECOND":
+        # Cycles scales by the shutter only for objects it blurs (object_need_motion_attribute).
+        nimbus_scale = scale if motion_steps(obj.original) > 0 else 0.0
+    else:
+        nimbus_scale = scale * shutter.fps / shutter.length
+    if shutter.position == "END" and nimbus_scale > 0:
+        warnings.append(
+            f"{who}: with Position End on Frame Cycles advects the velocity grid over "
+            "t + 1 - shutter of the shutter (kernel volume_shader_motion_blur), not "
+            "over the shutter before the frame; Nimbus advects over [frame - shutter, "
+            "frame]")
+    return [f'token nimbus:velocityField = "{prim_name(chosen)}"',
+            f"float nimbus:velocityScale = {_f(nimbus_scale)}"]
+
+
+def translate(depsgraph, folder, frame_set=None):
     """Exports the evaluated scene of `depsgraph` into `folder` and writes the overlay;
-    returns the Translation. Raises TranslationError naming the object at fault."""
+    returns the Translation. Raises TranslationError naming the object at fault.
+    `frame_set(frame, subframe)` evaluates the scene at another time for motion blur
+    (the render engine's RenderEngine.frame_set; by default scene.frame_set)."""
     scene = depsgraph.scene
     view_layer = depsgraph.view_layer
     if scene.camera is None:
@@ -1008,6 +1225,14 @@ def translate(depsgraph, folder):
                     camera=data_path(scene.camera), res=render_size(scene), warnings=warnings)
     t.region = border_region(scene, *t.res)
     t.transparent = scene.render.film_transparent
+    shutter = motion_blur(scene, view_layer)
+    # Motion blur: object name -> (kind, world matrix and parent's at the frame).
+    moving = {}
+
+    def track(obj, kind, matrix):
+        if shutter is not None:
+            parent = obj.parent.matrix_world.copy() if obj.parent is not None else None
+            moving[obj.name] = (kind, matrix.copy(), parent)
     groups = {lg.name for lg in view_layer.lightgroups}
     used = set()
     albedo = None
@@ -1041,6 +1266,8 @@ def translate(depsgraph, folder):
                 lines.append(f"rel field:{prim_name(g.name)} = <{field}>")
                 prims[field] = ([], [f'token fieldName = "{g.name}"',
                                      f"asset filePath = @{vdb}@"], "def OpenVDBAsset")
+            if shutter is not None:
+                lines += velocity_lines(obj, shutter, warnings)
             prims[vol] = (["NimbusVolumeAPI"], lines, "def Volume")
             albedo = albedo or a
             continue
@@ -1069,12 +1296,16 @@ def translate(depsgraph, folder):
                     prims[f"{path}/{prim_name(g.name)}"] = ([], [f"asset filePath = @{vdb}@"])
             attrs, a = volume_medium(obj, warnings, prims)
             prims[path] = (["NimbusVolumeAPI"], _medium_lines(obj, attrs, groups, used))
+            if shutter is not None:
+                prims[path][1].extend(velocity_lines(obj, shutter, warnings))
+            track(obj, "volume", inst.matrix_world)
             albedo = albedo or a
         elif obj.type == "LIGHT":
             if not exists(path):
                 warnings.append(f"light '{obj.name}': not in Blender's export; left out")
                 continue
             lines = light_lines(obj, warnings)
+            track(obj, "light", inst.matrix_world)
             schemas = []
             group = getattr(obj, "lightgroup", "")
             if group and group in groups:
@@ -1095,6 +1326,9 @@ def translate(depsgraph, folder):
                 fog = None
                 if exists(path) and len(obj.data.polygons) > 0:
                     fog = fog_mesh_medium(obj, warnings, prims)
+                if exists(path) and (fog is not None or obj.nimbus.holdout):
+                    track(obj, "fog mesh" if fog is not None else "holdout mesh",
+                          inst.matrix_world)
                 if fog is not None:
                     # A fog mesh (docs/blender.md): the reader makes it no holdout.
                     _, attrs, a = fog
@@ -1105,6 +1339,7 @@ def translate(depsgraph, folder):
         elif obj.type in ("CURVE", "FONT", "SURFACE", "CURVES"):
             if obj.nimbus.holdout:
                 holdout_mesh(obj, inst.matrix_world, prims, warnings)
+                track(obj, "holdout curve", inst.matrix_world)
     if world is not None and exists(WORLD_PRIM):
         t.world_prim = WORLD_PRIM
         lines, schemas = [], []
@@ -1151,5 +1386,65 @@ def translate(depsgraph, folder):
             "are not exported; Nimbus renders perspective and orthographic ones)")
     t.lightgroups = {g: g for g in sorted(used)}
     t.albedo = albedo or (0.0, 0.0, 0.0)
-    write_overlay(t.stage, os.path.basename(exported), prims)
+    metadata = []
+    if shutter is not None:
+        camera = scene.camera.evaluated_get(depsgraph)
+        track(camera, "camera", camera.matrix_world)
+        motion_overlay(depsgraph, scene, shutter, moving, prims, t, warnings,
+                       frame_set or _default_frame_set(scene))
+        # Time codes are Blender's frames; seconds are the scene's (velocity blur).
+        metadata.append(f"timeCodesPerSecond = {_f(shutter.fps)}")
+        t.frame = shutter.frame
+        t.shutter = shutter
+    write_overlay(t.stage, os.path.basename(exported), prims, metadata)
     return t
+
+
+def motion_overlay(depsgraph, scene, shutter, moving, prims, t, warnings, frame_set):
+    """Motion blur in the overlay: the camera's shutter:open/close, and the objects'
+    transforms sampled at Cycles' times. The camera and Volume objects: at their
+    motion steps over the shutter (Nimbus interpolates between the samples linearly,
+    as Cycles between its steps); objects Nimbus does not blur (lights, holdouts, fog
+    meshes): where they are at the shutter's middle, the time Cycles syncs an object
+    it does not blur at, with a warning when they move while the shutter is open."""
+    prims.setdefault(t.camera, ([], []))
+    prims[t.camera][1].extend([f"double shutter:open = {_f(shutter.open)}",
+                               f"double shutter:close = {_f(shutter.close)}"])
+    shutter_warnings(scene, shutter, warnings)
+    plan = {}
+    for name, (kind, _, _) in moving.items():
+        obj = bpy.data.objects[name]
+        if kind in ("camera", "volume"):
+            plan[name] = set(shutter.step_times(motion_steps(obj)))
+        else:
+            # Its ends and middle: whether it moves; its place at the middle.
+            plan[name] = set(shutter.step_times(3))
+    samples = sample_motion(depsgraph, shutter, plan, frame_set)
+    ends = f"frames {shutter.frame + shutter.open:g} to {shutter.frame + shutter.close:g}"
+    for name, (kind, at_frame, parent) in moving.items():
+        got = samples[name]
+        if not _moves(got.values(), at_frame):
+            continue
+        obj = bpy.data.objects[name]
+        path = t.camera.rsplit("/", 1)[0] if kind == "camera" else object_path(obj)
+        if kind in ("camera", "volume"):
+            prims.setdefault(path, ([], []))
+            prims[path][1].extend(motion_lines(got, parent))
+            continue
+        middle = {shutter.middle: got[shutter.middle]}
+        if kind == "holdout curve":
+            where = "at the frame"
+        else:
+            where = f"where it is at the shutter's middle (frame {shutter.middle:g})"
+            if _moves(middle.values(), at_frame):
+                prims.setdefault(path, ([], []))
+                prims[path][1].extend(motion_lines(middle, parent))
+        if kind == "light":
+            warnings.append(
+                f"light '{name}': moves while the shutter is open ({ends}); Nimbus does "
+                f"not blur lights: it is rendered {where}")
+        else:
+            warnings.append(
+                f"object '{name}': moves while the shutter is open ({ends}); Nimbus blurs "
+                f"the camera and Volume objects only: this {kind} is rendered {where}, "
+                "not blurred (Cycles blurs it)")

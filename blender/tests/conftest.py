@@ -239,7 +239,8 @@ BLOCK_ALPHA = 1e-3
 BLOCK_MIN_PIXELS = 16
 
 
-def block_means(stacks, mask, block, bias, alpha=BLOCK_ALPHA, min_pixels=BLOCK_MIN_PIXELS):
+def block_means(stacks, mask, block, bias, alpha=BLOCK_ALPHA, min_pixels=BLOCK_MIN_PIXELS,
+                tols=None):
     """The block-mean comparison of against_cycles: the image cut into block x block
     pixel squares; a square with fewer than `min_pixels` pixels of `mask` is left out
     (its se would rest on a few pixels' variances; its pixels stay in the image mean).
@@ -252,10 +253,11 @@ def block_means(stacks, mask, block, bias, alpha=BLOCK_ALPHA, min_pixels=BLOCK_M
     block's Welch-Satterthwaite degrees of freedom (each renderer's sum_p s_p^2 has
     (sum s_p^2)^2 / sum (s_p^4 / (K - 1)) of them). A block and channel where both
     renderers' pixels have no variance (Cycles' exact 0 inside world fog under a sun,
-    alpha 1 on an opaque film) has tolerance bias |C_b|. Returns (ok, report lines)."""
+    alpha 1 on an opaque film) has tolerance bias |C_b|. tols: a dict that receives
+    each compared block's tolerance, {(row, column, channel): tol}. Returns (ok, report
+    lines)."""
     import numpy as np
 
-    k = next(iter(stacks.values())).shape[0]
     h, w = mask.shape
     squares, left_out = [], 0
     for y in range(0, h, block):
@@ -274,6 +276,7 @@ def block_means(stacks, mask, block, bias, alpha=BLOCK_ALPHA, min_pixels=BLOCK_M
         for ci, name in enumerate("RGBA"):
             stat = {}
             for r, s in stacks.items():
+                k = s.shape[0]
                 px = s[:, m, ci]
                 v = px.var(axis=0, ddof=1)
                 sv, sv2 = v.sum(), (v * v).sum()
@@ -290,6 +293,8 @@ def block_means(stacks, mask, block, bias, alpha=BLOCK_ALPHA, min_pixels=BLOCK_M
             else:
                 t = 0.0
             tol = t * math.sqrt(var) + bias * abs(mc)
+            if tols is not None:
+                tols[(y, x, name)] = tol
             d = abs(mn - mc)
             q = d / tol if tol > 0 else (0.0 if d == 0 else math.inf)
             if q > worst.get(name, (-1,))[0]:
@@ -309,7 +314,7 @@ def block_means(stacks, mask, block, bias, alpha=BLOCK_ALPHA, min_pixels=BLOCK_M
 
 
 def against_cycles(scene, tmp_path, seeds=(0, 1, 2, 3), spp=32, max_depth=8, z=5.0,
-                   bias=0.005, erode=0, block=0, exclude=None):
+                   bias=0.005, erode=0, block=0, exclude=None, keep=None):
     """test_addon.py's comparison with Cycles as a function: `scene` (set up for
     Nimbus) rendered through the add-on and by Cycles (blender_export_scene.set_cycles:
     the peer harness' settings), len(seeds) x spp each. Over the pixels where either's
@@ -320,7 +325,10 @@ def against_cycles(scene, tmp_path, seeds=(0, 1, 2, 3), spp=32, max_depth=8, z=5
     erode > 0 keeps only pixels whose (2 erode + 1)^2 neighbourhood is all in the mask
     (the volume's inside, away from its silhouette). block > 0 also compares the means
     of block x block pixel squares (block_means; ok then needs both). exclude: an (H, W)
-    boolean array of pixels left out of every comparison (row 0 at the top)."""
+    boolean array of pixels left out of every comparison (row 0 at the top). keep: a
+    dict that receives the image stacks ("stacks": {"nimbus", "cycles"}: (K, H, W, 4))
+    and the compared pixels ("mask"), and with block > 0 the blocks' tolerances
+    ("block_tols", as block_means')."""
     import numpy as np
     from blender_export_scene import set_cycles
 
@@ -342,6 +350,15 @@ def against_cycles(scene, tmp_path, seeds=(0, 1, 2, 3), spp=32, max_depth=8, z=5
         images["cycles"].append(render(scene, tmp_path / f"c{seed}.exr")["Combined"])
     scene.render.engine = "NIMBUS"
     stacks = {k: np.stack(v).astype(np.float64) for k, v in images.items()}
+    return compare_stacks(stacks, z, bias, erode, block, exclude, keep)
+
+
+def compare_stacks(stacks, z=5.0, bias=0.005, erode=0, block=0, exclude=None, keep=None):
+    """against_cycles' comparison of two image stacks {"nimbus", "cycles"}: (K, H, W, 4),
+    K_r independent images each (the seeds; K may differ between the two) whose means
+    estimate the two images; the arguments and the result as against_cycles'."""
+    import numpy as np
+
     mask = (stacks["nimbus"][..., 3].mean(0) > 0.01) | (stacks["cycles"][..., 3].mean(0) > 0.01)
     for _ in range(erode):
         m = mask.copy()
@@ -354,11 +371,13 @@ def against_cycles(scene, tmp_path, seeds=(0, 1, 2, 3), spp=32, max_depth=8, z=5
     if exclude is not None:
         mask &= ~exclude
     n = int(mask.sum())
-    k = len(seeds)
+    if keep is not None:
+        keep.update(stacks=stacks, mask=mask)
     report, ok = [], n > 0
     for ci, name in enumerate("RGBA"):
         stat = {}
         for r, s in stacks.items():
+            k = s.shape[0]
             px = s[:, mask, ci]
             stat[r] = (px.mean(), np.sqrt(px.var(axis=0, ddof=1).sum() / (k * n * n)))
         (mn, sn), (mc, sc) = stat["nimbus"], stat["cycles"]
@@ -368,7 +387,8 @@ def against_cycles(scene, tmp_path, seeds=(0, 1, 2, 3), spp=32, max_depth=8, z=5
                       f"ratio {ratio}, |diff| {abs(mn - mc):.5f} <= {tol:.5f}")
         ok &= bool(abs(mn - mc) <= tol)
     if block:
-        block_ok, lines = block_means(stacks, mask, block, bias)
+        tols = keep.setdefault("block_tols", {}) if keep is not None else None
+        block_ok, lines = block_means(stacks, mask, block, bias, tols=tols)
         ok &= block_ok
         report += lines
     return ok, report, n
