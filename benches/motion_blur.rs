@@ -13,7 +13,6 @@
 //! excluded), lookups per sample (a velocity read counts as one), and the ratio to the
 //! still version's time.
 
-use glam::DVec3;
 use nimbus::render::analysis::CodePaths;
 use nimbus::render::session::{Overrides, Session};
 use std::path::{Path, PathBuf};
@@ -49,17 +48,11 @@ fn cloud_stage(dir: &Path, name: &str, volume_ops: &str, camera_ops: &str, open:
 
 /// A swirl about the smoke's vertical axis plus an updraft, over its box.
 fn smoke_velocity(dir: &Path, smoke: &Path) -> PathBuf {
-    use nimbus::volume::procedural::grid_from_fn;
+    use nimbus::volume::procedural::vec3_grid_from_fn;
     use nimbus::volume::vdb::{read_float_grid, write_grids, WriteGrid};
     let loc = nimbus::volume::asset::AssetLocation::File(smoke.to_path_buf());
     let d = read_float_grid(&loc, "density", None).unwrap();
-    let (lo, hi) = d.active_index_bounds().unwrap();
-    let m = d.index_to_world;
-    let (a, b) = (
-        m.transform_point3(DVec3::from_array(lo.map(f64::from))),
-        m.transform_point3(DVec3::from_array(hi.map(f64::from))),
-    );
-    let (lo, hi) = (a.min(b), a.max(b));
+    let (lo, hi) = d.world_bounds(glam::DMat4::IDENTITY).unwrap();
     let centre = 0.5 * (lo + hi);
     let voxel = (hi - lo).max_element() / 48.0;
     let dims = ((hi - lo) / voxel).ceil().as_ivec3() + 3;
@@ -67,12 +60,9 @@ fn smoke_velocity(dir: &Path, smoke: &Path) -> PathBuf {
     let side = 0.5 * (hi - lo).x.max((hi - lo).z);
     // 2.5 of the smoke's voxels (0.476 units) per frame at the side, 24 frames a second.
     let omega = 2.5 * 0.476 * 24.0 / side;
-    let vel = [0, 1, 2].map(|c| {
-        grid_from_fn("vel", dims.to_array(), origin, voxel, |p| {
-            let r = p - centre;
-            // Never exactly 0, so every component has the same topology.
-            [-omega * r.z, 10.0, omega * r.x][c] + 1e-6
-        })
+    let vel = vec3_grid_from_fn("vel", dims.to_array(), origin, voxel, |p| {
+        let r = p - centre;
+        [-omega * r.z, 10.0, omega * r.x]
     });
     let path = dir.join("smoke_vel.vdb");
     write_grids(&path, &[WriteGrid::Vec3s(&vel)]).unwrap();

@@ -14,6 +14,9 @@ use glam::{DMat4, DVec3};
 /// local units) before the interval is split.
 pub const KEY_TOLERANCE: f64 = 1e-4;
 
+/// A box holding nothing: the start of a union.
+const EMPTY_BOX: (DVec3, DVec3) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+
 /// Bisections per authored interval at most (2⁸ keys).
 pub const MAX_SPLITS: u32 = 8;
 
@@ -100,14 +103,18 @@ impl TransformMotion {
     /// The world box that holds `corners` (local points) at every time: between two
     /// keys each point moves on a straight line, so the keys' boxes hold it.
     pub fn swept_box(&self, corners: &[DVec3]) -> (DVec3, DVec3) {
-        let mut b = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-        for (_, m) in &self.keys {
-            for &c in corners {
-                let w = m.transform_point3(c);
-                b = (b.0.min(w), b.1.max(w));
-            }
-        }
-        b
+        self.keys
+            .iter()
+            .map(|(_, m)| Self::box_of(m, corners))
+            .fold(EMPTY_BOX, |a, b| (a.0.min(b.0), a.1.max(b.1)))
+    }
+
+    /// The box around `points` placed by `m`.
+    pub fn box_of(m: &DMat4, points: &[DVec3]) -> (DVec3, DVec3) {
+        points.iter().fold(EMPTY_BOX, |b, &p| {
+            let w = m.transform_point3(p);
+            (b.0.min(w), b.1.max(w))
+        })
     }
 }
 

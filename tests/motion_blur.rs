@@ -165,24 +165,27 @@ fn time_average(still: &Path, k: usize, spp: u32) -> Vec<(f64, f64)> {
     acc
 }
 
+/// z of the pixels `idx`: Σ(a − b) / √Σ(var_a + var_b) (0 where nothing varies).
+fn z(a: &[(f64, f64)], b: &[(f64, f64)], idx: impl Iterator<Item = usize>) -> f64 {
+    let (mut d, mut v) = (0.0, 0.0);
+    for i in idx {
+        d += a[i].0 - b[i].0;
+        v += a[i].1 + b[i].1;
+    }
+    if v == 0.0 {
+        0.0
+    } else {
+        d / v.sqrt()
+    }
+}
+
 /// z of the image and of each 8×8 block.
 fn block_z(a: &[(f64, f64)], b: &[(f64, f64)]) -> Vec<f64> {
-    let z = |idx: &mut dyn Iterator<Item = usize>| {
-        let (mut d, mut v) = (0.0, 0.0);
-        for i in idx {
-            d += a[i].0 - b[i].0;
-            v += a[i].1 + b[i].1;
-        }
-        if v == 0.0 {
-            return 0.0;
-        }
-        d / v.sqrt()
-    };
-    let mut out = vec![z(&mut (0..(W * H) as usize))];
+    let mut out = vec![z(a, b, 0..(W * H) as usize)];
     for by in 0..H / 8 {
         for bx in 0..W / 8 {
-            let mut idx = (0..64).map(|j| ((by * 8 + j / 8) * W + bx * 8 + j % 8) as usize);
-            out.push(z(&mut idx));
+            let idx = (0..64).map(|j| ((by * 8 + j / 8) * W + bx * 8 + j % 8) as usize);
+            out.push(z(a, b, idx));
         }
     }
     out
@@ -191,38 +194,14 @@ fn block_z(a: &[(f64, f64)], b: &[(f64, f64)]) -> Vec<f64> {
 /// z of each image column (the blur's signature: light moved across columns).
 fn column_z(a: &[(f64, f64)], b: &[(f64, f64)]) -> Vec<f64> {
     (0..W)
-        .map(|x| {
-            let (mut d, mut v) = (0.0, 0.0);
-            for y in 0..H {
-                let i = (y * W + x) as usize;
-                d += a[i].0 - b[i].0;
-                v += a[i].1 + b[i].1;
-            }
-            if v == 0.0 {
-                0.0
-            } else {
-                d / v.sqrt()
-            }
-        })
+        .map(|x| z(a, b, (0..H).map(|y| (y * W + x) as usize)))
         .collect()
 }
 
 /// z of each image row.
 fn row_z(a: &[(f64, f64)], b: &[(f64, f64)]) -> Vec<f64> {
     (0..H)
-        .map(|y| {
-            let (mut d, mut v) = (0.0, 0.0);
-            for x in 0..W {
-                let i = (y * W + x) as usize;
-                d += a[i].0 - b[i].0;
-                v += a[i].1 + b[i].1;
-            }
-            if v == 0.0 {
-                0.0
-            } else {
-                d / v.sqrt()
-            }
-        })
+        .map(|y| z(a, b, (0..W).map(|x| (y * W + x) as usize)))
         .collect()
 }
 
@@ -386,16 +365,12 @@ const SPEED: f64 = 9.6;
 /// A unit cube of density 1 (voxel 0.05, over [-1.6, 1.55]³) and, in the same file, a
 /// velocity grid (SPEED, 0, 0) over the whole region.
 fn cube_vdb(dir: &Path) -> PathBuf {
-    use nimbus::volume::procedural::grid_from_fn;
+    use nimbus::volume::procedural::{grid_from_fn, vec3_grid_from_fn};
     use nimbus::volume::vdb::{write_grids, WriteGrid};
     let origin = glam::DVec3::splat(-1.6);
     let inside = |p: glam::DVec3| p.abs().max_element() < 0.5;
     let density = grid_from_fn("density", [64; 3], origin, 0.05, |p| inside(p) as u8 as f64);
-    // The y and z components: the x one's topology, zero.
-    let x = grid_from_fn("vel", [64; 3], origin, 0.05, |_| SPEED);
-    let mut zero = x.clone();
-    zero.leaves.iter_mut().for_each(|l| l.values.fill(0.0));
-    let vel = [x, zero.clone(), zero];
+    let vel = vec3_grid_from_fn("vel", [64; 3], origin, 0.05, |_| [SPEED, 0.0, 0.0]);
     let path = dir.join("cube.vdb");
     write_grids(&path, &[WriteGrid::Float(&density), WriteGrid::Vec3s(&vel)]).unwrap();
     path
@@ -535,7 +510,7 @@ fn render_counted(s: &Session) -> Film {
 /// beside the still frame's.
 #[test]
 fn the_embergen_fire_blurs_by_a_velocity_grid() {
-    use nimbus::volume::procedural::grid_from_fn;
+    use nimbus::volume::procedural::vec3_grid_from_fn;
     use nimbus::volume::vdb::{read_float_grid, write_grids, WriteGrid};
     let Some(fire) = common::shared_file("embergen_fire_a/embergen_fire_a_50.vdb") else {
         return;
@@ -543,13 +518,7 @@ fn the_embergen_fire_blurs_by_a_velocity_grid() {
     let dir = tempfile::tempdir().unwrap();
     let loc = nimbus::volume::asset::AssetLocation::File(fire.clone());
     let t = read_float_grid(&loc, "temperature", None).unwrap();
-    let (lo, hi) = t.active_index_bounds().unwrap();
-    let m = t.index_to_world;
-    let (a, b) = (
-        m.transform_point3(glam::DVec3::from_array(lo.map(f64::from))),
-        m.transform_point3(glam::DVec3::from_array(hi.map(f64::from))),
-    );
-    let (lo, hi) = (a.min(b), a.max(b));
+    let (lo, hi) = t.world_bounds(glam::DMat4::IDENTITY).unwrap();
     let centre = 0.5 * (lo + hi);
     let voxel = (hi - lo).max_element() / 48.0;
     let dims = ((hi - lo) / voxel).ceil().as_ivec3() + 3;
@@ -558,28 +527,9 @@ fn the_embergen_fire_blurs_by_a_velocity_grid() {
     // ω × (p − c) about +y, 600 units/s at the box's side, and 400 units/s upwards:
     // over ±1/48 s up to 12.5 and 8.3 units, 4.6 and 3.1 pixels of the 32-pixel image.
     let omega = 600.0 / radius;
-    let component = |c: usize| {
-        move |p: glam::DVec3| {
-            let r = p - centre;
-            [-omega * r.z, 400.0, omega * r.x][c]
-        }
-    };
-    let vel = [0, 1, 2].map(|c| {
-        let mut g = grid_from_fn("vel", dims.to_array(), origin, voxel, |_| 1.0);
-        let f = component(c);
-        for leaf in &mut g.leaves {
-            for (i, v) in leaf.values.iter_mut().enumerate() {
-                let ijk = [(i >> 6) as i32, ((i >> 3) & 7) as i32, (i & 7) as i32];
-                let p = origin
-                    + glam::DVec3::new(
-                        (leaf.origin[0] + ijk[0]) as f64,
-                        (leaf.origin[1] + ijk[1]) as f64,
-                        (leaf.origin[2] + ijk[2]) as f64,
-                    ) * voxel;
-                *v = f(p) as f32;
-            }
-        }
-        g
+    let vel = vec3_grid_from_fn("vel", dims.to_array(), origin, voxel, |p| {
+        let r = p - centre;
+        [-omega * r.z, 400.0, omega * r.x]
     });
     let vel_vdb = dir.path().join("vel.vdb");
     write_grids(&vel_vdb, &[WriteGrid::Vec3s(&vel)]).unwrap();

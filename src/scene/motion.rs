@@ -9,6 +9,27 @@ use crate::motion::TransformMotion;
 use openusd::usd::{Prim, TimeCode};
 use openusd_schemas::geom::{self, Xformable, XformableExt};
 
+/// Every xformOp `prim`'s world transform depends on: each prim from `prim` up its
+/// ancestors (as far as its transform inherits: a `!resetXformStack!` stops it), with
+/// the names of its ops.
+fn inherited_ops(prim: &Prim) -> Result<Vec<(Prim, Vec<String>)>, SceneError> {
+    let mut out = Vec::new();
+    let mut current = Some(prim.clone());
+    while let Some(p) = current.filter(|p| !p.path().is_abs_root()) {
+        let err = |e: openusd::Error| prim_error(p.path(), e);
+        if let Some(xformable) = Xformable::from_prim(p.clone()).map_err(err)? {
+            let (ops, resets) = xformable.ordered_xform_ops().map_err(err)?;
+            let names = ops.iter().map(|op| op.attribute().name().to_string());
+            out.push((p.clone(), names.collect()));
+            if resets {
+                break;
+            }
+        }
+        current = p.parent();
+    }
+    Ok(out)
+}
+
 /// The first prim, from `prim` up its ancestors (as far as its transform inherits),
 /// with an xformOp whose value changes within `shutter` (frame-relative) around `time`,
 /// and the name of that op. At the default time (no frame), any op with more than one
@@ -18,27 +39,16 @@ pub(super) fn moving_op(
     time: Option<TimeCode>,
     shutter: (f64, f64),
 ) -> Result<Option<(Prim, String)>, SceneError> {
-    let mut current = Some(prim.clone());
-    while let Some(p) = current.filter(|p| !p.path().is_abs_root()) {
-        let err = |e: openusd::Error| prim_error(p.path(), e);
-        let Some(xformable) = Xformable::from_prim(p.clone()).map_err(err)? else {
-            current = p.parent();
-            continue;
-        };
-        let (ops, resets) = xformable.ordered_xform_ops().map_err(err)?;
-        for op in &ops {
-            let attr = op.attribute();
-            let varying = attr
+    for (p, ops) in inherited_ops(prim)? {
+        for name in ops {
+            let varying = p
+                .attribute(&name)
                 .value_might_be_time_varying()
                 .map_err(|e| prim_error(p.path(), e))?;
-            if varying && changes_within(&p, attr.name(), time, shutter)? {
-                return Ok(Some((p.clone(), attr.name().to_string())));
+            if varying && changes_within(&p, &name, time, shutter)? {
+                return Ok(Some((p, name)));
             }
         }
-        if resets {
-            break;
-        }
-        current = p.parent();
     }
     Ok(None)
 }
@@ -53,20 +63,14 @@ pub(super) fn transform_motion(
 ) -> Result<Option<TransformMotion>, SceneError> {
     let frame = time.value();
     let mut authored = Vec::new();
-    let mut current = Some(prim.clone());
-    while let Some(p) = current.filter(|p| !p.path().is_abs_root()) {
-        let err = |e: openusd::Error| prim_error(p.path(), e);
-        if let Some(xformable) = Xformable::from_prim(p.clone()).map_err(err)? {
-            let (ops, resets) = xformable.ordered_xform_ops().map_err(err)?;
-            for op in &ops {
-                let times = op.attribute().time_sample_times().map_err(err)?;
-                authored.extend(times.into_iter().map(|t| t - frame));
-            }
-            if resets {
-                break;
-            }
+    for (p, ops) in inherited_ops(prim)? {
+        for name in ops {
+            let times = p
+                .attribute(&name)
+                .time_sample_times()
+                .map_err(|e| prim_error(p.path(), e))?;
+            authored.extend(times.into_iter().map(|t| t - frame));
         }
-        current = p.parent();
     }
     authored.sort_by(f64::total_cmp);
     let at = |t: f64| -> Result<glam::DMat4, String> {

@@ -80,17 +80,18 @@ impl Sigma {
     }
 }
 
-/// The world-space box around the majorant region's index box (its eight corners
-/// mapped to world space), padded by 1e-4 of its diagonal against rounding.
-fn world_box(majorants: &MajorantTree, world_to_index: DMat4) -> Option<(DVec3, DVec3)> {
+/// The world-space box around the majorant region's index box, its eight corners
+/// boxed by `place` (into world space, where it is or wherever it goes), padded by
+/// 1e-4 of its diagonal against rounding.
+fn world_box(
+    majorants: &MajorantTree,
+    place: impl FnOnce(&[DVec3; 8]) -> (DVec3, DVec3),
+) -> Option<(DVec3, DVec3)> {
     let (lo, hi) = majorants.index_region()?;
-    let index_to_world = world_to_index.inverse();
-    let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
-    let mut b = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-    for c in crate::volume::grid::box_corners(lo, hi) {
-        let w = index_to_world.transform_point3(c);
-        b = (b.0.min(w), b.1.max(w));
-    }
+    let b = place(&crate::volume::grid::box_corners(
+        lo.as_dvec3(),
+        hi.as_dvec3(),
+    ));
     let pad = DVec3::splat(1e-4 * (b.1 - b.0).length());
     Some((b.0 - pad, b.1 + pad))
 }
@@ -260,7 +261,9 @@ impl Medium {
             world_to_index,
             sigma,
             g: anisotropy as f32,
-            world_box: world_box(&majorants, world_to_index),
+            world_box: world_box(&majorants, |c| {
+                TransformMotion::box_of(&world_to_index.inverse(), c)
+            }),
             majorants,
             emission: None,
             albedo: None,
@@ -450,7 +453,9 @@ impl Medium {
             g: self.g,
             majorants: self.majorants.clone(),
             shader: self.shader.clone(),
-            world_box: world_box(&self.majorants, world_to_index),
+            world_box: world_box(&self.majorants, |c| {
+                TransformMotion::box_of(&world_to_index.inverse(), c)
+            }),
             emission: self
                 .emission
                 .as_ref()
@@ -506,18 +511,14 @@ impl Medium {
     /// The world box around the majorant region: where it is, or everywhere it goes
     /// over the shutter.
     fn bounding_box(&self) -> Option<(DVec3, DVec3)> {
-        match &self.motion {
-            None => world_box(&self.majorants, self.world_to_index),
+        world_box(&self.majorants, |corners| match &self.motion {
+            None => TransformMotion::box_of(&self.index_to_world, corners),
             Some(m) => {
-                let (lo, hi) = self.majorants.index_region()?;
                 let to_volume = m.index_from_volume.inverse();
-                let corners = crate::volume::grid::box_corners(lo.as_dvec3(), hi.as_dvec3())
-                    .map(|c| to_volume.transform_point3(c));
-                let b = m.volume_to_world.swept_box(&corners);
-                let pad = DVec3::splat(1e-4 * (b.1 - b.0).length());
-                Some((b.0 - pad, b.1 + pad))
+                m.volume_to_world
+                    .swept_box(&corners.map(|c| to_volume.transform_point3(c)))
             }
-        }
+        })
     }
 
     /// Where the world point `p` at frame-relative `time` is at the frame: the point
@@ -529,21 +530,17 @@ impl Medium {
             None => p,
             Some(m) => (m.at_frame * m.world_to_volume(time)).transform_point3(p),
         };
-        match &self.velocity {
-            Some(v) if time != 0.0 => {
-                let i = self.world_to_index.transform_point3(p).as_vec3();
-                let advect = time as f32 * v.seconds_per_time_code;
-                let moved = match advect != 0.0 {
-                    true => {
-                        counters.density_lookup(0);
-                        self.advected(i, advect)
-                    }
-                    false => i,
-                };
-                self.index_to_world.transform_point3(moved.as_dvec3())
-            }
-            _ => p,
+        let advect = self
+            .velocity
+            .as_ref()
+            .map_or(0.0, |v| time as f32 * v.seconds_per_time_code);
+        if advect == 0.0 {
+            return p;
         }
+        counters.density_lookup(0);
+        let i = self.world_to_index.transform_point3(p).as_vec3();
+        let moved = self.advected(i, advect);
+        self.index_to_world.transform_point3(moved.as_dvec3())
     }
 
     /// The majorant structure `spec` over this medium's grid, pruned as
@@ -575,24 +572,19 @@ impl Medium {
             Some(v) => v.widening(self.velocity_reach * v.seconds_per_time_code as f64),
             None => [0; 3],
         };
-        let widen = |lo: [i32; 3], hi: [i32; 3]| {
+        MajorantTree::build_widened(&self.density, spec, w, &|lo, hi| {
             let lo = [0, 1, 2].map(|a| lo[a].saturating_sub(w[a]));
             let hi = [0, 1, 2].map(|a| hi[a].saturating_add(w[a]));
-            (lo, hi)
-        };
-        match &self.shader {
-            None if w == [0; 3] => MajorantTree::build(&self.density, spec),
-            None => MajorantTree::build_widened(&self.density, spec, w, &|lo, hi| {
-                let (lo, hi) = widen(lo, hi);
-                self.density.value_range(lo, hi)
-            }),
-            Some(s) => MajorantTree::build_widened(&self.density, spec, w, &|lo, hi| {
-                let (lo, hi) = widen(lo, hi);
-                let grid = self.density.value_range(lo, hi);
-                let [lo, hi] = [lo, hi].map(|v| DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64));
-                s.cell_bounds(lo, hi, grid)
-            }),
-        }
+            let grid = self.density.value_range(lo, hi);
+            match &self.shader {
+                None => grid,
+                Some(s) => {
+                    let [lo, hi] =
+                        [lo, hi].map(|v| DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64));
+                    s.cell_bounds(lo, hi, grid)
+                }
+            }
+        })
     }
 
     /// Sends the density through `shader` (its position space placed in this medium's

@@ -58,6 +58,40 @@ pub fn grid_from_fn(
     }
 }
 
+/// A Vec3s grid (its x, y, z components, as the readers and the VDB writer take one)
+/// sampling `value(world position)` at every voxel of the box `[0, dims)` placed as in
+/// [`grid_from_fn`]; every voxel is active, so the components share one topology
+/// (a velocity field for the motion-blur tests and benches).
+pub fn vec3_grid_from_fn(
+    name: &str,
+    dims: [i32; 3],
+    origin: DVec3,
+    voxel_size: f64,
+    value: impl Fn(DVec3) -> [f64; 3] + Sync,
+) -> [RawGrid; 3] {
+    let mut x = grid_from_fn(name, dims, origin, voxel_size, |_| 1.0);
+    let [mut y, mut z] = [x.clone(), x.clone()];
+    for (lx, (ly, lz)) in x
+        .leaves
+        .iter_mut()
+        .zip(y.leaves.iter_mut().zip(&mut z.leaves))
+    {
+        for off in 0..BRICK_VOXELS {
+            let ijk = [(off >> 6) as i32, ((off >> 3) & 7) as i32, (off & 7) as i32];
+            let p = origin
+                + DVec3::new(
+                    (lx.origin[0] + ijk[0]) as f64,
+                    (lx.origin[1] + ijk[1]) as f64,
+                    (lx.origin[2] + ijk[2]) as f64,
+                ) * voxel_size;
+            let v = value(p);
+            (lx.values[off], ly.values[off], lz.values[off]) =
+                (v[0] as f32, v[1] as f32, v[2] as f32);
+        }
+    }
+    [x, y, z]
+}
+
 /// A deterministic value-noise fBm in [0, 1), for cloud shapes.
 pub fn fbm(p: DVec3, octaves: u32) -> f64 {
     let mut sum = 0.0;
