@@ -7,12 +7,17 @@
 //! translate needs no extra key; a rotation does). Renderers interpolate the same
 //! matrices everywhere (rays, bounds), so what is drawn is one consistent motion.
 
-use glam::{DMat4, DVec3};
+use glam::{DMat3, DMat4, DVec3};
 
 /// Where the interpolation between two keys may stray from USD's own transform at
 /// their midpoint: a point of the prim's local unit cube may land this far off (in
 /// local units) before the interval is split.
 pub const KEY_TOLERANCE: f64 = 1e-4;
+
+/// How far LᵀL of a rigid motion's linear part L may stray from the identity: a
+/// rotation evaluated in double precision is orthonormal to ~1e-15; a scale animated
+/// by even 0.1 % is 2e-3 off.
+pub const RIGID_TOLERANCE: f64 = 1e-6;
 
 /// A box holding nothing: the start of a union.
 const EMPTY_BOX: (DVec3, DVec3) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
@@ -72,6 +77,30 @@ impl TransformMotion {
         TransformMotion {
             keys: self.keys.iter().map(|&(t, m)| (t, by * m)).collect(),
         }
+    }
+
+    /// The motion seen from the prim's place at the frame, `frame`: keys
+    /// M(t)·frame⁻¹, each mapping where the prim is at the frame to where it is at t
+    /// (interpolation commutes with the constant right factor).
+    pub fn relative_to(&self, frame: &DMat4) -> TransformMotion {
+        let inverse = frame.inverse();
+        TransformMotion {
+            keys: self.keys.iter().map(|&(t, m)| (t, m * inverse)).collect(),
+        }
+    }
+
+    /// Whether the prim only turns and slides away from its place at the frame
+    /// (`frame`): every key's [`Self::relative_to`] map is a rotation and a
+    /// translation, within [`RIGID_TOLERANCE`] (no change of scale or shear, which a
+    /// constant scale above or below the moving op never makes).
+    pub fn is_rigid_from(&self, frame: &DMat4) -> bool {
+        self.relative_to(frame).keys.iter().all(|(_, m)| {
+            let l = DMat3::from_mat4(*m);
+            let gram = l.transpose() * l - DMat3::IDENTITY;
+            gram.to_cols_array()
+                .iter()
+                .all(|e| e.abs() <= RIGID_TOLERANCE)
+        })
     }
 
     /// The keys (time, transform).

@@ -237,6 +237,7 @@ fn a_light_description_is_flat_json_with_its_type() {
             color: [1.0; 3],
             normalize: true,
         },
+        motion_keys: 0,
     };
     let j = serde_json::to_value(&rect).unwrap();
     assert_eq!(j["type"], "rect");
@@ -246,9 +247,10 @@ fn a_light_description_is_flat_json_with_its_type() {
         prim_path: "/Rig/New".into(),
         light_group: None,
         params: LightParams::Other,
+        motion_keys: 2,
     };
     assert_eq!(
         serde_json::to_value(&other).unwrap(),
-        serde_json::json!({"prim_path": "/Rig/New", "light_group": null, "type": "other"})
+        serde_json::json!({"prim_path": "/Rig/New", "light_group": null, "type": "other", "motion_keys": 2})
     );
 }

@@ -32,12 +32,38 @@ const W: u32 = 32;
 const H: u32 = 24;
 
 /// The cloud example's volume and camera, with `volume_ops` and `camera_ops` as their
-/// transforms and the camera's shutter `(open, close)`.
+/// transforms and the camera's shutter `(open, close)`, lit by its sun and sky.
 fn stage(
     dir: &Path,
     name: &str,
     volume_ops: &str,
     camera_ops: &str,
+    shutter: (f64, f64),
+) -> PathBuf {
+    lit_stage(dir, name, volume_ops, camera_ops, SUN_AND_SKY, shutter)
+}
+
+/// The cloud example's sun and sky.
+const SUN_AND_SKY: &str = r#"    def DistantLight "Sun"
+    {
+        float inputs:intensity = 6
+        bool inputs:normalize = 1
+        float3 xformOp:rotateXYZ = (-30, 80, 0)
+        uniform token[] xformOpOrder = ["xformOp:rotateXYZ"]
+    }
+    def DomeLight "Sky"
+    {
+        float inputs:intensity = 0.35
+        color3f inputs:color = (0.35, 0.55, 1)
+    }"#;
+
+/// [`stage`] with `lights` for its lights.
+fn lit_stage(
+    dir: &Path,
+    name: &str,
+    volume_ops: &str,
+    camera_ops: &str,
+    lights: &str,
     shutter: (f64, f64),
 ) -> PathBuf {
     let vdb = root().join("scenes/cloud/cloud.vdb");
@@ -75,18 +101,7 @@ def Xform "World"
         double shutter:close = {close}
 {camera_ops}
     }}
-    def DistantLight "Sun"
-    {{
-        float inputs:intensity = 6
-        bool inputs:normalize = 1
-        float3 xformOp:rotateXYZ = (-30, 80, 0)
-        uniform token[] xformOpOrder = ["xformOp:rotateXYZ"]
-    }}
-    def DomeLight "Sky"
-    {{
-        float inputs:intensity = 0.35
-        color3f inputs:color = (0.35, 0.55, 1)
-    }}
+{lights}
 }}
 "#,
         vdb = vdb.display(),
@@ -212,7 +227,9 @@ fn worst(z: &[f64]) -> f64 {
 /// A blurred render against its time average, and against the static frame.
 fn check_against_time_average(blurred: &Path, still: &Path, what: &str) {
     let s = open(blurred, 1.0, 512, 7, 2);
-    let motion = s.scene.camera.motion.is_some() || s.scene.volumes[0].motion.is_some();
+    let motion = s.scene.camera.motion.is_some()
+        || s.scene.volumes[0].motion.is_some()
+        || s.scene.sphere_lights.iter().any(|l| l.motion.is_some());
     assert!(motion, "{what}: the stage's motion was not read");
     let blur_warnings: Vec<_> = s
         .scene
@@ -273,6 +290,78 @@ fn a_moving_camera_renders_as_the_mean_of_its_instants() {
         CLOSED,
     );
     check_against_time_average(&blurred, &still, "moving camera");
+}
+
+/// A spot (a small sphere light with a 35° cone) above the cloud, sliding along x and
+/// tilting its cone 30° about z over frames 0 → 2 (over the shutter: 1.2 units and
+/// 15°), beside a faint sky; `auto` samples a spot's segments equiangularly in a
+/// heterogeneous medium too, so both light-sampling paths see the moving light.
+const MOVING_SPOT: &str = r#"    def SphereLight "Spot" (
+        prepend apiSchemas = ["ShapingAPI"]
+    )
+    {
+        float inputs:intensity = 60
+        float inputs:radius = 0.1
+        float inputs:shaping:cone:angle = 35
+        float inputs:shaping:cone:softness = 0.2
+        double3 xformOp:translate.timeSamples = { 0: (-1.2, 1.3, 0.2), 2: (1.2, 1.3, 0.2) }
+        float3 xformOp:rotateXYZ.timeSamples = { 0: (-90, 0, -15), 2: (-90, 0, 15) }
+        uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateXYZ"]
+    }
+    def DomeLight "Sky"
+    {
+        float inputs:intensity = 0.1
+    }"#;
+
+#[test]
+fn a_moving_light_renders_as_the_mean_of_its_instants() {
+    let dir = tempfile::tempdir().unwrap();
+    let lit = |name: &str, shutter| {
+        lit_stage(
+            dir.path(),
+            name,
+            STILL_VOLUME,
+            STILL_CAMERA,
+            MOVING_SPOT,
+            shutter,
+        )
+    };
+    let (blurred, still) = (lit("blur.usda", SHUTTER), lit("still.usda", CLOSED));
+    check_against_time_average(&blurred, &still, "moving spot");
+}
+
+/// A light whose size changes over the shutter is not blurred (its samples could not be
+/// carried along rigidly): a warning names it and the op, and it renders at the frame.
+#[test]
+fn a_light_that_scales_warns_and_renders_at_the_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let scaling = MOVING_SPOT.replace(
+        r#"uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateXYZ"]"#,
+        r#"float3 xformOp:scale.timeSamples = { 0: (1, 1, 1), 2: (2, 2, 2) }
+        uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateXYZ", "xformOp:scale"]"#,
+    );
+    let path = lit_stage(
+        dir.path(),
+        "scaling.usda",
+        STILL_VOLUME,
+        STILL_CAMERA,
+        &scaling,
+        SHUTTER,
+    );
+    let s = open(&path, 1.0, 1, 1, 1);
+    assert!(s.scene.sphere_lights[0].motion.is_none());
+    let w: Vec<_> = s
+        .scene
+        .warnings
+        .iter()
+        .filter(|w| w.kind == "motion blur")
+        .map(|w| format!("{} {:?} {}", w.prim, w.attribute, w.message))
+        .collect();
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert!(
+        w[0].contains("/World/Spot") && w[0].contains("scales"),
+        "{w:?}"
+    );
 }
 
 fn bits(f: &Film) -> Vec<u64> {

@@ -333,6 +333,12 @@ fn print_light(l: &LightDescription) {
         ),
         LightParams::Other => println!("light: {p}"),
     }
+    if l.motion_keys > 0 {
+        println!(
+            "  motion blur: the light moves over the shutter ({} transform keys)",
+            l.motion_keys
+        );
+    }
 }
 
 /// The holdout geometry (black matte occluders) and what its BVH costs.

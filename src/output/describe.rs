@@ -122,6 +122,8 @@ pub struct LightDescription {
     /// The light's type (`type` in the JSON) and parameters.
     #[serde(flatten)]
     pub params: LightParams,
+    /// Keys of the light's transform over the shutter (0: it does not move).
+    pub motion_keys: usize,
 }
 
 /// A UsdLux light's parameters by type; `position` is the light's origin in world
@@ -469,8 +471,39 @@ fn lights(scene: &Scene) -> Vec<LightDescription> {
             prim_path: e.prim_path.to_string(),
             light_group: e.light_group.map(str::to_string),
             params: light_params(scene, e.prim_path),
+            motion_keys: light_motion_keys(scene, e.prim_path),
         })
         .collect()
+}
+
+/// The transform keys of the (local) light at `prim_path`, 0 when it does not move.
+fn light_motion_keys(scene: &Scene, prim_path: &str) -> usize {
+    let keys = |path: &str, m: &Option<crate::motion::TransformMotion>| {
+        (path == prim_path).then(|| m.as_ref().map_or(0, |m| m.keys().len()))
+    };
+    (scene
+        .sphere_lights
+        .iter()
+        .find_map(|l| keys(&l.prim_path, &l.motion)))
+    .or_else(|| {
+        scene
+            .rect_lights
+            .iter()
+            .find_map(|l| keys(&l.prim_path, &l.motion))
+    })
+    .or_else(|| {
+        scene
+            .disk_lights
+            .iter()
+            .find_map(|l| keys(&l.prim_path, &l.motion))
+    })
+    .or_else(|| {
+        scene
+            .cylinder_lights
+            .iter()
+            .find_map(|l| keys(&l.prim_path, &l.motion))
+    })
+    .unwrap_or(0)
 }
 
 /// The parameters of the light at `prim_path`, found in the scene's list of its type.

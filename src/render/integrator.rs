@@ -783,7 +783,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             if !sphere.link.lights(id) {
                 continue;
             }
-            let s = sphere.sample(p, rng.gen(), rng.gen());
+            let s = sphere.sample_at(p, path.time, rng.gen(), rng.gen());
             let light = (sources.sphere(i), &sphere.link, weight(k + i));
             self.add_light_sample(s, light, p, dir, path, radiance, rng, counters);
         }
@@ -792,7 +792,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             if !rect.link.lights(id) {
                 continue;
             }
-            let s = rect.sample(p, rng.gen(), rng.gen());
+            let s = rect.sample_at(p, path.time, rng.gen(), rng.gen());
             let light = (sources.rect(i), &rect.link, weight(k + i));
             self.add_light_sample(s, light, p, dir, path, radiance, rng, counters);
         }
@@ -801,7 +801,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             if !disk.link.lights(id) {
                 continue;
             }
-            let s = disk.sample(p, rng.gen(), rng.gen());
+            let s = disk.sample_at(p, path.time, rng.gen(), rng.gen());
             let light = (sources.disk(i), &disk.link, weight(k + i));
             self.add_light_sample(s, light, p, dir, path, radiance, rng, counters);
         }
@@ -810,7 +810,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             if !cylinder.link.lights(id) {
                 continue;
             }
-            let s = cylinder.sample(p, rng.gen(), rng.gen());
+            let s = cylinder.sample_at(p, path.time, rng.gen(), rng.gen());
             let light = (sources.cylinder(i), &cylinder.link, weight(k + i));
             self.add_light_sample(s, light, p, dir, path, radiance, rng, counters);
         }
@@ -987,7 +987,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         if !(s > seg.a && s < seg.b && pdf > 0.0) {
             return;
         }
-        let (sample, link, source) = self.lights.sample_local(k, x, u1, u2);
+        let (sample, link, source) = self.lights.sample_local(k, x, path.time, (u1, u2));
         let Some(ls) = sample else {
             return;
         };

@@ -55,9 +55,10 @@ impl RenderJob<'_> {
     }
 
     /// The shutter interval camera samples draw their time from: the camera's, when
-    /// the camera or a medium moves while it is open (else `None`: no time is drawn).
+    /// the camera, a medium or a local light moves while it is open (else `None`: no time is drawn).
     pub fn shutter(&self) -> Option<(f64, f64)> {
-        let moves = self.camera.moves() || self.media.iter().any(Medium::moves);
+        let moves =
+            self.camera.moves() || self.media.iter().any(Medium::moves) || self.lights.moves();
         self.camera.shutter().filter(|_| moves)
     }
 

@@ -32,9 +32,11 @@
 //! they do not occlude the medium and camera or scattered rays do not see them.
 
 use crate::color::{emission_scale, luminance, usd_blackbody_rgb};
+use crate::motion::TransformMotion;
 pub use crate::render::dome::EnvMap;
 use crate::render::equiangular::{Cone, LocalLight};
 use crate::render::holdouts::Holdouts;
+use crate::render::light_motion::LightMotion;
 use crate::render::phase::{azimuth, orthonormal_basis, sample_sphere, INV_4PI};
 use crate::scene::{Collection, LightControls, Scene};
 use glam::{DMat3, DMat4, DVec3};
@@ -75,6 +77,8 @@ pub struct SphereEmitter {
     pub radiance: [f64; 3],
     pub shaping: Option<Shaping>,
     pub link: Link,
+    /// How it moves over the shutter, when it does.
+    pub motion: Option<LightMotion>,
 }
 
 /// A one-sided rectangular emitter: corner `center − (edge_u + edge_v)/2`.
@@ -89,6 +93,8 @@ pub struct RectEmitter {
     pub radiance: [f64; 3],
     pub shaping: Option<Shaping>,
     pub link: Link,
+    /// How it moves over the shutter, when it does.
+    pub motion: Option<LightMotion>,
 }
 
 /// A one-sided disk emitter, or the ellipse a transform makes of it: the points
@@ -106,6 +112,8 @@ pub struct DiskEmitter {
     pub radiance: [f64; 3],
     pub shaping: Option<Shaping>,
     pub link: Link,
+    /// How it moves over the shutter, when it does.
+    pub motion: Option<LightMotion>,
 }
 
 /// The side of a cylinder (or the elliptic cylinder a transform makes of it):
@@ -131,6 +139,8 @@ pub struct CylinderEmitter {
     pub line_intensity: [f64; 3],
     pub shaping: Option<Shaping>,
     pub link: Link,
+    /// How it moves over the shutter, when it does.
+    pub motion: Option<LightMotion>,
 }
 
 /// UsdLuxShapingAPI as a factor on the emission leaving a light in direction e
@@ -419,6 +429,12 @@ fn shaping(controls: &LightControls, light_to_world: &DMat4) -> Option<Shaping> 
 /// The side area of the cylinder `axis·u + y·cos φ + z·sin φ`: ℓ ∫ |axis × (−y sin φ +
 /// z cos φ)| dφ / ℓ by the trapezoid rule, which converges geometrically for a smooth
 /// periodic integrand (2π|axis||y| exactly for a circular, upright one).
+/// The render's motion of a light the scene moves (`frame`: its transform at the
+/// frame).
+fn light_motion(motion: &Option<TransformMotion>, frame: &DMat4) -> Option<LightMotion> {
+    motion.as_ref().map(|m| LightMotion::new(m, frame))
+}
+
 fn cylinder_area(axis: DVec3, y: DVec3, z: DVec3) -> f64 {
     const N: usize = 256;
     let step = 2.0 * PI / N as f64;
@@ -661,6 +677,7 @@ impl Lights {
                 radiance,
                 shaping: shaping(&l.controls, &m),
                 link: linker.link(&l.controls),
+                motion: light_motion(&l.motion, &m),
             };
             if nonzero(&emitter.radiance) {
                 lights.sources.spheres.push(source);
@@ -694,6 +711,7 @@ impl Lights {
                     radiance,
                     shaping: shaping(&l.controls, &m),
                     link: linker.link(&l.controls),
+                    motion: light_motion(&l.motion, &m),
                 });
             }
         }
@@ -724,6 +742,7 @@ impl Lights {
                     radiance,
                     shaping: shaping(&l.controls, &m),
                     link: linker.link(&l.controls),
+                    motion: light_motion(&l.motion, &m),
                 });
             }
         }
@@ -749,6 +768,7 @@ impl Lights {
                 line,
                 shaping: shaping(&l.controls, &m),
                 link: linker.link(&l.controls),
+                motion: light_motion(&l.motion, &m),
                 ..Default::default()
             };
             if line {
@@ -792,6 +812,11 @@ impl Lights {
     /// The sphere, rect, disk and cylinder lights (next-event estimation's order) as
     /// equiangular sampling sees them: their centres, powers (mean over channels) and
     /// spots' cones. Index k of this list is the one [`Self::sample_local`] takes.
+    /// A moving light is seen where it is at the frame: equiangular sampling only
+    /// proposes points (its density and the collisions' weights use these same
+    /// centres), and the light sample at the point is taken where the light is at the
+    /// path's time, so the estimate stays unbiased; it is less efficient the farther a
+    /// light strays from its frame place over the shutter.
     pub fn locals(&self) -> Vec<LocalLight> {
         let mean = |v: &[f64; 3]| (v[0] + v[1] + v[2]) / 3.0;
         // A spot lights only its cone: its equiangular samples are drawn on the
@@ -855,27 +880,43 @@ impl Lights {
         &self,
         k: usize,
         p: DVec3,
-        u1: f64,
-        u2: f64,
+        time: f64,
+        (u1, u2): (f64, f64),
     ) -> (Option<LightSample>, &Link, usize) {
         let mut k = k;
         if k < self.spheres.len() {
             let e = &self.spheres[k];
-            return (e.sample(p, u1, u2), &e.link, self.sources.sphere(k));
+            return (
+                e.sample_at(p, time, u1, u2),
+                &e.link,
+                self.sources.sphere(k),
+            );
         }
         k -= self.spheres.len();
         if k < self.rects.len() {
             let e = &self.rects[k];
-            return (e.sample(p, u1, u2), &e.link, self.sources.rect(k));
+            return (e.sample_at(p, time, u1, u2), &e.link, self.sources.rect(k));
         }
         k -= self.rects.len();
         if k < self.disks.len() {
             let e = &self.disks[k];
-            return (e.sample(p, u1, u2), &e.link, self.sources.disk(k));
+            return (e.sample_at(p, time, u1, u2), &e.link, self.sources.disk(k));
         }
         k -= self.disks.len();
         let e = &self.cylinders[k];
-        (e.sample(p, u1, u2), &e.link, self.sources.cylinder(k))
+        (
+            e.sample_at(p, time, u1, u2),
+            &e.link,
+            self.sources.cylinder(k),
+        )
+    }
+
+    /// Whether a local light moves over the shutter.
+    pub fn moves(&self) -> bool {
+        self.spheres.iter().any(|e| e.motion.is_some())
+            || self.rects.iter().any(|e| e.motion.is_some())
+            || self.disks.iter().any(|e| e.motion.is_some())
+            || self.cylinders.iter().any(|e| e.motion.is_some())
     }
 
     /// Whether any light has linking (its media masks or holdout sets differ from
@@ -1050,6 +1091,40 @@ impl SphereEmitter {
         )
     }
 }
+
+/// `sample(p)` of a light that may move: at frame-relative `time`, the sample its
+/// frame placement gives the point p is seen from, carried back to the world
+/// ([`LightMotion`]); a still light samples from `p` itself.
+#[inline(always)]
+fn sample_moving(
+    motion: &Option<LightMotion>,
+    p: DVec3,
+    time: f64,
+    sample: impl FnOnce(DVec3) -> Option<LightSample>,
+) -> Option<LightSample> {
+    let Some(m) = motion else {
+        return sample(p);
+    };
+    let (q, linear) = m.seen_from_frame(p, time);
+    let mut s = sample(q)?;
+    (s.wi, s.distance) = LightMotion::back_to_world(&linear, s.wi, s.distance);
+    Some(s)
+}
+
+/// `sample_at(p, time, u1, u2)` of each local emitter: its `sample`, wherever the
+/// light is at `time`.
+macro_rules! sample_at {
+    ($($emitter:ty),*) => {$(
+        impl $emitter {
+            #[inline]
+            pub fn sample_at(&self, p: DVec3, time: f64, u1: f64, u2: f64) -> Option<LightSample> {
+                sample_moving(&self.motion, p, time, |q| self.sample(q, u1, u2))
+            }
+        }
+    )*};
+}
+
+sample_at!(SphereEmitter, RectEmitter, DiskEmitter, CylinderEmitter);
 
 /// `sample` with its weight multiplied by the shaping of the emission leaving towards
 /// the point (−wi); `None` when that is zero in every channel (no shadow ray).

@@ -11,6 +11,7 @@ pub mod film;
 pub mod holdouts;
 pub mod integrator;
 pub mod job;
+pub mod light_motion;
 pub mod lights;
 pub mod media_index;
 pub mod phase;

@@ -162,6 +162,9 @@ pub struct SphereLight {
     /// `nimbus:lightGroup`: the light group its light-group AOVs gather it under.
     pub light_group: Option<String>,
     pub light_to_world: DMat4,
+    /// `light_to_world` over the shutter, when the light moves (rigidly) while it is
+    /// open (`light_to_world` is its value at the frame).
+    pub motion: Option<TransformMotion>,
     pub intensity: f64,
     pub exposure: f64,
     pub color: [f64; 3],
@@ -183,6 +186,9 @@ pub struct RectLight {
     /// `nimbus:lightGroup`: the light group its light-group AOVs gather it under.
     pub light_group: Option<String>,
     pub light_to_world: DMat4,
+    /// `light_to_world` over the shutter, when the light moves (rigidly) while it is
+    /// open (`light_to_world` is its value at the frame).
+    pub motion: Option<TransformMotion>,
     pub intensity: f64,
     pub exposure: f64,
     pub color: [f64; 3],
@@ -203,6 +209,9 @@ pub struct DiskLight {
     /// `nimbus:lightGroup`: the light group its light-group AOVs gather it under.
     pub light_group: Option<String>,
     pub light_to_world: DMat4,
+    /// `light_to_world` over the shutter, when the light moves (rigidly) while it is
+    /// open (`light_to_world` is its value at the frame).
+    pub motion: Option<TransformMotion>,
     pub intensity: f64,
     pub exposure: f64,
     pub color: [f64; 3],
@@ -222,6 +231,9 @@ pub struct CylinderLight {
     /// `nimbus:lightGroup`: the light group its light-group AOVs gather it under.
     pub light_group: Option<String>,
     pub light_to_world: DMat4,
+    /// `light_to_world` over the shutter, when the light moves (rigidly) while it is
+    /// open (`light_to_world` is its value at the frame).
+    pub motion: Option<TransformMotion>,
     pub intensity: f64,
     pub exposure: f64,
     pub color: [f64; 3],

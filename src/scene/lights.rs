@@ -22,6 +22,7 @@ use super::description::{
 };
 use super::diagnostics::Diagnostics;
 use super::schema::tokens;
+use crate::motion::TransformMotion;
 use glam::{DMat4, DVec3};
 use openusd::sdf::Value;
 use openusd::usd::{Prim, TimeCode};
@@ -96,36 +97,49 @@ pub(super) fn light_api(prim: &Prim) -> Result<Option<&'static str>, openusd::Er
     Ok(None)
 }
 
-/// Reads every (visible) light prim, given with its local → world transform; what the
-/// render will not show as authored goes to `warnings`.
+/// Reads every (visible) light prim, given with its local → world transform at the
+/// frame and, for a local light that moves while the shutter is open, its motion;
+/// what the render will not show as authored goes to `warnings`.
 pub(super) fn read_lights(
-    prims: &[(Prim, DMat4)],
+    prims: Vec<(Prim, DMat4, Option<TransformMotion>)>,
     time: Option<TimeCode>,
     warnings: &mut Diagnostics,
 ) -> Result<StageLights, SceneError> {
     let mut lights = StageLights::default();
-    for (prim, to_world) in prims {
+    for (prim, to_world, motion) in prims {
         let is = |ty: &str| prim.is_a(ty).map_err(|e| prim_error(prim.path(), e));
         let mut r = Reader {
-            prim,
+            prim: &prim,
             t: time,
             warnings: &mut *warnings,
         };
+        let to_world = &to_world;
         if is(DISTANT_LIGHT)? {
             lights.distant.push(r.distant_light(to_world)?);
         } else if is(DOME_LIGHT)? {
             lights.dome.push(r.dome_light(to_world)?);
         } else if is(SPHERE_LIGHT)? {
-            lights.sphere.push(r.sphere_light(to_world)?);
+            lights.sphere.push(r.sphere_light(to_world, motion)?);
         } else if is(RECT_LIGHT)? {
-            lights.rect.push(r.rect_light(to_world)?);
+            lights.rect.push(r.rect_light(to_world, motion)?);
         } else if is(DISK_LIGHT)? {
-            lights.disk.push(r.disk_light(to_world)?);
+            lights.disk.push(r.disk_light(to_world, motion)?);
         } else if is(CYLINDER_LIGHT)? {
-            lights.cylinder.push(r.cylinder_light(to_world)?);
+            lights.cylinder.push(r.cylinder_light(to_world, motion)?);
         }
     }
     Ok(lights)
+}
+
+/// Whether `prim` is a light whose motion Nimbus blurs: a local light (sphere, rect,
+/// disk, cylinder). Distant and dome lights render at the frame's time.
+pub(super) fn is_local_light(prim: &Prim) -> Result<bool, SceneError> {
+    for ty in [SPHERE_LIGHT, RECT_LIGHT, DISK_LIGHT, CYLINDER_LIGHT] {
+        if prim.is_a(ty).map_err(|e| prim_error(prim.path(), e))? {
+            return Ok(true);
+        }
+    }
+    Ok(false)
 }
 
 /// The LightAPI inputs every light has.
@@ -524,13 +538,18 @@ impl Reader<'_> {
         })
     }
 
-    fn sphere_light(&mut self, to_world: &DMat4) -> Result<SphereLight, SceneError> {
+    fn sphere_light(
+        &mut self,
+        to_world: &DMat4,
+        motion: Option<TransformMotion>,
+    ) -> Result<SphereLight, SceneError> {
         let c = self.common(1.0)?;
         self.untextured("SphereLight")?;
         Ok(SphereLight {
             prim_path: self.prim.path().to_string(),
             light_group: c.light_group.clone(),
             light_to_world: *to_world,
+            motion,
             intensity: c.intensity,
             exposure: c.exposure,
             color: c.color,
@@ -542,13 +561,18 @@ impl Reader<'_> {
         })
     }
 
-    fn rect_light(&mut self, to_world: &DMat4) -> Result<RectLight, SceneError> {
+    fn rect_light(
+        &mut self,
+        to_world: &DMat4,
+        motion: Option<TransformMotion>,
+    ) -> Result<RectLight, SceneError> {
         let c = self.common(1.0)?;
         self.untextured("RectLight")?;
         Ok(RectLight {
             prim_path: self.prim.path().to_string(),
             light_group: c.light_group.clone(),
             light_to_world: *to_world,
+            motion,
             intensity: c.intensity,
             exposure: c.exposure,
             color: c.color,
@@ -560,13 +584,18 @@ impl Reader<'_> {
         })
     }
 
-    fn disk_light(&mut self, to_world: &DMat4) -> Result<DiskLight, SceneError> {
+    fn disk_light(
+        &mut self,
+        to_world: &DMat4,
+        motion: Option<TransformMotion>,
+    ) -> Result<DiskLight, SceneError> {
         let c = self.common(1.0)?;
         self.untextured("DiskLight")?;
         Ok(DiskLight {
             prim_path: self.prim.path().to_string(),
             light_group: c.light_group.clone(),
             light_to_world: *to_world,
+            motion,
             intensity: c.intensity,
             exposure: c.exposure,
             color: c.color,
@@ -577,13 +606,18 @@ impl Reader<'_> {
         })
     }
 
-    fn cylinder_light(&mut self, to_world: &DMat4) -> Result<CylinderLight, SceneError> {
+    fn cylinder_light(
+        &mut self,
+        to_world: &DMat4,
+        motion: Option<TransformMotion>,
+    ) -> Result<CylinderLight, SceneError> {
         let c = self.common(1.0)?;
         self.untextured("CylinderLight")?;
         Ok(CylinderLight {
             prim_path: self.prim.path().to_string(),
             light_group: c.light_group.clone(),
             light_to_world: *to_world,
+            motion,
             intensity: c.intensity,
             exposure: c.exposure,
             color: c.color,

@@ -313,10 +313,13 @@ impl Loader<'_> {
     fn lights(&mut self, inventory: &Inventory) -> Result<lights::StageLights, SceneError> {
         let mut prims = Vec::new();
         for prim in self.visible(&inventory.lights)? {
-            let to_world = self.world_transform(&prim)?;
-            prims.push((prim, to_world));
+            let (to_world, motion) = match lights::is_local_light(&prim)? {
+                true => self.blurred_light_transform(&prim)?,
+                false => (self.world_transform(&prim)?, None),
+            };
+            prims.push((prim, to_world, motion));
         }
-        lights::read_lights(&prims, self.time, &mut self.warnings.borrow_mut())
+        lights::read_lights(prims, self.time, &mut self.warnings.borrow_mut())
     }
 
     /// The visible gprims of a type Nimbus reads, with the `default` or `render`
@@ -582,7 +585,7 @@ impl Loader<'_> {
         self.frame_transform(prim)
     }
 
-    /// Local → world of a prim Nimbus blurs (the camera, a UsdVolVolume): its
+    /// Local → world of a prim Nimbus blurs (the camera, a UsdVolVolume, a local light): its
     /// transform at the frame and, when it moves while the shutter is open, its motion
     /// over the shutter. Without a frame (`--frame`) there is no shutter interval to
     /// sample: it warns as any moving prim does.
@@ -595,6 +598,37 @@ impl Loader<'_> {
         };
         let m = self.frame_transform(prim)?;
         Ok((m, motion::transform_motion(prim, time, shutter)?))
+    }
+
+    /// [`Self::blurred_transform`] of a local light: its samples are drawn where it is
+    /// at the frame and carried along with it, which holds for a light that turns and
+    /// slides; one whose size changes over the shutter warns and renders at the frame.
+    fn blurred_light_transform(
+        &mut self,
+        prim: &Prim,
+    ) -> Result<(DMat4, Option<TransformMotion>), SceneError> {
+        let (m, motion) = self.blurred_transform(prim)?;
+        let Some(motion) = motion else {
+            return Ok((m, None));
+        };
+        if motion.is_rigid_from(&m) {
+            return Ok((m, Some(motion)));
+        }
+        let shutter = self.shutter.unwrap_or_default();
+        let (owner, op) = motion::moving_op(prim, self.time, shutter)?
+            .unwrap_or_else(|| (prim.clone(), "xformOpOrder".to_string()));
+        self.warnings.borrow_mut().warn(
+            "motion blur",
+            owner.path().to_string(),
+            Some(&op),
+            format!(
+                "the light {} changes size or shape while the camera's shutter is open ({} to {}): Nimbus blurs a light that turns and slides, not one that scales; it is rendered at the frame's time",
+                prim.path(),
+                shutter.0,
+                shutter.1
+            ),
+        );
+        Ok((m, None))
     }
 
     /// Local → world of `prim` at the scene's time, refused when not finite.
@@ -670,7 +704,7 @@ impl Loader<'_> {
     fn motion_warning(&self, prim: &Prim, attribute: &str, (open, close): (f64, f64)) {
         let why = match self.time {
             None => "no frame was given (--frame), so there is no shutter interval to blur over and nothing is blurred",
-            Some(_) => "Nimbus blurs the camera's and UsdVolVolumes' transforms, not this one (nor lens attributes, lights, holdouts, fog boxes or instancers)",
+            Some(_) => "Nimbus blurs the transforms of the camera, UsdVolVolumes and sphere, rect, disk and cylinder lights, not this one (nor lens attributes, distant and dome lights, holdouts, fog boxes or instancers)",
         };
         self.warnings.borrow_mut().warn(
             "motion blur",
