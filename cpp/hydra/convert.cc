@@ -111,6 +111,21 @@ void HdNimbusSceneStore::SetField(SdfPath const &id, nimbus_hydra::FieldDesc des
     _Synced();
 }
 
+void HdNimbusSceneStore::SetRenderSettings(SdfPath const &id, bool active, bool hasShutter,
+                                           std::array<double, 2> shutter) {
+    std::lock_guard<std::mutex> lock(_mutex);
+    auto it = _settingsShutters.find(id);
+    if (!hasShutter) {
+        if (it == _settingsShutters.end()) return;
+        _settingsShutters.erase(it);
+    } else {
+        auto value = std::make_pair(active, shutter);
+        if (it != _settingsShutters.end() && it->second == value) return;
+        _settingsShutters[id] = value;
+    }
+    ++_version;
+}
+
 void HdNimbusSceneStore::SetMaterial(SdfPath const &id, HdNimbusMaterialRecord rec) {
     std::lock_guard<std::mutex> lock(_mutex);
     _materials[id] = std::move(rec);
@@ -121,7 +136,8 @@ void HdNimbusSceneStore::SetMaterial(SdfPath const &id, HdNimbusMaterialRecord r
 void HdNimbusSceneStore::Remove(SdfPath const &id) {
     std::lock_guard<std::mutex> lock(_mutex);
     size_t n = _lights.erase(id) + _unsupportedLights.erase(id) + _volumes.erase(id) +
-               _meshes.erase(id) + _fields.erase(id) + _materials.erase(id);
+               _meshes.erase(id) + _fields.erase(id) + _materials.erase(id) +
+               _settingsShutters.erase(id);
     if (n) ++_version;
 }
 
@@ -161,6 +177,13 @@ nimbus_hydra::SceneDesc HdNimbusSceneStore::Snapshot() const {
         }
         _FillMaterial(v.second.materialId, desc);
         s.volumes.push_back(std::move(desc));
+    }
+    // The first active render settings prim (in path order) with a shutter interval.
+    for (auto const &r : _settingsShutters) {
+        if (!r.second.first) continue;
+        s.has_settings_shutter = true;
+        s.settings_shutter = r.second.second;
+        break;
     }
     return s;
 }

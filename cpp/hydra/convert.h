@@ -67,6 +67,10 @@ public:
     void SetMesh(SdfPath const &id, HdNimbusMeshRecord rec);
     void SetField(SdfPath const &id, nimbus_hydra::FieldDesc desc);
     void SetMaterial(SdfPath const &id, HdNimbusMaterialRecord rec);
+    // A render settings prim: whether it is active, and its shutter interval (open,
+    // close) when it has one.
+    void SetRenderSettings(SdfPath const &id, bool active, bool hasShutter,
+                           std::array<double, 2> shutter);
     // Forgets the prim `id` of any kind.
     void Remove(SdfPath const &id);
     // Bumped by every change.
@@ -93,6 +97,8 @@ private:
     std::map<SdfPath, HdNimbusMeshRecord> _meshes;
     std::map<SdfPath, nimbus_hydra::FieldDesc> _fields;
     std::map<SdfPath, HdNimbusMaterialRecord> _materials;
+    // The render settings prims with a shutter interval: active, (open, close).
+    std::map<SdfPath, std::pair<bool, std::array<double, 2>>> _settingsShutters;
 };
 
 // The host's render settings named `nimbus:*` as plain data (the rest are the host's own).

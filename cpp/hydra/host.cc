@@ -16,14 +16,19 @@
 // params), and the rprims it includes list that name among their categories.
 // Materials: an rprim's bound material (all-purpose binding) and the material's volume
 // network (the shader its ri, mtlx, kma or universal volume output leads to, and those
-// upstream). No instancing, motion or purposes.
+// upstream). Motion: with `--frame`, everything is read at that time code and
+// SampleTransform samples each transform over the render camera's shutter as
+// UsdImaging does (its ends and the authored samples between); the camera's
+// shutter:open / shutter:close are its shutterOpen / shutterClose params. No instancing
+// or purposes.
 //
-//   nimbus-hydra STAGE -o OUT.exr [--res WxH] [--spp N] [--camera PATH] [--delegate NAME]
-//                [--aov NAME=FILE.exr]...
+//   nimbus-hydra STAGE -o OUT.exr [--res WxH] [--spp N] [--frame F] [--camera PATH]
+//                [--delegate NAME] [--aov NAME=FILE.exr]...
 
 #include "pxr/pxr.h"
 #include "pxr/base/arch/systemInfo.h"
 #include "pxr/base/gf/camera.h"
+#include "pxr/base/gf/interval.h"
 #include "pxr/base/gf/range1f.h"
 #include "pxr/base/plug/registry.h"
 #include "pxr/base/tf/diagnostic.h"
@@ -53,6 +58,7 @@
 #include "pxr/usd/usdGeom/imageable.h"
 #include "pxr/usd/usdGeom/mesh.h"
 #include "pxr/usd/usdGeom/xformCache.h"
+#include "pxr/usd/usdGeom/xformable.h"
 #include "pxr/usd/usdLux/boundableLightBase.h"
 #include "pxr/usd/usdLux/nonboundableLightBase.h"
 #include "pxr/usd/usdRender/settings.h"
@@ -62,7 +68,9 @@
 #include "pxr/usd/usdVol/openVDBAsset.h"
 #include "pxr/usd/usdVol/volume.h"
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <map>
 #include <set>
 #include <cstdio>
@@ -79,9 +87,14 @@ namespace {
 // The stage as Hydra prims: the subset hdNimbus reads (see the file comment).
 class StageSceneDelegate final : public HdSceneDelegate {
 public:
-    StageSceneDelegate(HdRenderIndex *index, UsdStageRefPtr stage)
-        : HdSceneDelegate(index, SdfPath::AbsoluteRootPath()), _stage(stage),
-          _xf(UsdTimeCode::Default()) {}
+    // Everything is read at `time` (the frame; UsdTimeCode::Default() without one).
+    StageSceneDelegate(HdRenderIndex *index, UsdStageRefPtr stage, UsdTimeCode time)
+        : HdSceneDelegate(index, SdfPath::AbsoluteRootPath()), _stage(stage), _time(time),
+          _xf(time) {}
+
+    // The camera whose shutter the transforms are sampled over (as
+    // UsdImagingDelegate::SetCameraForSampling).
+    void SetCameraForSampling(SdfPath const &camera) { _samplingCamera = camera; }
 
     // Inserts the stage's prims into the render index.
     void Populate() {
@@ -102,7 +115,7 @@ public:
                 // `nimbus:holdout = false` leaves a gprim out, as the USD reader does.
                 bool holdout = true;
                 UsdAttribute h = prim.GetAttribute(TfToken("nimbus:holdout"));
-                if (h) h.Get(&holdout);
+                if (h) h.Get(&holdout, _time);
                 // A Cube as UsdImaging hands it over: a mesh of its six faces.
                 if (holdout) {
                     index.InsertRprim(HdPrimTypeTokens->mesh, this, p);
@@ -162,14 +175,32 @@ public:
         return prim ? _xf.GetLocalToWorldTransform(prim) : GfMatrix4d(1.0);
     }
 
+    // The transform at the sample times (_SampleTimes), each evaluated at the frame
+    // plus that time; the times handed over as floats (Hydra's), from the frame.
+    size_t SampleTransform(SdfPath const &id, size_t maxSampleCount, float *sampleTimes,
+                           GfMatrix4d *sampleValues) override {
+        UsdPrim prim = _stage->GetPrimAtPath(id);
+        std::vector<double> times = _SampleTimes(prim);
+        for (size_t i = 0; i < times.size() && i < maxSampleCount; ++i) {
+            sampleTimes[i] = float(times[i]);
+            if (times[i] == 0.0 || !prim) {
+                sampleValues[i] = GetTransform(id);
+            } else {
+                UsdGeomXformCache at(UsdTimeCode(_time.GetValue() + times[i]));
+                sampleValues[i] = at.GetLocalToWorldTransform(prim);
+            }
+        }
+        return times.size();
+    }
+
     bool GetVisible(SdfPath const &id) override {
         UsdGeomImageable im(_stage->GetPrimAtPath(id));
-        return !im || im.ComputeVisibility() != UsdGeomTokens->invisible;
+        return !im || im.ComputeVisibility(_time) != UsdGeomTokens->invisible;
     }
 
     bool GetDoubleSided(SdfPath const &id) override {
         bool d = false;
-        UsdGeomMesh(_stage->GetPrimAtPath(id)).GetDoubleSidedAttr().Get(&d);
+        UsdGeomMesh(_stage->GetPrimAtPath(id)).GetDoubleSidedAttr().Get(&d, _time);
         return d;
     }
 
@@ -185,9 +216,9 @@ public:
         }
         UsdGeomMesh mesh(prim);
         VtIntArray counts, indices, holes;
-        mesh.GetFaceVertexCountsAttr().Get(&counts);
-        mesh.GetFaceVertexIndicesAttr().Get(&indices);
-        mesh.GetHoleIndicesAttr().Get(&holes);
+        mesh.GetFaceVertexCountsAttr().Get(&counts, _time);
+        mesh.GetFaceVertexIndicesAttr().Get(&indices, _time);
+        mesh.GetHoleIndicesAttr().Get(&holes, _time);
         HdMeshTopology t(PxOsdOpenSubdivTokens->none, HdTokens->rightHanded, counts, indices);
         t.SetHoleIndices(holes);
         return t;
@@ -198,7 +229,7 @@ public:
         if (!prim) return VtValue();
         if (key == HdTokens->points && prim.IsA<UsdGeomCube>()) {
             double size = 2.0;
-            UsdGeomCube(prim).GetSizeAttr().Get(&size);
+            UsdGeomCube(prim).GetSizeAttr().Get(&size, _time);
             float h = float(size / 2.0);
             VtVec3fArray points(8);
             for (int i = 0; i < 8; ++i) {
@@ -208,12 +239,12 @@ public:
         }
         if (key == HdTokens->points) {
             VtVec3fArray points;
-            UsdGeomMesh(prim).GetPointsAttr().Get(&points);
+            UsdGeomMesh(prim).GetPointsAttr().Get(&points, _time);
             return VtValue(points);
         }
         UsdAttribute a = prim.GetAttribute(key);
         VtValue v;
-        if (a) a.Get(&v);
+        if (a) a.Get(&v, _time);
         return v;
     }
 
@@ -237,7 +268,7 @@ public:
             material.ComputeVolumeSource({TfToken("ri"), TfToken("mtlx"), TfToken("kma")});
         if (!source) return VtValue(map);
         std::set<SdfPath> seen;
-        _AddNode(source, map.map[HdMaterialTerminalTokens->volume], seen);
+        _AddNode(source, map.map[HdMaterialTerminalTokens->volume], seen, _time);
         map.terminals.push_back(source.GetPath());
         return VtValue(map);
     }
@@ -278,7 +309,7 @@ public:
         VtValue v;
         for (std::string const &n : {"inputs:" + name.GetString(), name.GetString()}) {
             UsdAttribute a = prim.GetAttribute(TfToken(n));
-            if (a && a.Get(&v)) {
+            if (a && a.Get(&v, _time)) {
                 if (v.IsHolding<SdfAssetPath>()) {
                     SdfAssetPath const &p = v.UncheckedGet<SdfAssetPath>();
                     return VtValue(SdfAssetPath(p.GetAssetPath(), p.GetResolvedPath()));
@@ -293,7 +324,7 @@ public:
     VtValue GetCameraParamValue(SdfPath const &id, TfToken const &key) override {
         UsdGeomCamera cam(_stage->GetPrimAtPath(id));
         if (!cam) return VtValue();
-        GfCamera c = cam.GetCamera(UsdTimeCode::Default());
+        GfCamera c = cam.GetCamera(_time);
         double const unit = GfCamera::APERTURE_UNIT;
         if (key == HdCameraTokens->projection) {
             return VtValue(c.GetProjection() == GfCamera::Orthographic ? HdCamera::Orthographic
@@ -314,12 +345,20 @@ public:
         }
         if (key == HdCameraTokens->fStop) return VtValue(c.GetFStop());
         if (key == HdCameraTokens->focusDistance) return VtValue(c.GetFocusDistance());
+        // The shutter as UsdImaging hands it over: time codes from the frame, doubles.
+        if (key == HdCameraTokens->shutterOpen || key == HdCameraTokens->shutterClose) {
+            double v = 0.0;
+            (key == HdCameraTokens->shutterOpen ? cam.GetShutterOpenAttr()
+                                                : cam.GetShutterCloseAttr())
+                .Get(&v, _time);
+            return VtValue(v);
+        }
         return VtValue();
     }
 
 private:
     static void _AddNode(UsdShadeShader const &shader, HdMaterialNetwork &net,
-                         std::set<SdfPath> &seen) {
+                         std::set<SdfPath> &seen, UsdTimeCode time) {
         if (!seen.insert(shader.GetPath()).second) return;
         HdMaterialNode node;
         node.path = shader.GetPath();
@@ -331,7 +370,7 @@ private:
             if (UsdShadeOutput::IsOutput(a)) {
                 UsdShadeShader upstream(a.GetPrim());
                 if (!upstream) continue;
-                _AddNode(upstream, net, seen);
+                _AddNode(upstream, net, seen, time);
                 HdMaterialRelationship r;
                 r.inputId = upstream.GetPath();
                 r.inputName = UsdShadeOutput(a).GetBaseName();
@@ -340,14 +379,49 @@ private:
                 net.relationships.push_back(r);
             } else {
                 VtValue v;
-                if (a.Get(&v)) node.parameters[input.GetBaseName()] = v;
+                if (a.Get(&v, time)) node.parameters[input.GetBaseName()] = v;
             }
         }
         net.nodes.push_back(node);
     }
 
+    // The times (from the frame) to sample `prim`'s transform at, as UsdImaging picks
+    // them: with a frame and the sampling camera's shutter open (open < close), the
+    // shutter's two ends and every authored time sample of the xformOps of `prim` and
+    // its ancestors (as far as the transform inherits) between them; else the frame
+    // alone (also when no op might vary).
+    std::vector<double> _SampleTimes(UsdPrim const &prim) const {
+        std::vector<double> frameOnly = {0.0};
+        UsdGeomCamera cam(_stage->GetPrimAtPath(_samplingCamera));
+        if (!prim || _time.IsDefault() || !cam) return frameOnly;
+        double open = 0.0, close = 0.0;
+        cam.GetShutterOpenAttr().Get(&open, _time);
+        cam.GetShutterCloseAttr().Get(&close, _time);
+        if (!(open < close)) return frameOnly;
+        double const frame = _time.GetValue();
+        std::vector<double> times = {open, close};
+        bool varies = false;
+        for (UsdPrim p = prim; p && !p.IsPseudoRoot(); p = p.GetParent()) {
+            UsdGeomXformable x(p);
+            if (!x) continue;
+            varies = varies || x.TransformMightBeTimeVarying();
+            std::vector<double> authored;
+            x.GetTimeSamplesInInterval(GfInterval(frame + open, frame + close), &authored);
+            for (double t : authored) {
+                if (t - frame > open && t - frame < close) times.push_back(t - frame);
+            }
+            if (x.GetResetXformStack()) break;
+        }
+        if (!varies) return frameOnly;
+        std::sort(times.begin(), times.end());
+        times.erase(std::unique(times.begin(), times.end()), times.end());
+        return times;
+    }
+
     UsdStageRefPtr _stage;
+    UsdTimeCode _time;
     UsdGeomXformCache _xf;
+    SdfPath _samplingCamera;
     SdfPath _firstCamera;
     // The rprims inserted and the lights, in stage order; the linking (ComputeLinking).
     std::vector<SdfPath> _rprims;
@@ -359,7 +433,7 @@ private:
 int Usage(char const *why) {
     std::fprintf(stderr,
                  "nimbus-hydra: error: %s\nusage: nimbus-hydra STAGE -o OUT.exr [--res WxH] "
-                 "[--spp N] [--camera PATH] [--delegate NAME] [--aov NAME=FILE.exr]...\n",
+                 "[--spp N] [--frame F] [--camera PATH] [--delegate NAME] [--aov NAME=FILE.exr]...\n",
                  why);
     return 2;
 }
@@ -393,6 +467,9 @@ bool WriteBuffer(HdRenderBuffer *rb, std::string const &path) {
 int main(int argc, char **argv) {
     std::string stagePath, out, cameraArg, delegateName = "HdNimbusRendererPlugin";
     int width = 0, height = 0, spp = 0;
+    // --frame F: the time code everything is read at (as `nimbus render --frame`);
+    // without it, the default time (and no motion blur: no shutter interval to sample).
+    UsdTimeCode time = UsdTimeCode::Default();
     // --aov NAME=FILE: the AOV's name (a light group `lightgroup:key`, `direct`, …, as
     // the delegate names it) and the file to write it to.
     std::vector<std::pair<TfToken, std::string>> aovs;
@@ -405,6 +482,13 @@ int main(int argc, char **argv) {
             if (std::sscanf(r.c_str(), "%dx%d", &width, &height) != 2 || width <= 0 || height <= 0)
                 return Usage("--res takes WxH");
         } else if (a == "--spp") spp = std::atoi(next().c_str());
+        else if (a == "--frame") {
+            std::string f = next();
+            char *end = nullptr;
+            double v = std::strtod(f.c_str(), &end);
+            if (f.empty() || *end != '\0' || !std::isfinite(v)) return Usage("--frame takes a number");
+            time = UsdTimeCode(v);
+        }
         else if (a == "--camera") cameraArg = next();
         else if (a == "--delegate") delegateName = next();
         else if (a == "--aov") {
@@ -450,12 +534,12 @@ int main(int argc, char **argv) {
     if (settings) {
         for (UsdAttribute const &a : settings.GetPrim().GetAttributes()) {
             VtValue v;
-            if (a.GetName().GetString().rfind("nimbus:", 0) == 0 && a.Get(&v)) {
+            if (a.GetName().GetString().rfind("nimbus:", 0) == 0 && a.Get(&v, time)) {
                 delegate->SetRenderSetting(a.GetName(), v);
             }
         }
         GfVec2i res;
-        if (width == 0 && settings.GetResolutionAttr().Get(&res)) {
+        if (width == 0 && settings.GetResolutionAttr().Get(&res, time)) {
             width = res[0];
             height = res[1];
         }
@@ -472,7 +556,7 @@ int main(int argc, char **argv) {
     if (spp > 0) delegate->SetRenderSetting(TfToken("nimbus:samples"), VtValue(spp));
 
     HdRenderIndex *index = HdRenderIndex::New(delegate.Get(), {});
-    StageSceneDelegate scene(index, stage);
+    StageSceneDelegate scene(index, stage, time);
     scene.Populate();
     scene.ComputeLinking();
     if (cameraPath.IsEmpty()) cameraPath = scene.FirstCamera();
@@ -481,6 +565,7 @@ int main(int argc, char **argv) {
                      stagePath.c_str());
         return 1;
     }
+    scene.SetCameraForSampling(cameraPath);
     {
         HdxTaskController tasks(index, SdfPath("/nimbusHydraTasks"), /*gpuEnabled=*/false);
         TfTokenVector outputs = {HdAovTokens->color};

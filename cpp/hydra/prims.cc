@@ -7,9 +7,52 @@
 #include "pxr/imaging/hd/material.h"
 #include "pxr/imaging/hd/meshTopology.h"
 #include "pxr/imaging/hd/sceneDelegate.h"
+#include "pxr/imaging/hd/timeSampleArray.h"
 #include "pxr/imaging/hd/tokens.h"
 
 PXR_NAMESPACE_OPEN_SCOPE
+
+// ----- transform samples ----------------------------------------------------------
+
+rust::Vec<nimbus_hydra::XformSample> HdNimbusSampleTransform(HdSceneDelegate *delegate,
+                                                             SdfPath const &id) {
+    // The fixed-capacity form (24.05 has no overload taking the shutter interval);
+    // it grows to all the samples the scene delegate has.
+    HdTimeSampleArray<GfMatrix4d, 4> samples;
+    delegate->SampleTransform(id, &samples);
+    rust::Vec<nimbus_hydra::XformSample> out;
+    for (size_t i = 0; i < samples.count; ++i) {
+        nimbus_hydra::XformSample s;
+        s.time = double(samples.times[i]);
+        s.xform = HdNimbusMatrix(samples.values[i]);
+        out.push_back(std::move(s));
+    }
+    return out;
+}
+
+// ----- camera ---------------------------------------------------------------------
+
+void HdNimbusCamera::Sync(HdSceneDelegate *delegate, HdRenderParam *param,
+                          HdDirtyBits *dirtyBits) {
+    HdDirtyBits const bits = *dirtyBits;
+    HdCamera::Sync(delegate, param, dirtyBits);  // clears the bits
+    if (bits & DirtyTransform) _samples = HdNimbusSampleTransform(delegate, GetId());
+}
+
+// ----- render settings ------------------------------------------------------------
+
+void HdNimbusRenderSettings::_Sync(HdSceneDelegate *delegate, HdRenderParam *param,
+                                   HdDirtyBits const *dirtyBits) {
+    VtValue const &v = GetShutterInterval();
+    std::vector<double> n = HdNimbusNumbers(v);
+    std::array<double, 2> shutter = {0.0, 0.0};
+    if (n.size() == 2) shutter = {n[0], n[1]};
+    HdNimbusStore(param).SetRenderSettings(GetId(), IsActive(), n.size() == 2, shutter);
+}
+
+void HdNimbusRenderSettings::Finalize(HdRenderParam *param) {
+    HdNimbusStore(param).Remove(GetId());
+}
 
 // ----- volume ---------------------------------------------------------------------
 
@@ -42,6 +85,7 @@ void HdNimbusVolume::Sync(HdSceneDelegate *delegate, HdRenderParam *param,
     HdNimbusVolumeRecord rec;
     rec.desc.path = id.GetString();
     rec.desc.xform = HdNimbusMatrix(delegate->GetTransform(id));
+    rec.desc.xform_samples = HdNimbusSampleTransform(delegate, id);
     for (HdVolumeFieldDescriptor const &f : delegate->GetVolumeFieldDescriptors(id)) {
         nimbus_hydra::FieldDesc d;
         d.name = f.fieldName.GetString();
@@ -89,6 +133,7 @@ void HdNimbusMesh::Sync(HdSceneDelegate *delegate, HdRenderParam *param,
     nimbus_hydra::MeshDesc &d = rec.desc;
     d.path = id.GetString();
     d.xform = HdNimbusMatrix(delegate->GetTransform(id));
+    d.xform_samples = HdNimbusSampleTransform(delegate, id);
     HdMeshTopology topology = GetMeshTopology(delegate);
     for (int c : topology.GetFaceVertexCounts()) d.face_counts.push_back(c);
     for (int i : topology.GetFaceVertexIndices()) d.face_indices.push_back(i);
@@ -156,6 +201,7 @@ void HdNimbusLight::Sync(HdSceneDelegate *delegate, HdRenderParam *param,
     d.kind = _type.GetString();
     d.path = id.GetString();
     d.xform = HdNimbusMatrix(delegate->GetTransform(id));
+    d.xform_samples = HdNimbusSampleTransform(delegate, id);
     // Visibility off (a hidden light) removes it.
     if (!delegate->GetVisible(id)) {
         store.Remove(id);

@@ -4,11 +4,15 @@
 #define HDNIMBUS_PRIMS_H
 
 #include "pxr/pxr.h"
+#include "pxr/imaging/hd/camera.h"
 #include "pxr/imaging/hd/field.h"
 #include "pxr/imaging/hd/light.h"
 #include "pxr/imaging/hd/material.h"
 #include "pxr/imaging/hd/mesh.h"
+#include "pxr/imaging/hd/renderSettings.h"
 #include "pxr/imaging/hd/volume.h"
+
+#include "nimbus-hydra/src/ffi.rs.h"
 
 PXR_NAMESPACE_OPEN_SCOPE
 
@@ -80,6 +84,38 @@ public:
               HdDirtyBits *dirtyBits) override;
     HdDirtyBits GetInitialDirtyBitsMask() const override { return AllDirty; }
     void Finalize(HdRenderParam *param) override;
+};
+
+// A prim's transform samples as its scene delegate hands them over
+// (`SampleTransform`: times in time codes from the frame).
+rust::Vec<nimbus_hydra::XformSample> HdNimbusSampleTransform(HdSceneDelegate *delegate,
+                                                             SdfPath const &id);
+
+// A camera: HdCamera's parameters (the shutter among them) and its transform samples
+// over the shutter (the render pass hands both to Rust).
+class HdNimbusCamera final : public HdCamera {
+public:
+    explicit HdNimbusCamera(SdfPath const &id) : HdCamera(id) {}
+    void Sync(HdSceneDelegate *delegate, HdRenderParam *param,
+              HdDirtyBits *dirtyBits) override;
+    rust::Vec<nimbus_hydra::XformSample> const &GetTransformSamples() const {
+        return _samples;
+    }
+
+private:
+    rust::Vec<nimbus_hydra::XformSample> _samples;
+};
+
+// A render settings prim: its shutter interval (Hydra's union of its products'
+// camera shutters), the shutter when the camera's is closed.
+class HdNimbusRenderSettings final : public HdRenderSettings {
+public:
+    explicit HdNimbusRenderSettings(SdfPath const &id) : HdRenderSettings(id) {}
+    void Finalize(HdRenderParam *param) override;
+
+protected:
+    void _Sync(HdSceneDelegate *delegate, HdRenderParam *param,
+               HdDirtyBits const *dirtyBits) override;
 };
 
 PXR_NAMESPACE_CLOSE_SCOPE

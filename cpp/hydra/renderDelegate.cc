@@ -55,7 +55,7 @@ TfTokenVector const &HdNimbusRenderDelegate::GetSupportedSprimTypes() const {
 
 TfTokenVector const &HdNimbusRenderDelegate::GetSupportedBprimTypes() const {
     static TfTokenVector const types = {HdPrimTypeTokens->renderBuffer, _OpenVdbAsset(),
-                                        _Field3dAsset()};
+                                        _Field3dAsset(), HdPrimTypeTokens->renderSettings};
     return types;
 }
 
@@ -137,7 +137,7 @@ void HdNimbusRenderDelegate::DestroyRprim(HdRprim *rprim) {
 }
 
 HdSprim *HdNimbusRenderDelegate::CreateSprim(TfToken const &typeId, SdfPath const &id) {
-    if (typeId == HdPrimTypeTokens->camera) return new HdCamera(id);
+    if (typeId == HdPrimTypeTokens->camera) return new HdNimbusCamera(id);
     if (typeId == HdPrimTypeTokens->material) return new HdNimbusMaterial(id);
     if (HdPrimTypeIsLight(typeId)) return new HdNimbusLight(id, typeId);
     TF_CODING_ERROR("hdNimbus: unknown sprim type %s", typeId.GetText());
@@ -156,6 +156,7 @@ void HdNimbusRenderDelegate::DestroySprim(HdSprim *sprim) {
 HdBprim *HdNimbusRenderDelegate::CreateBprim(TfToken const &typeId, SdfPath const &id) {
     if (typeId == HdPrimTypeTokens->renderBuffer) return new HdNimbusRenderBuffer(id);
     if (typeId == _OpenVdbAsset() || typeId == _Field3dAsset()) return new HdNimbusField(id, typeId);
+    if (typeId == HdPrimTypeTokens->renderSettings) return new HdNimbusRenderSettings(id);
     TF_CODING_ERROR("hdNimbus: unknown bprim type %s", typeId.GetText());
     return nullptr;
 }

@@ -1,5 +1,6 @@
 #include "renderPass.h"
 #include "convert.h"
+#include "prims.h"
 #include "renderBuffer.h"
 #include "renderParam.h"
 
@@ -39,6 +40,11 @@ static nimbus_hydra::CameraDesc _Camera(HdCamera const *cam) {
     c.far = cam->GetClippingRange().GetMax();
     c.f_stop = cam->GetFStop();
     c.focus_distance = cam->GetFocusDistance();
+    c.shutter_open = cam->GetShutterOpen();
+    c.shutter_close = cam->GetShutterClose();
+    if (auto const *ours = dynamic_cast<HdNimbusCamera const *>(cam)) {
+        c.xform_samples = ours->GetTransformSamples();
+    }
     return c;
 }
 
@@ -48,8 +54,13 @@ static std::vector<double> _CameraKey(nimbus_hydra::CameraDesc const &c, bool ha
     double rest[] = {double(has), double(w), double(h), double(c.orthographic),
                      c.focal_length, c.horizontal_aperture, c.vertical_aperture,
                      c.horizontal_aperture_offset, c.vertical_aperture_offset,
-                     c.near, c.far, c.f_stop, c.focus_distance};
+                     c.near, c.far, c.f_stop, c.focus_distance,
+                     c.shutter_open, c.shutter_close};
     k.insert(k.end(), std::begin(rest), std::end(rest));
+    for (nimbus_hydra::XformSample const &s : c.xform_samples) {
+        k.push_back(s.time);
+        k.insert(k.end(), s.xform.begin(), s.xform.end());
+    }
     return k;
 }
 

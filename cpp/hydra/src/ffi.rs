@@ -20,6 +20,15 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 
 #[cxx::bridge(namespace = "nimbus_hydra")]
 pub mod bridge {
+    /// One of a prim's transform samples (`HdSceneDelegate::SampleTransform`): the
+    /// time, in time codes from the frame (as UsdImaging hands them), and the
+    /// matrix.
+    #[derive(Clone, Debug, Default)]
+    struct XformSample {
+        time: f64,
+        xform: [f64; 16],
+    }
+
     /// A light sprim: its Hydra type and the UsdLux parameters Hydra knows.
     #[derive(Clone, Debug, Default)]
     struct LightDesc {
@@ -27,6 +36,8 @@ pub mod bridge {
         kind: String,
         path: String,
         xform: [f64; 16],
+        /// Its transform samples (a light is not blurred: moving ones warn).
+        xform_samples: Vec<XformSample>,
         intensity: f64,
         exposure: f64,
         color: [f64; 3],
@@ -109,6 +120,8 @@ pub mod bridge {
     struct VolumeDesc {
         path: String,
         xform: [f64; 16],
+        /// Its transform samples over the shutter (the motion blur's keys).
+        xform_samples: Vec<XformSample>,
         fields: Vec<FieldDesc>,
         primvars: Vec<ParamDesc>,
         material_path: String,
@@ -127,6 +140,8 @@ pub mod bridge {
     struct MeshDesc {
         path: String,
         xform: [f64; 16],
+        /// Its transform samples (a mesh is not blurred: a moving one warns).
+        xform_samples: Vec<XformSample>,
         points: Vec<f64>,
         face_counts: Vec<i32>,
         face_indices: Vec<i32>,
@@ -161,6 +176,11 @@ pub mod bridge {
         far: f64,
         f_stop: f64,
         focus_distance: f64,
+        /// HdCamera's shutter (time codes from the frame; open < close: open).
+        shutter_open: f64,
+        shutter_close: f64,
+        /// Its transform samples over the shutter (the motion blur's keys).
+        xform_samples: Vec<XformSample>,
     }
 
     /// A render setting as the host set it: a number (ints, floats, bools) or a text.
@@ -201,6 +221,11 @@ pub mod bridge {
         /// The AOVs the render pass is bound to (the split layers among them are
         /// gathered while rendering).
         aovs: Vec<String>,
+        /// The active render settings prim's `shutterInterval` (Hydra computes it
+        /// from its products' cameras), when it has one: the shutter when the camera's
+        /// is closed.
+        has_settings_shutter: bool,
+        settings_shutter: [f64; 2],
     }
 
     /// Where a render stands after a pass.

@@ -12,10 +12,11 @@
 // files, ffi -> scene -> ffi::bridge. No code of ffi is used here, only its data.
 use crate::ffi::bridge::{
     CameraDesc, FieldDesc, LightDesc, MeshDesc, ParamDesc, SceneDesc, SettingDesc,
-    SettingDescriptor, ShaderNodeDesc, VolumeDesc,
+    SettingDescriptor, ShaderNodeDesc, VolumeDesc, XformSample,
 };
 use anyhow::{anyhow, bail, Result};
 use glam::{DMat4, DVec3};
+use nimbus::motion::TransformMotion;
 use nimbus::scene::materialx_graph;
 use nimbus::scene::schema::tokens;
 use nimbus::scene::shader_network::{Input, ParamValue, ShaderNetwork, ShaderNode};
@@ -60,8 +61,11 @@ pub fn scene_of(desc: &SceneDesc) -> Result<(Scene, Vec<String>)> {
         light_prims: desc.lights.len() + desc.unsupported_lights.len(),
         warnings: Default::default(),
     };
+    let shutter = shutter(desc);
     if desc.has_camera {
-        scene.camera = camera(&desc.camera);
+        scene.camera = camera(&desc.camera, shutter)?;
+    } else {
+        scene.camera.shutter = shutter;
     }
     // Hydra syncs prims in no particular order; sort so a light's id (its index in
     // the renderer) and the image do not depend on the host's threads.
@@ -69,16 +73,18 @@ pub fn scene_of(desc: &SceneDesc) -> Result<(Scene, Vec<String>)> {
     let mut lights: Vec<&LightDesc> = desc.lights.iter().collect();
     lights.sort_by(|a, b| a.path.cmp(&b.path));
     for l in lights {
+        warn_if_moving("light", &l.path, &l.xform_samples, shutter, &mut warnings)?;
         add_light(&mut scene, l, &links, &mut warnings)?;
     }
     let mut volumes: Vec<&VolumeDesc> = desc.volumes.iter().collect();
     volumes.sort_by(|a, b| a.path.cmp(&b.path));
     for v in volumes {
-        scene.volumes.push(volume(v, &mut warnings)?);
+        scene.volumes.push(volume(v, shutter, &mut warnings)?);
     }
     let mut meshes: Vec<&MeshDesc> = desc.meshes.iter().collect();
     meshes.sort_by(|a, b| a.path.cmp(&b.path));
     for m in meshes {
+        warn_if_moving("mesh", &m.path, &m.xform_samples, shutter, &mut warnings)?;
         mesh(m, &mut scene, &mut warnings)?;
     }
     Ok((scene, warnings))
@@ -96,8 +102,78 @@ fn finite_matrix(path: &str, m: &[f64; 16]) -> Result<DMat4> {
     }
 }
 
-fn camera(c: &CameraDesc) -> Camera {
-    Camera {
+/// The shutter interval the render blurs over (time codes from the frame): the
+/// camera's when it is open (open < close), else the render settings prim's
+/// `shutterInterval` when that is open (as hdPrman falls back), else none. As the USD
+/// reader's, whatever moves within it is blurred: the camera and the volumes.
+fn shutter(desc: &SceneDesc) -> Option<(f64, f64)> {
+    let open = |a: f64, b: f64| (a.is_finite() && b.is_finite() && a < b).then_some((a, b));
+    let camera = desc
+        .has_camera
+        .then(|| open(desc.camera.shutter_open, desc.camera.shutter_close))
+        .flatten();
+    let settings = || {
+        desc.has_settings_shutter
+            .then(|| open(desc.settings_shutter[0], desc.settings_shutter[1]))
+            .flatten()
+    };
+    camera.or_else(settings)
+}
+
+/// A prim's motion over `shutter` from the transform samples Hydra handed over
+/// (`SampleTransform`: the authored samples, with UsdImaging the shutter's ends too):
+/// keys at the shutter's two ends and at every sample between, a missing end
+/// interpolated between the samples around it (held beyond the first and the last, as
+/// USD holds time samples), component-wise as [`TransformMotion`] interpolates. None
+/// without a shutter, or when nothing moves within it.
+fn motion(
+    path: &str,
+    samples: &[XformSample],
+    shutter: Option<(f64, f64)>,
+) -> Result<Option<TransformMotion>> {
+    let Some((open, close)) = shutter else {
+        return Ok(None);
+    };
+    let mut sampled = Vec::with_capacity(samples.len());
+    for s in samples {
+        if !s.time.is_finite() {
+            bail!("{path}: a transform sample at time {}", s.time);
+        }
+        sampled.push((s.time, finite_matrix(path, &s.xform)?));
+    }
+    sampled.sort_by(|a, b| a.0.total_cmp(&b.0));
+    sampled.dedup_by(|later, earlier| later.0 == earlier.0);
+    // Every sample, as one motion (None: fewer than two, or all the same).
+    let Some(all) = TransformMotion::new(sampled) else {
+        return Ok(None);
+    };
+    let inside = all.keys().iter().filter(|k| k.0 > open && k.0 < close);
+    let keys = std::iter::once((open, all.at(open)))
+        .chain(inside.copied())
+        .chain([(close, all.at(close))])
+        .collect();
+    Ok(TransformMotion::new(keys))
+}
+
+/// A warning when the transform of `path` (a `kind` Nimbus does not blur) changes
+/// while the shutter is open, as the USD reader warns.
+fn warn_if_moving(
+    kind: &str,
+    path: &str,
+    samples: &[XformSample],
+    shutter: Option<(f64, f64)>,
+    warnings: &mut Vec<String>,
+) -> Result<()> {
+    if let (Some((open, close)), Some(_)) = (shutter, motion(path, samples, shutter)?) {
+        warnings.push(format!(
+            "motion blur: {kind} {path}: its transform changes while the camera's shutter is open ({open} to {close}): Nimbus blurs the camera's and volumes' transforms, not a {kind}'s; it is rendered at the frame's time"
+        ));
+    }
+    Ok(())
+}
+
+fn camera(c: &CameraDesc, shutter: Option<(f64, f64)>) -> Result<Camera> {
+    Ok(Camera {
         prim_path: c.path.clone(),
         camera_to_world: matrix(&c.xform),
         projection: match c.orthographic {
@@ -112,10 +188,9 @@ fn camera(c: &CameraDesc) -> Camera {
         clipping_range: (c.near, c.far),
         f_stop: c.f_stop,
         focus_distance: c.focus_distance,
-        // Hydra's shutter and sampled transforms are not read yet (issue 45).
-        shutter: None,
-        motion: None,
-    }
+        shutter,
+        motion: motion(&c.path, &c.xform_samples, shutter)?,
+    })
 }
 
 /// Hydra's light linking: a light names its `lightLink` / `shadowLink` collection (an
@@ -665,7 +740,11 @@ fn world_fog(v: &VolumeDesc, warnings: &mut Vec<String>) -> Result<Volume> {
     Ok(medium.volume(path, light_group, VolumeShape::World))
 }
 
-fn volume(v: &VolumeDesc, warnings: &mut Vec<String>) -> Result<Volume> {
+fn volume(
+    v: &VolumeDesc,
+    shutter: Option<(f64, f64)>,
+    warnings: &mut Vec<String>,
+) -> Result<Volume> {
     let path = v.path.as_str();
     match text(&v.primvars, tokens::FILL) {
         None | Some("field") => {}
@@ -715,6 +794,18 @@ fn volume(v: &VolumeDesc, warnings: &mut Vec<String>) -> Result<Volume> {
         ));
     }
     let volume_to_world = finite_matrix(path, &v.xform)?;
+    let motion = motion(path, &v.xform_samples, shutter)?;
+    // A velocity field (as the USD reader finds one) is not read through Hydra.
+    let velocity = text(&v.primvars, tokens::VELOCITY_FIELD).or_else(|| {
+        ["vel", "velocity"]
+            .into_iter()
+            .find(|n| fields.iter().any(|f| f.0 == *n))
+    });
+    if let (Some(name), Some((open, close))) = (velocity, shutter) {
+        warnings.push(format!(
+            "motion blur: volume {path}: its velocity field `{name}` would blur it while the camera's shutter is open ({open} to {close}), but hdNimbus reads no velocity fields (only transforms are blurred); its fields are rendered as they are at the frame"
+        ));
+    }
     // `nimbus:lightGroup` (NimbusLightAPI) whether the medium is the material's or not,
     // as the USD reader reads it.
     let light_group = text(pv, tokens::LIGHT_GROUP).map(str::to_string);
@@ -724,7 +815,7 @@ fn volume(v: &VolumeDesc, warnings: &mut Vec<String>) -> Result<Volume> {
             prim_path: v.path.clone(),
             light_group,
             volume_to_world,
-            motion: None,
+            motion,
             shape: VolumeShape::Field(named(&density_name)?),
             density_scale: m.density_scale,
             absorption: m.absorption,
@@ -756,7 +847,7 @@ fn volume(v: &VolumeDesc, warnings: &mut Vec<String>) -> Result<Volume> {
         prim_path: v.path.clone(),
         light_group,
         volume_to_world,
-        motion: None,
+        motion,
         shape: VolumeShape::Field(density),
         density_scale: scalar(path, pv, tokens::DENSITY_SCALE)?.unwrap_or(1.0),
         absorption: color3(path, pv, tokens::ABSORPTION)?.unwrap_or([0.1; 3]),
@@ -1257,6 +1348,140 @@ pub(crate) mod tests {
         assert_eq!(s.camera.horizontal_aperture, 36.0);
         assert_eq!(s.camera.vertical_aperture, 24.0);
         assert_eq!(s.camera.clipping_range, (0.1, 100.0));
+    }
+
+    /// A translate of `x` along x as a transform sample at `time`.
+    fn at_x(time: f64, x: f64) -> XformSample {
+        XformSample {
+            time,
+            xform: DMat4::from_translation(DVec3::new(x, 0.0, 0.0)).to_cols_array(),
+        }
+    }
+
+    /// Motion from Hydra's samples: keys at the shutter's ends (interpolated between
+    /// the samples around them, held beyond) and the samples inside; none without an
+    /// open shutter or when nothing moves within it. The camera's shutter first, the
+    /// render settings' when the camera's is closed; the camera and the volumes carry
+    /// the motion, a moving light and a moving mesh warn.
+    #[test]
+    fn motion_from_transform_samples_over_the_shutter() {
+        // The keys' times and x translations (to 1e-9: interpolation rounds).
+        let xs = |m: &TransformMotion| -> Vec<(f64, f64)> {
+            let round = |x: f64| (x * 1e9).round() / 1e9;
+            m.keys()
+                .iter()
+                .map(|(t, k)| (*t, round(k.w_axis.x)))
+                .collect()
+        };
+        // Samples at frames 0 and 2 around frame 1 (−1, 1), out of order; shutter
+        // −0.5 … 0.5: the ends interpolated.
+        let s = [at_x(1.0, 0.4), at_x(-1.0, -0.4)];
+        let m = motion("/p", &s, Some((-0.5, 0.5))).unwrap().unwrap();
+        assert_eq!(xs(&m), [(-0.5, -0.2), (0.5, 0.2)]);
+        // UsdImaging's samples: the ends and an authored one between.
+        let s = [at_x(-0.25, 0.0), at_x(0.0, 1.0), at_x(0.25, 1.0)];
+        let m = motion("/p", &s, Some((-0.25, 0.25))).unwrap().unwrap();
+        assert_eq!(xs(&m), [(-0.25, 0.0), (0.0, 1.0), (0.25, 1.0)]);
+        // Moving only before the shutter: held, nothing moves within it.
+        let s = [at_x(-2.0, 0.0), at_x(-1.0, 1.0)];
+        assert!(motion("/p", &s, Some((-0.5, 0.5))).unwrap().is_none());
+        // One sample, no shutter, a non-finite matrix.
+        assert!(motion("/p", &[at_x(0.0, 1.0)], Some((-0.5, 0.5)))
+            .unwrap()
+            .is_none());
+        assert!(motion("/p", &[at_x(-1.0, 0.0), at_x(1.0, 1.0)], None)
+            .unwrap()
+            .is_none());
+        let err = motion(
+            "/p",
+            &[at_x(-1.0, 0.0), at_x(1.0, f64::NAN)],
+            Some((-0.5, 0.5)),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(err.contains("/p") && err.contains("non-finite"), "{err}");
+
+        let moving = vec![at_x(-1.0, -0.4), at_x(1.0, 0.4)];
+        let mut sun = light("distantLight");
+        sun.xform_samples = moving.clone();
+        let desc = |camera_shutter: (f64, f64), settings: Option<[f64; 2]>| SceneDesc {
+            has_camera: true,
+            camera: CameraDesc {
+                path: "/cam".into(),
+                xform: identity(),
+                focal_length: 5.0,
+                horizontal_aperture: 3.6,
+                vertical_aperture: 2.4,
+                near: 0.1,
+                far: 100.0,
+                shutter_open: camera_shutter.0,
+                shutter_close: camera_shutter.1,
+                xform_samples: moving.clone(),
+                ..CameraDesc::default()
+            },
+            volumes: vec![{
+                let mut v = smoke_volume();
+                v.xform_samples = moving.clone();
+                let mut vel = v.fields[0].clone();
+                vel.name = "vel".into();
+                v.fields.push(vel);
+                v
+            }],
+            meshes: vec![MeshDesc {
+                path: "/wall".into(),
+                xform: identity(),
+                points: vec![0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0],
+                face_counts: vec![3],
+                face_indices: vec![0, 1, 2],
+                xform_samples: moving.clone(),
+                ..MeshDesc::default()
+            }],
+            lights: vec![sun.clone()],
+            has_settings_shutter: settings.is_some(),
+            settings_shutter: settings.unwrap_or_default(),
+            width: 8,
+            height: 8,
+            ..SceneDesc::default()
+        };
+        let (s, warnings) = scene_of(&desc((-0.5, 0.5), Some([0.0, 1.0]))).unwrap();
+        assert_eq!(s.camera.shutter, Some((-0.5, 0.5)));
+        assert_eq!(
+            xs(s.camera.motion.as_ref().unwrap()),
+            [(-0.5, -0.2), (0.5, 0.2)]
+        );
+        assert_eq!(
+            xs(s.volumes[0].motion.as_ref().unwrap()),
+            [(-0.5, -0.2), (0.5, 0.2)]
+        );
+        // The transform at the frame stays the one handed over.
+        assert_eq!(s.volumes[0].volume_to_world, DMat4::IDENTITY);
+        for p in [
+            "light /distantLight",
+            "mesh /wall",
+            "volume /smoke: its velocity field `vel`",
+        ] {
+            assert!(
+                warnings
+                    .iter()
+                    .any(|w| w.contains(p) && w.contains("shutter is open (-0.5 to 0.5)")),
+                "no warning about {p}: {warnings:?}"
+            );
+        }
+        // The camera's shutter closed: the render settings'.
+        let (s, _) = scene_of(&desc((0.0, 0.0), Some([0.0, 1.0]))).unwrap();
+        assert_eq!(s.camera.shutter, Some((0.0, 1.0)));
+        assert_eq!(
+            xs(s.camera.motion.as_ref().unwrap()),
+            [(0.0, 0.0), (1.0, 0.4)]
+        );
+        // Neither open: no motion, no warning.
+        let (s, warnings) = scene_of(&desc((0.0, 0.0), None)).unwrap();
+        assert_eq!(s.camera.shutter, None);
+        assert!(s.camera.motion.is_none() && s.volumes[0].motion.is_none());
+        assert!(
+            !warnings.iter().any(|w| w.contains("shutter")),
+            "{warnings:?}"
+        );
     }
 
     /// A quad and a pentagon fan into 1 + 3 triangles in world space; a hole and a

@@ -100,6 +100,11 @@ fn desc_of(scene: &Scene) -> SceneDesc {
             far: c.clipping_range.1,
             f_stop: c.f_stop,
             focus_distance: c.focus_distance,
+            shutter_open: c.shutter.map_or(0.0, |s| s.0),
+            shutter_close: c.shutter.map_or(0.0, |s| s.1),
+            // The example stages do not move (a moving camera's samples: the unit
+            // test of `scene`, tests/hydra_host.rs).
+            xform_samples: Vec::new(),
         },
         width: scene.settings.resolution.0,
         height: scene.settings.resolution.1,
