@@ -460,6 +460,7 @@ fn motion_stage(
     volume_ops: &str,
     camera_ops: &str,
     sun_ops: &str,
+    extra_light: &str,
     (open, close): (f64, f64),
 ) -> PathBuf {
     let vdb = common::repo().join("scenes/cloud/cloud.vdb");
@@ -509,6 +510,7 @@ def Xform "World"
         float inputs:intensity = 0.35
         color3f inputs:color = (0.35, 0.55, 1)
     }}
+{extra_light}
 }}
 "#,
         vdb = vdb.display(),
@@ -533,6 +535,19 @@ const STILL_CAMERA: &str = r#"        double3 xformOp:translate = (0, -0.5, 4.2)
 const MOVING_CAMERA: &str = r#"        double3 xformOp:translate.timeSamples = { 0: (-0.3, -0.7, 4.2), 2: (0.3, -0.3, 4.2) }
         float3 xformOp:rotateXYZ = (5, 0, 0)
         uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateXYZ"]"#;
+/// A bright spot above the cloud sliding 2.4 units along x over the shutter around
+/// frame 1 (a local light: blurred by both readers).
+const SLIDING_SPOT: &str = r#"    def SphereLight "Spot" (
+        prepend apiSchemas = ["ShapingAPI"]
+    )
+    {
+        float inputs:intensity = 400
+        float inputs:radius = 0.1
+        float inputs:shaping:cone:angle = 35
+        double3 xformOp:translate.timeSamples = { 0: (-2.4, 1.3, 0.2), 2: (2.4, 1.3, 0.2) }
+        float3 xformOp:rotateXYZ = (-90, 0, 0)
+        uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateXYZ"]
+    }"#;
 const STILL_SUN: &str = "        float3 xformOp:rotateXYZ = (-30, 80, 0)";
 /// The sun turning over frames 0 → 2 (a light: not blurred, a warning).
 const TURNING_SUN: &str =
@@ -1058,7 +1073,8 @@ mod hydra_host {
     }
 
     /// Motion blur through Hydra (issue 45): a stage whose volume slides over the
-    /// camera's open shutter (−0.5 to 0.5 around frame 1) and one whose camera slides,
+    /// camera's open shutter (−0.5 to 0.5 around frame 1), one whose camera slides and
+    /// one whose spot light slides (its `SampleTransform` too),
     /// rendered by the host with `--frame 1` (hdNimbus reads HdCamera's shutter and the
     /// camera's and volume's `SampleTransform`, the keys the shutter's ends) and by
     /// `nimbus render --frame 1` (the USD reader's keys: the same ends, nothing
@@ -1082,17 +1098,19 @@ mod hydra_host {
         std::fs::create_dir_all(&out).unwrap();
         let frame = ["--frame", "1"];
         let cases = [
-            ("volume", MOVING_VOLUME, STILL_CAMERA, TURNING_SUN),
-            ("camera", STILL_VOLUME, MOVING_CAMERA, STILL_SUN),
+            ("volume", MOVING_VOLUME, STILL_CAMERA, TURNING_SUN, ""),
+            ("camera", STILL_VOLUME, MOVING_CAMERA, STILL_SUN, ""),
+            ("light", STILL_VOLUME, STILL_CAMERA, STILL_SUN, SLIDING_SPOT),
         ];
-        for (what, volume, camera, sun) in cases {
-            let blurred = motion_stage(&out, what, volume, camera, sun, (-0.5, 0.5));
+        for (what, volume, camera, sun, extra) in cases {
+            let blurred = motion_stage(&out, what, volume, camera, sun, extra, (-0.5, 0.5));
             let still = motion_stage(
                 &out,
                 &format!("{what}_still"),
                 volume,
                 camera,
                 sun,
+                extra,
                 (0.0, 0.0),
             );
             let (hydra, log) = hydra_render_with(
@@ -1123,7 +1141,7 @@ mod hydra_host {
                 "{what}: nimbus render warnings: {e}"
             );
             for (who, text) in [("hdNimbus", &log), ("nimbus render", &e)] {
-                for moved in ["/World/Cloud", "/World/Camera"] {
+                for moved in ["/World/Cloud", "/World/Camera", "/World/Spot"] {
                     assert!(
                         !warned(text, moved),
                         "{what}: {who} warns about {moved}, which it should blur: {text}"

@@ -1404,8 +1404,10 @@ def motion_overlay(depsgraph, scene, shutter, moving, prims, t, warnings, frame_
     """Motion blur in the overlay: the camera's shutter:open/close, and the objects'
     transforms sampled at Cycles' times. The camera and Volume objects: at their
     motion steps over the shutter (Nimbus interpolates between the samples linearly,
-    as Cycles between its steps); objects Nimbus does not blur (lights, holdouts, fog
-    meshes): where they are at the shutter's middle, the time Cycles syncs an object
+    as Cycles between its steps); lights, which Cycles does not blur (it syncs them
+    only at the shutter's middle; Nimbus would blur a USD stage's moving local light),
+    and objects Nimbus does not blur (holdouts, fog meshes): where they are at the
+    shutter's middle, the time Cycles syncs an object
     it does not blur at, with a warning when they move while the shutter is open."""
     prims.setdefault(t.camera, ([], []))
     prims[t.camera][1].extend([f"double shutter:open = {_f(shutter.open)}",
@@ -1441,8 +1443,8 @@ def motion_overlay(depsgraph, scene, shutter, moving, prims, t, warnings, frame_
                 prims[path][1].extend(motion_lines(middle, parent))
         if kind == "light":
             warnings.append(
-                f"light '{name}': moves while the shutter is open ({ends}); Nimbus does "
-                f"not blur lights: it is rendered {where}")
+                f"light '{name}': moves while the shutter is open ({ends}); Cycles does "
+                f"not blur lights, and the add-on renders it as Cycles does: {where}")
         else:
             warnings.append(
                 f"object '{name}': moves while the shutter is open ({ends}); Nimbus blurs "

@@ -73,8 +73,7 @@ pub fn scene_of(desc: &SceneDesc) -> Result<(Scene, Vec<String>)> {
     let mut lights: Vec<&LightDesc> = desc.lights.iter().collect();
     lights.sort_by(|a, b| a.path.cmp(&b.path));
     for l in lights {
-        warn_if_moving("light", &l.path, &l.xform_samples, shutter, &mut warnings)?;
-        add_light(&mut scene, l, &links, &mut warnings)?;
+        add_light(&mut scene, l, &links, shutter, &mut warnings)?;
     }
     let mut volumes: Vec<&VolumeDesc> = desc.volumes.iter().collect();
     volumes.sort_by(|a, b| a.path.cmp(&b.path));
@@ -166,7 +165,7 @@ fn warn_if_moving(
 ) -> Result<()> {
     if let (Some((open, close)), Some(_)) = (shutter, motion(path, samples, shutter)?) {
         warnings.push(format!(
-            "motion blur: {kind} {path}: its transform changes while the camera's shutter is open ({open} to {close}): Nimbus blurs the camera's and volumes' transforms, not a {kind}'s; it is rendered at the frame's time"
+            "motion blur: {kind} {path}: its transform changes while the camera's shutter is open ({open} to {close}): Nimbus blurs the transforms of the camera, volumes and sphere, rect, disk and cylinder lights, not a {kind}'s; it is rendered at the frame's time"
         ));
     }
     Ok(())
@@ -255,13 +254,47 @@ fn controls(l: &LightDesc, links: &Links) -> LightControls {
     }
 }
 
+/// The motion of a local (sphere, rect, disk, cylinder) light over `shutter`, as the
+/// USD reader keeps it: only a light that turns and slides is blurred; one whose size
+/// changes warns and renders at the frame.
+fn light_motion(
+    l: &LightDesc,
+    to_world: &DMat4,
+    shutter: Option<(f64, f64)>,
+    warnings: &mut Vec<String>,
+) -> Result<Option<TransformMotion>> {
+    let Some(m) = motion(&l.path, &l.xform_samples, shutter)? else {
+        return Ok(None);
+    };
+    if m.is_rigid_from(to_world) {
+        return Ok(Some(m));
+    }
+    let (open, close) = shutter.unwrap_or_default();
+    warnings.push(format!(
+        "motion blur: light {}: it changes size or shape while the camera's shutter is open ({open} to {close}): Nimbus blurs a light that turns and slides, not one that scales; it is rendered at the frame's time",
+        l.path
+    ));
+    Ok(None)
+}
+
 fn add_light(
     scene: &mut Scene,
     l: &LightDesc,
     links: &Links,
+    shutter: Option<(f64, f64)>,
     warnings: &mut Vec<String>,
 ) -> Result<()> {
     let to_world = finite_matrix(&l.path, &l.xform)?;
+    // Distant and dome lights are not blurred (as the USD reader's).
+    let motion = match l.kind.as_str() {
+        "sphereLight" | "rectLight" | "diskLight" | "cylinderLight" => {
+            light_motion(l, &to_world, shutter, warnings)?
+        }
+        _ => {
+            warn_if_moving("light", &l.path, &l.xform_samples, shutter, warnings)?;
+            None
+        }
+    };
     let temperature = l.enable_color_temperature.then_some(l.color_temperature);
     let group = (!l.light_group.is_empty()).then(|| l.light_group.clone());
     let path = l.path.clone();
@@ -304,6 +337,7 @@ fn add_light(
             controls: controls(l, links),
             light_group: group,
             light_to_world: to_world,
+            motion,
             intensity: l.intensity,
             exposure: l.exposure,
             color: l.color,
@@ -317,6 +351,7 @@ fn add_light(
             controls: controls(l, links),
             light_group: group,
             light_to_world: to_world,
+            motion,
             intensity: l.intensity,
             exposure: l.exposure,
             color: l.color,
@@ -330,6 +365,7 @@ fn add_light(
             controls: controls(l, links),
             light_group: group,
             light_to_world: to_world,
+            motion,
             intensity: l.intensity,
             exposure: l.exposure,
             color: l.color,
@@ -342,6 +378,7 @@ fn add_light(
             controls: controls(l, links),
             light_group: group,
             light_to_world: to_world,
+            motion,
             intensity: l.intensity,
             exposure: l.exposure,
             color: l.color,
@@ -1404,6 +1441,16 @@ pub(crate) mod tests {
         let moving = vec![at_x(-1.0, -0.4), at_x(1.0, 0.4)];
         let mut sun = light("distantLight");
         sun.xform_samples = moving.clone();
+        // A sphere light sliding is blurred; a rect light growing warns.
+        let mut bulb = light("sphereLight");
+        bulb.xform_samples = moving.clone();
+        let mut panel = light("rectLight");
+        panel.xform_samples = [(-1.0, 1.0), (1.0, 2.0)]
+            .map(|(time, k)| XformSample {
+                time,
+                xform: DMat4::from_scale(DVec3::splat(k)).to_cols_array(),
+            })
+            .to_vec();
         let desc = |camera_shutter: (f64, f64), settings: Option<[f64; 2]>| SceneDesc {
             has_camera: true,
             camera: CameraDesc {
@@ -1436,7 +1483,7 @@ pub(crate) mod tests {
                 xform_samples: moving.clone(),
                 ..MeshDesc::default()
             }],
-            lights: vec![sun.clone()],
+            lights: vec![sun.clone(), bulb.clone(), panel.clone()],
             has_settings_shutter: settings.is_some(),
             settings_shutter: settings.unwrap_or_default(),
             width: 8,
@@ -1453,6 +1500,18 @@ pub(crate) mod tests {
             xs(s.volumes[0].motion.as_ref().unwrap()),
             [(-0.5, -0.2), (0.5, 0.2)]
         );
+        assert_eq!(
+            xs(s.sphere_lights[0].motion.as_ref().unwrap()),
+            [(-0.5, -0.2), (0.5, 0.2)]
+        );
+        assert!(s.rect_lights[0].motion.is_none());
+        assert!(
+            warnings
+                .iter()
+                .any(|w| w.contains("light /rectLight: it changes size")),
+            "{warnings:?}"
+        );
+        assert!(!warnings.iter().any(|w| w.contains("/sphereLight")));
         // The transform at the frame stays the one handed over.
         assert_eq!(s.volumes[0].volume_to_world, DMat4::IDENTITY);
         for p in [
