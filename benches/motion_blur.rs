@@ -5,7 +5,8 @@
 //!
 //! Stages (each in a still and a blurred version, shutter ±0.5 frames):
 //! - `cloud`: the cloud example, its volume sliding 0.4 units and turning 20° over the
-//!   shutter (transform motion), and separately its camera moving;
+//!   shutter (transform motion), and separately its camera moving; and with a spot
+//!   light above it, still and sliding 1.2 units and tilting 15° (a moving light);
 //! - `smoke`: ../shared/data's smoke.vdb under a sun, advected by a swirl velocity grid
 //!   (up to ~2.5 voxels per frame at the box's side, plus an updraft).
 //!
@@ -43,6 +44,41 @@ fn cloud_stage(dir: &Path, name: &str, volume_ops: &str, camera_ops: &str, open:
         );
     let path = dir.join(name);
     std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// `stage` with a spot above the cloud (a sphere light of radius 0.1 with a 35° cone),
+/// still or sliding 1.2 units along x and tilting 15° over the shutter (as
+/// tests/motion_blur.rs's moving spot).
+fn with_spot(dir: &Path, name: &str, stage: &Path, moving: bool) -> PathBuf {
+    let (translate, rotate) = match moving {
+        true => (
+            "double3 xformOp:translate.timeSamples = { 0: (-1.2, 1.3, 0.2), 2: (1.2, 1.3, 0.2) }",
+            "float3 xformOp:rotateXYZ.timeSamples = { 0: (-90, 0, -15), 2: (-90, 0, 15) }",
+        ),
+        false => (
+            "double3 xformOp:translate = (0, 1.3, 0.2)",
+            "float3 xformOp:rotateXYZ = (-90, 0, 0)",
+        ),
+    };
+    let spot = format!(
+        r#"
+def SphereLight "Spot" (
+    prepend apiSchemas = ["ShapingAPI"]
+)
+{{
+    float inputs:intensity = 60
+    float inputs:radius = 0.1
+    float inputs:shaping:cone:angle = 35
+    float inputs:shaping:cone:softness = 0.2
+    {translate}
+    {rotate}
+    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateXYZ"]
+}}
+"#
+    );
+    let path = dir.join(name);
+    std::fs::write(&path, std::fs::read_to_string(stage).unwrap() + &spot).unwrap();
     path
 }
 
@@ -174,6 +210,16 @@ fn main() {
             cloud_stage(d, "c.usda", still_volume, moving_camera, true),
         ),
     ];
+    // The spot's cases: the still stage with the shutter open (nothing else moves).
+    let open_still = cloud_stage(d, "f.usda", still_volume, still_camera, true);
+    cases.push((
+        "cloud + spot still",
+        with_spot(d, "g.usda", &open_still, false),
+    ));
+    cases.push((
+        "cloud + spot moving",
+        with_spot(d, "h.usda", &open_still, true),
+    ));
     let smoke = repo().join("../shared/data/openvdb_samples/smoke.vdb");
     if smoke.is_file() {
         let vel = smoke_velocity(d, &smoke);
