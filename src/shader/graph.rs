@@ -17,6 +17,7 @@
 use super::interval::{blender_noise_bound, cell_noise_3d_bound, perlin_3d_bound, Interval};
 use super::materialx_noise::{cell_noise_3d, perlin_noise_3d};
 use super::noise::NoiseTexture;
+use super::voronoi::{VoronoiOutput, VoronoiTexture};
 
 /// A register index.
 pub type Reg = u16;
@@ -128,6 +129,15 @@ pub enum Instr {
         w: Reg,
         noise: u16,
     },
+    /// Blender's Voronoi Texture (3D, F1, Euclidean) at the Vector `p`: its Distance
+    /// (one register) or its Color or Position (three), the node in the program's
+    /// table (`voronoi`: the index there).
+    BlenderVoronoi {
+        dst: Reg,
+        p: Reg,
+        voronoi: u16,
+        output: VoronoiOutput,
+    },
     /// A lookup table over [0, 1] (Blender's Color Ramp as Cycles evaluates it: the
     /// ramp sampled at i / (n − 1), linearly interpolated between samples or not):
     /// `table` indexes the program's ramps.
@@ -146,6 +156,8 @@ pub struct Program {
     /// The Noise Texture nodes [`Instr::BlenderNoise`] evaluates (kept aside: they are
     /// larger than any instruction).
     noises: Vec<NoiseTexture>,
+    /// The Voronoi Texture nodes [`Instr::BlenderVoronoi`] evaluates.
+    voronois: Vec<VoronoiTexture>,
     /// The tables [`Instr::Ramp`] reads.
     ramps: Vec<Vec<f32>>,
     registers: usize,
@@ -195,6 +207,7 @@ impl Value {
 pub struct Builder {
     instrs: Vec<Instr>,
     noises: Vec<NoiseTexture>,
+    voronois: Vec<VoronoiTexture>,
     ramps: Vec<Vec<f32>>,
     nodes: Vec<String>,
     next: usize,
@@ -207,6 +220,7 @@ impl Default for Builder {
         Builder {
             instrs: Vec::new(),
             noises: Vec::new(),
+            voronois: Vec::new(),
             ramps: Vec::new(),
             nodes: Vec::new(),
             next: INPUTS as usize,
@@ -532,6 +546,39 @@ impl Builder {
         Ok(Value::Float(dst))
     }
 
+    /// Blender's Voronoi Texture node (3D, F1, Euclidean, one octave) at the Vector `p`:
+    /// its `output` (Distance a float, Color and Position vector3s).
+    pub fn blender_voronoi(
+        &mut self,
+        p: Value,
+        node: VoronoiTexture,
+        output: VoronoiOutput,
+    ) -> Result<Value, GraphError> {
+        let p = self.position3(p)?;
+        if !(node.scale.is_finite() && node.randomness.is_finite()) {
+            return Err(self.error("Scale and Randomness must be finite"));
+        }
+        let index = u16::try_from(self.voronois.len()).map_err(|_| GraphError::TooLarge)?;
+        self.voronois.push(node);
+        let (dst, v) = match output {
+            VoronoiOutput::Distance => {
+                let r = self.alloc(1)?;
+                (r, Value::Float(r))
+            }
+            _ => {
+                let r = self.alloc(3)?;
+                (r, Value::Vector3(r))
+            }
+        };
+        self.push(Instr::BlenderVoronoi {
+            dst,
+            p,
+            voronoi: index,
+            output,
+        });
+        Ok(v)
+    }
+
     /// A lookup of `x` in `table` (at least 2 finite entries, sampled at i / (n − 1)
     /// over [0, 1]; `x` clamped to [0, 1]), interpolated linearly or not.
     pub fn ramp(
@@ -580,6 +627,7 @@ impl Builder {
             output_width,
             instrs: self.instrs,
             noises: self.noises,
+            voronois: self.voronois,
             ramps: self.ramps,
             registers: self.next,
             output,
@@ -762,6 +810,20 @@ impl Program {
                     let node = &self.noises[noise as usize];
                     r[dst as usize] = node.fac([r[p], r[p + 1], r[p + 2]], r[w as usize]);
                 }
+                Instr::BlenderVoronoi {
+                    dst,
+                    p,
+                    voronoi,
+                    output,
+                } => {
+                    let (p, dst) = (p as usize, dst as usize);
+                    let v = self.voronois[voronoi as usize].eval([r[p], r[p + 1], r[p + 2]]);
+                    match output {
+                        VoronoiOutput::Distance => r[dst] = v.distance,
+                        VoronoiOutput::Color => r[dst..dst + 3].copy_from_slice(&v.color),
+                        VoronoiOutput::Position => r[dst..dst + 3].copy_from_slice(&v.position),
+                    }
+                }
             }
         }
         r
@@ -885,6 +947,23 @@ impl Program {
                     let node = &self.noises[noise as usize];
                     r[dst as usize] =
                         blender_noise_bound(node, [r[p], r[p + 1], r[p + 2], r[w as usize]]);
+                }
+                Instr::BlenderVoronoi {
+                    dst,
+                    p,
+                    voronoi,
+                    output,
+                } => {
+                    let (p, dst) = (p as usize, dst as usize);
+                    let (d, c, q) = self.voronois[voronoi as usize].bounds(
+                        [r[p].lo, r[p + 1].lo, r[p + 2].lo],
+                        [r[p].hi, r[p + 1].hi, r[p + 2].hi],
+                    );
+                    match output {
+                        VoronoiOutput::Distance => r[dst] = d,
+                        VoronoiOutput::Color => r[dst..dst + 3].copy_from_slice(&c),
+                        VoronoiOutput::Position => r[dst..dst + 3].copy_from_slice(&q),
+                    }
                 }
             }
         }
