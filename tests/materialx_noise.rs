@@ -1,7 +1,8 @@
-//! MaterialX's `noise3d` and `fractal3d` against the MaterialX standard library's
+//! MaterialX's `noise3d`, `fractal3d` and `cellnoise3d` against the MaterialX standard library's
 //! published formulas: `tests/fixtures/materialx_noise_values.py` transcribes
 //! `mx_noise.glsl` (Perlin noise, lookup3 hash, gradients, fade, trilinear interpolation,
-//! the fractal sum) and the two nodes' GLSL into numpy, one float32 operation per GLSL
+//! the fractal sum, `mx_cell_noise_float(vec3)` with `mx_bits_to_01`) and the nodes'
+//! GLSL into numpy, one float32 operation per GLSL
 //! operation in the GLSL's order, and evaluates them at 10,000 random points per
 //! parameter set. `nimbus::shader::materialx_noise` must give the same floats, bit for
 //! bit: both sides round every operation once, in the same order, with no fused
@@ -18,13 +19,14 @@ mod common;
 use std::path::Path;
 use std::process::Command;
 
-use nimbus::shader::materialx_noise::{Fractal3d, Noise3d};
+use nimbus::shader::materialx_noise::{cell_noise_3d, Fractal3d, Noise3d};
 
 const N: usize = 10_000;
 
 enum Node {
     Noise(Noise3d),
     Fractal(Fractal3d),
+    Cell,
 }
 
 struct Case {
@@ -64,6 +66,9 @@ fn cases() -> Vec<Case> {
             fractal(4, 1.7, 0.45, 1.0),
         ),
         case("fractal3d_wide", "wide", 8, fractal(3, 2.0, 0.5, 1.0)),
+        case("cellnoise3d_box", "box", 9, Node::Cell),
+        case("cellnoise3d_negative", "negative", 10, Node::Cell),
+        case("cellnoise3d_wide", "wide", 11, Node::Cell),
     ]
 }
 
@@ -81,6 +86,7 @@ fn cases_json(cases: &[Case]) -> String {
                     f.lacunarity,
                     f.diminish,
                 ),
+                Node::Cell => ("cellnoise3d", 0.0, 0.0, 0, 0.0, 0.0),
             };
             format!(
                 "{{\"name\": \"{}\", \"node\": \"{node}\", \"points\": \"{}\", \"seed\": {}, \
@@ -106,7 +112,7 @@ fn read_rows(path: &Path) -> Vec<[f32; 4]> {
 }
 
 #[test]
-fn noise3d_and_fractal3d_match_the_published_formulas() {
+fn noise3d_fractal3d_and_cellnoise3d_match_the_published_formulas() {
     if !common::python_imports(&["numpy"], common::data::SETUP_PYTHON) {
         return;
     }
@@ -135,6 +141,7 @@ fn noise3d_and_fractal3d_match_the_published_formulas() {
             let ours = match &case.node {
                 Node::Noise(n) => n.eval(p),
                 Node::Fractal(f) => f.eval(p),
+                Node::Cell => cell_noise_3d(p),
             };
             let diff = (ours - r[3]).abs();
             max_abs = max_abs.max(diff);

@@ -422,9 +422,9 @@ fn graphs_nimbus_cannot_read_are_refused_naming_the_node() {
     let text = std::fs::read_to_string(&cube).unwrap();
     for (what, from, to, needle) in [
         (
-            "cellnoise",
+            "worleynoise",
             "ND_fractal3d_float",
-            "ND_cellnoise3d_float",
+            "ND_worleynoise3d_float",
             "/Mat/graph/fractal",
         ),
         (
@@ -734,11 +734,11 @@ fn a_blender_node_tree_on_densityscale_is_the_fog_density() {
         assert!(max_seen > varies, "the graph varies: largest {max_seen}");
     }
 
-    let voronoi = blender_cube_stage(dir.path(), "ShaderNodeTexVoronoi");
+    let wave = blender_cube_stage(dir.path(), "ShaderNodeTexWave");
     let out = dir.path().join("never.exr");
     let o = nimbus(&[
         "render",
-        voronoi.to_str().unwrap(),
+        wave.to_str().unwrap(),
         "-o",
         out.to_str().unwrap(),
         "--res",
@@ -747,8 +747,378 @@ fn a_blender_node_tree_on_densityscale_is_the_fog_density() {
         "1",
     ]);
     assert_clean_error(&o, "/Graphs/noise");
+    assert!(stderr(&o).contains("ShaderNodeTexWave"), "{}", stderr(&o));
+    assert!(!out.exists());
+}
+
+/// A material whose density is MaterialX's `cellnoise3d` and ramps (no texcoord on a
+/// volume: the ramps' `texcoord` is `ND_combine2_vector2` of float graphs):
+/// ramplr(valuel = ramp4(tl 0.2, tr 1.5, bl 0, br 3; texcoord (x/2 + 1/2,
+/// cellnoise3d(4p))), valuer 2; texcoord (y/2 + 1/2, 0)), on the fog box. `texcoord`
+/// is the ramplr's texcoord line (replaced to test the refusals).
+fn ramps_material(texcoord: &str) -> String {
+    format!(
+        r#"def Material "Mat"
+{{
+    token outputs:mtlx:volume.connect = </Mat/vdf.outputs:out>
+    def Shader "vdf"
+    {{
+        uniform token info:id = "ND_anisotropic_vdf"
+        color3f inputs:absorption.connect = </Mat/absorb.outputs:out>
+        color3f inputs:scattering.connect = </Mat/absorb.outputs:out>
+        token outputs:out
+    }}
+    def Shader "absorb"
+    {{
+        uniform token info:id = "ND_convert_float_color3"
+        float inputs:in.connect = </Mat/graph/lr.outputs:out>
+        color3f outputs:out
+    }}
+    def NodeGraph "graph"
+    {{
+        def Shader "pos"
+        {{
+            uniform token info:id = "ND_position_vector3"
+            vector3f outputs:out
+        }}
+        def Shader "p4"
+        {{
+            uniform token info:id = "ND_multiply_vector3FA"
+            vector3f inputs:in1.connect = </Mat/graph/pos.outputs:out>
+            float inputs:in2 = 4
+            vector3f outputs:out
+        }}
+        def Shader "cells"
+        {{
+            uniform token info:id = "ND_cellnoise3d_float"
+            vector3f inputs:position.connect = </Mat/graph/p4.outputs:out>
+            float outputs:out
+        }}
+        def Shader "halfx"
+        {{
+            uniform token info:id = "ND_dot_vector3"
+            vector3f inputs:in1.connect = </Mat/graph/pos.outputs:out>
+            vector3f inputs:in2 = (0.5, 0, 0)
+            float outputs:out
+        }}
+        def Shader "s"
+        {{
+            uniform token info:id = "ND_add_float"
+            float inputs:in1.connect = </Mat/graph/halfx.outputs:out>
+            float inputs:in2 = 0.5
+            float outputs:out
+        }}
+        def Shader "st"
+        {{
+            uniform token info:id = "ND_combine2_vector2"
+            float inputs:in1.connect = </Mat/graph/s.outputs:out>
+            float inputs:in2.connect = </Mat/graph/cells.outputs:out>
+            float2 outputs:out
+        }}
+        def Shader "quad"
+        {{
+            uniform token info:id = "ND_ramp4_float"
+            float inputs:valuetl = 0.2
+            float inputs:valuetr = 1.5
+            float inputs:valuebl = 0
+            float inputs:valuebr = 3
+            float2 inputs:texcoord.connect = </Mat/graph/st.outputs:out>
+            float outputs:out
+        }}
+        def Shader "halfy"
+        {{
+            uniform token info:id = "ND_dot_vector3"
+            vector3f inputs:in1.connect = </Mat/graph/pos.outputs:out>
+            vector3f inputs:in2 = (0, 0.5, 0)
+            float outputs:out
+        }}
+        def Shader "u"
+        {{
+            uniform token info:id = "ND_add_float"
+            float inputs:in1.connect = </Mat/graph/halfy.outputs:out>
+            float inputs:in2 = 0.5
+            float outputs:out
+        }}
+        def Shader "u0"
+        {{
+            uniform token info:id = "ND_combine2_vector2"
+            float inputs:in1.connect = </Mat/graph/u.outputs:out>
+            float2 outputs:out
+        }}
+        def Shader "lr"
+        {{
+            uniform token info:id = "ND_ramplr_float"
+            float inputs:valuel.connect = </Mat/graph/quad.outputs:out>
+            float inputs:valuer = 2
+            {texcoord}
+            float outputs:out
+        }}
+    }}
+}}
+"#
+    )
+}
+
+const RAMPLR_TEXCOORD: &str = "float2 inputs:texcoord.connect = </Mat/graph/u0.outputs:out>";
+
+fn ramps_stage(dir: &Path, name: &str, texcoord: &str) -> PathBuf {
+    let body = format!(
+        "{}\ndef Cube \"Box\" (\n    prepend apiSchemas = [\"MaterialBindingAPI\"]\n)\n{{\n    double size = 2\n    rel material:binding = </Mat>\n    {PLACE}\n}}\n",
+        ramps_material(texcoord)
+    );
+    stage(dir, name, &body)
+}
+
+/// [`ramps_material`]'s density written out (object-space `p`): GLSL's mix and clamp,
+/// MaterialX's cell noise.
+fn ramps_density(p: DVec3) -> f64 {
+    use nimbus::shader::materialx_noise::cell_noise_3d;
+    let q = p.as_vec3();
+    let mix = |a: f32, b: f32, t: f32| a * (1.0 - t) + b * t;
+    let s = (q.x * 0.5 + 0.5).clamp(0.0, 1.0);
+    let t = cell_noise_3d((q * 4.0).to_array()).clamp(0.0, 1.0);
+    let quad = mix(mix(0.0, 3.0, s), mix(0.2, 1.5, s), t);
+    let u = (q.y * 0.5 + 0.5).clamp(0.0, 1.0);
+    mix(quad, 2.0, u) as f64
+}
+
+/// MaterialX `cellnoise3d`, `ramp4` and `ramplr` in a fog box's density: at 10⁶ points
+/// the medium's density is the graph written out (to 1e-5), inside its majorant cell's
+/// bounds for the flat grid and the octree; an unconnected texcoord (UV0, which a
+/// volume lacks) and a texcoord from a node other than ND_combine2_vector2 are refused,
+/// naming the ramp.
+#[test]
+fn cellnoise_and_ramps_are_bounded_by_their_majorants() {
+    let dir = tempfile::tempdir().unwrap();
+    let stage = ramps_stage(dir.path(), "ramps.usda", RAMPLR_TEXCOORD);
+    let scene = load_stage(&stage, &LoadOptions::default()).unwrap();
+    for spec in [
+        MajorantSpec::Uniform { cell_voxels: 4 },
+        MajorantSpec::Octree { depth: 6 },
+    ] {
+        let media = media_for_scene_with(&scene, spec).unwrap();
+        let m = &media[0];
+        assert!(m.shader.is_some());
+        let mut c = Counters::default();
+        let mut state = 5u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (mut worst, mut min_seen, mut max_seen) = (0f64, f64::INFINITY, 0f64);
+        for _ in 0..1_000_000 {
+            let p = DVec3::new(next(), next(), next()) * 1.98 - DVec3::splat(0.99);
+            // World = object + (0.3, 0, 0).
+            let i = m.index_ray(p + DVec3::new(0.3, 0.0, 0.0), DVec3::X).o;
+            let d = m.density(i, &mut c) as f64;
+            // Within 1e-5 of a cell face the index transform's rounding may put the
+            // point in the neighbouring cell: no comparison there.
+            let near_face = (p * 4.0)
+                .to_array()
+                .iter()
+                .any(|c| (c - c.round()).abs() < 1e-5);
+            if !near_face {
+                worst = worst.max((d - ramps_density(p)).abs());
+            }
+            min_seen = min_seen.min(d);
+            max_seen = max_seen.max(d);
+            let cell = m.majorants.leaf_at(i).expect("inside the cube");
+            let (mn, mx) = m.majorants.leaf_bounds(cell).unwrap();
+            assert!(
+                d as f32 <= mx && d as f32 >= mn,
+                "{spec:?}: density {d} outside [{mn}, {mx}] at {p}"
+            );
+        }
+        eprintln!(
+            "ramps {spec:?}: worst |density - written out| {worst:e}, density in [{min_seen}, {max_seen}], global bound {}",
+            m.majorants.max_density()
+        );
+        assert!(worst < 1e-5, "worst difference {worst}");
+        assert!(min_seen < 0.1 && max_seen > 2.0, "the graph varies");
+    }
+
+    for (what, texcoord, needle) in [
+        ("unconnected", "", "UV0"),
+        (
+            "vector3",
+            "float2 inputs:texcoord.connect = </Mat/graph/p4.outputs:out>",
+            "ND_combine2_vector2",
+        ),
+    ] {
+        let path = ramps_stage(dir.path(), &format!("{what}.usda"), texcoord);
+        let out = dir.path().join("never.exr");
+        let o = nimbus(&[
+            "render",
+            path.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--res",
+            "8x8",
+            "--spp",
+            "1",
+        ]);
+        assert_clean_error(&o, "/Mat/graph/lr");
+        assert!(stderr(&o).contains(needle), "{what}: {}", stderr(&o));
+        assert!(!out.exists());
+    }
+}
+
+/// A fog cube whose density is a Voronoi Texture as the add-on writes it (3D, F1,
+/// Euclidean, Detail 0, Scale 3, Randomness 0.8, on Object coordinates): Distance × 2
+/// + Color's red (through Separate XYZ) + Position's y through Separate XYZ × 0.1
+/// (Math nodes). `feature` is the node's feature token.
+fn blender_voronoi_stage(dir: &Path, name: &str, feature: &str) -> PathBuf {
+    let body = format!(
+        r#"def Scope "Graphs"
+{{
+    def Shader "coords"
+    {{
+        uniform token info:id = "ShaderNodeTexCoord"
+    }}
+    def Shader "cells"
+    {{
+        uniform token info:id = "ShaderNodeTexVoronoi"
+        uniform token inputs:voronoi_dimensions = "3D"
+        uniform token inputs:feature = "{feature}"
+        uniform token inputs:distance = "EUCLIDEAN"
+        float inputs:normalize = 0
+        float inputs:Scale = 3
+        float inputs:Detail = 0
+        float inputs:Roughness = 0.5
+        float inputs:Lacunarity = 2
+        float inputs:Randomness = 0.8
+        float3 inputs:Vector.connect = </Graphs/coords.outputs:Object>
+    }}
+    def Shader "times"
+    {{
+        uniform token info:id = "ShaderNodeMath"
+        uniform token inputs:operation = "MULTIPLY"
+        float inputs:Value.connect = </Graphs/cells.outputs:Distance>
+        float inputs:Value_001 = 2
+    }}
+    def Shader "red"
+    {{
+        uniform token info:id = "ShaderNodeSeparateXYZ"
+        float3 inputs:Vector.connect = </Graphs/cells.outputs:Color>
+    }}
+    def Shader "where"
+    {{
+        uniform token info:id = "ShaderNodeSeparateXYZ"
+        float3 inputs:Vector.connect = </Graphs/cells.outputs:Position>
+    }}
+    def Shader "tilt"
+    {{
+        uniform token info:id = "ShaderNodeMath"
+        uniform token inputs:operation = "MULTIPLY_ADD"
+        float inputs:Value.connect = </Graphs/where.outputs:Y>
+        float inputs:Value_001 = 0.1
+        float inputs:Value_002.connect = </Graphs/red.outputs:X>
+    }}
+    def Shader "sum"
+    {{
+        uniform token info:id = "ShaderNodeMath"
+        uniform token inputs:operation = "ADD"
+        float inputs:Value.connect = </Graphs/times.outputs:Value>
+        float inputs:Value_001.connect = </Graphs/tilt.outputs:Value>
+    }}
+}}
+def Cube "Box" (
+    prepend apiSchemas = ["NimbusVolumeAPI"]
+)
+{{
+    double size = 2
+    float nimbus:densityScale.connect = </Graphs/sum.outputs:Value>
+}}
+"#
+    );
+    stage(dir, name, &body)
+}
+
+/// [`blender_voronoi_stage`]'s density written out.
+fn blender_voronoi_density(p: DVec3) -> f64 {
+    use nimbus::shader::voronoi::VoronoiTexture;
+    let node = VoronoiTexture {
+        scale: 3.0,
+        randomness: 0.8,
+        normalize: false,
+    };
+    let v = node.eval(p.as_vec3().to_array());
+    (v.distance * 2.0 + (v.position[1] * 0.1 + v.color[0])) as f64
+}
+
+/// Blender's Voronoi Texture (Distance, Color and Position) in a fog's density: at 10⁶
+/// points the density is the tree written out (to 1e-5, away from cell faces) and
+/// inside its majorant cell's bounds, flat grid and octree; another feature (F2) is
+/// refused naming the node and the feature.
+#[test]
+fn a_blender_voronoi_density_is_bounded_by_its_majorants() {
+    let dir = tempfile::tempdir().unwrap();
+    let stage = blender_voronoi_stage(dir.path(), "voronoi.usda", "F1");
+    let scene = load_stage(&stage, &LoadOptions::default()).unwrap();
+    for spec in [
+        MajorantSpec::Uniform { cell_voxels: 4 },
+        MajorantSpec::Octree { depth: 6 },
+    ] {
+        let media = media_for_scene_with(&scene, spec).unwrap();
+        let m = &media[0];
+        assert!(m.shader.is_some());
+        let mut c = Counters::default();
+        let mut state = 9u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (mut worst, mut compared, mut max_seen) = (0f64, 0usize, 0f64);
+        for _ in 0..1_000_000 {
+            let p = DVec3::new(next(), next(), next()) * 1.98 - DVec3::splat(0.99);
+            let i = m.index_ray(p, DVec3::X).o;
+            let d = m.density(i, &mut c) as f64;
+            let cell = m.majorants.leaf_at(i).expect("inside the cube");
+            let (mn, mx) = m.majorants.leaf_bounds(cell).unwrap();
+            assert!(
+                d as f32 <= mx && d as f32 >= mn,
+                "{spec:?}: density {d} outside [{mn}, {mx}] at {p}"
+            );
+            max_seen = max_seen.max(d);
+            // Through the index transform the point moves by rounding: where the
+            // nearest point changes (Color, Position jump) the two may differ; compare
+            // where a 1e-5 move changes nothing.
+            let steady = [-1e-5, 1e-5].iter().all(|&e| {
+                [DVec3::X, DVec3::Y, DVec3::Z].iter().all(|&a| {
+                    (blender_voronoi_density(p + a * e) - blender_voronoi_density(p)).abs() < 1e-3
+                })
+            });
+            if steady {
+                compared += 1;
+                worst = worst.max((d - blender_voronoi_density(p)).abs());
+            }
+        }
+        eprintln!(
+            "voronoi {spec:?}: worst |density - written out| {worst:e} at {compared} points, largest {max_seen}, global bound {}",
+            m.majorants.max_density()
+        );
+        assert!(worst < 1e-5 && compared > 990_000, "{worst} {compared}");
+    }
+
+    let f2 = blender_voronoi_stage(dir.path(), "f2.usda", "F2");
+    let out = dir.path().join("never.exr");
+    let o = nimbus(&[
+        "render",
+        f2.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--res",
+        "8x8",
+        "--spp",
+        "1",
+    ]);
+    assert_clean_error(&o, "/Graphs/cells");
     assert!(
-        stderr(&o).contains("ShaderNodeTexVoronoi"),
+        stderr(&o).contains("ShaderNodeTexVoronoi") && stderr(&o).contains("F2"),
         "{}",
         stderr(&o)
     );

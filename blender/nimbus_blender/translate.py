@@ -176,6 +176,7 @@ GRAPHS = f"{ROOT}/nimbus_graphs"
 _GRAPH_NODES = {
     "ShaderNodeTexCoord": (),
     "ShaderNodeTexNoise": ("noise_dimensions", "noise_type", "normalize"),
+    "ShaderNodeTexVoronoi": ("voronoi_dimensions", "feature", "distance", "normalize"),
     "ShaderNodeTexGradient": ("gradient_type",),
     "ShaderNodeValToRGB": (),
     "ShaderNodeRGBToBW": (),
@@ -189,7 +190,7 @@ _GRAPH_NODES = {
     "ShaderNodeValue": (),
 }
 # Texture nodes whose unlinked Vector is Blender's Generated coordinates.
-_TEXTURES = ("ShaderNodeTexNoise", "ShaderNodeTexGradient")
+_TEXTURES = ("ShaderNodeTexNoise", "ShaderNodeTexVoronoi", "ShaderNodeTexGradient")
 # Cycles bakes a Color Ramp into this many intervals (RAMP_TABLE_SIZE).
 _RAMP_TABLE = 256
 

@@ -22,6 +22,7 @@ use super::materialx_graph::{colour, number, usd_network};
 use super::shader_network::{Input, ParamValue, ShaderNetwork, ShaderNode};
 use crate::shader::graph::{Binary, Builder, Program, Unary, Value as Reg};
 use crate::shader::noise::{Dimensions, NoiseTexture, NoiseType};
+use crate::shader::voronoi::{VoronoiOutput, VoronoiTexture};
 use openusd::usd::{Prim, TimeCode};
 use std::collections::HashMap;
 
@@ -29,6 +30,7 @@ use std::collections::HashMap;
 pub const NODES: &[&str] = &[
     "ShaderNodeTexCoord",
     "ShaderNodeTexNoise",
+    "ShaderNodeTexVoronoi",
     "ShaderNodeTexGradient",
     "ShaderNodeValToRGB",
     "ShaderNodeRGBToBW",
@@ -398,6 +400,47 @@ impl<'a> Reader<'a> {
                 let w = self.float(node, "W", 0.0)?;
                 self.builder.node(&at);
                 self.builder.blender_noise(p, w, texture).map_err(&err)?
+            }
+            "ShaderNodeTexVoronoi" => {
+                let out = match output {
+                    "Distance" => VoronoiOutput::Distance,
+                    "Color" => VoronoiOutput::Color,
+                    "Position" => VoronoiOutput::Position,
+                    _ => return Err(wrong_output()),
+                };
+                let dims = Self::text(node, "voronoi_dimensions", "3D")?;
+                if dims != "3D" {
+                    return Err(Self::refuse(node, "voronoi_dimensions (only 3D)", &dims));
+                }
+                let feature = Self::text(node, "feature", "F1")?;
+                if feature != "F1" {
+                    return Err(Self::refuse(node, "feature (only F1)", &feature));
+                }
+                let metric = Self::text(node, "distance", "EUCLIDEAN")?;
+                if metric != "EUCLIDEAN" {
+                    return Err(Self::refuse(node, "distance (only Euclidean)", &metric));
+                }
+                // Cycles runs one octave when Detail or Roughness is 0 (its clamps
+                // first): only that is compiled.
+                let detail = self.constant(node, "Detail", 0.0)?.clamp(0.0, 15.0);
+                let roughness = self.constant(node, "Roughness", 0.5)?.clamp(0.0, 1.0);
+                if detail != 0.0 && roughness != 0.0 {
+                    return Err(Self::refuse(
+                        node,
+                        "Detail (only 0: one octave)",
+                        &detail.to_string(),
+                    ));
+                }
+                let texture = VoronoiTexture {
+                    scale: self.constant(node, "Scale", 5.0)? as f32,
+                    randomness: self.constant(node, "Randomness", 1.0)? as f32,
+                    normalize: self.constant(node, "normalize", 0.0)? != 0.0,
+                };
+                let p = self.vector(node, "Vector", None)?;
+                self.builder.node(&at);
+                self.builder
+                    .blender_voronoi(p, texture, out)
+                    .map_err(&err)?
             }
             "ShaderNodeTexGradient" => {
                 if output != "Fac" && output != "Color" {

@@ -44,6 +44,9 @@ pub const NODES: &[&str] = &[
     "ND_geompropvalue_float",
     "ND_noise3d_float",
     "ND_fractal3d_float",
+    "ND_cellnoise3d_float",
+    "ND_ramplr_float",
+    "ND_ramp4_float",
     "ND_add_float",
     "ND_subtract_float",
     "ND_multiply_float",
@@ -157,6 +160,10 @@ fn param_value(prim: &Prim, name: &str, v: Value) -> Result<ParamValue, SceneErr
         Value::Half(x) => ParamValue::Numbers(vec![f64::from(x)]),
         Value::Int(x) => ParamValue::Numbers(vec![f64::from(x)]),
         Value::Bool(x) => ParamValue::Numbers(vec![f64::from(u8::from(x))]),
+        // vector2s (a ramp's constant `texcoord`).
+        Value::Vec2f(x) => ParamValue::Numbers([x.x, x.y].map(f64::from).to_vec()),
+        Value::Vec2d(x) => ParamValue::Numbers(vec![x.x, x.y]),
+        Value::Vec2h(x) => ParamValue::Numbers([x.x, x.y].map(f64::from).to_vec()),
         Value::Vec3f(x) => ParamValue::Numbers([x.x, x.y, x.z].map(f64::from).to_vec()),
         Value::Vec3d(x) => ParamValue::Numbers(vec![x.x, x.y, x.z]),
         Value::Vec3h(x) => ParamValue::Numbers([x.x, x.y, x.z].map(f64::from).to_vec()),
@@ -410,6 +417,42 @@ impl<'a> GraphReader<'a> {
         }
     }
 
+    /// The two floats of a ramp's `texcoord` (a vector2): a constant, or an
+    /// `ND_combine2_vector2` of two float graphs (Nimbus has no vector2 values: that node
+    /// is read here, as the texcoord's two components). Unconnected, MaterialX reads the
+    /// `UV0` geometric property, which a volume does not have: refused, naming the node.
+    fn texcoord(&mut self, node: &ShaderNode) -> Result<(Reg, Reg), SceneError> {
+        let at = |e| prim_error_str(&node.path, e);
+        match Self::input(node, "texcoord") {
+            Source::Value(None) => Err(prim_error_str(
+                &node.path,
+                format!("`{}` reads `inputs:texcoord`, which defaults to the UV0 texture coordinates; volumes have none, so Nimbus needs it connected to ND_combine2_vector2 of float graphs (e.g. components of the position) or set to a constant", node.id),
+            )),
+            Source::Value(Some(ParamValue::Numbers(v))) if v.len() == 2 => {
+                self.builder.node(&node.path);
+                let s = self.builder.constant(v[0] as f32).map_err(at)?;
+                let t = self.builder.constant(v[1] as f32).map_err(at)?;
+                Ok((s, t))
+            }
+            Source::Value(Some(other)) => Err(prim_error_str(
+                &node.path,
+                format!("`inputs:texcoord` should be a vector2, found {other:?}"),
+            )),
+            Source::Output(o) => {
+                let upstream = self.node(&o.0)?;
+                if upstream.id != "ND_combine2_vector2" {
+                    return Err(prim_error_str(
+                        &node.path,
+                        format!("`inputs:texcoord` of `{}` is driven by `{}` ({}); Nimbus has no vector2 values and reads a texcoord only from ND_combine2_vector2 of two float graphs, or a constant", node.id, upstream.id, upstream.path),
+                    ));
+                }
+                let s = self.float(upstream, "in1", 0.0)?;
+                let t = self.float(upstream, "in2", 0.0)?;
+                Ok((s, t))
+            }
+        }
+    }
+
     fn text(node: &ShaderNode, name: &str) -> Result<Option<String>, SceneError> {
         match Self::input(node, name) {
             Source::Value(Some(ParamValue::Text(t))) => Ok(Some(t.clone())),
@@ -489,6 +532,39 @@ impl<'a> GraphReader<'a> {
                         diminish as f32,
                     )
                     .map_err(err)?
+            }
+            "cellnoise3d" => {
+                let p = self.vector3(node, "position", None)?;
+                self.builder.node(&node.path);
+                self.builder.mx_cellnoise3d(p).map_err(err)?
+            }
+            // mix(valuel, valuer, clamp(texcoord.x, 0, 1)) (mx_ramplr_float.glsl).
+            "ramplr" => {
+                let l = self.float(node, "valuel", 0.0)?;
+                let r = self.float(node, "valuer", 0.0)?;
+                let (s, _) = self.texcoord(node)?;
+                self.builder.node(&node.path);
+                let zero = self.builder.constant(0.0).map_err(err)?;
+                let one = self.builder.constant(1.0).map_err(err)?;
+                let s = self.builder.clamp(s, zero, one).map_err(err)?;
+                self.builder.mix(l, r, s).map_err(err)?
+            }
+            // NG_ramp4_float: texcoord clamped to [0, 1]², then
+            // mix(mix(valuebl, valuebr, s), mix(valuetl, valuetr, s), t).
+            "ramp4" => {
+                let tl = self.float(node, "valuetl", 0.0)?;
+                let tr = self.float(node, "valuetr", 0.0)?;
+                let bl = self.float(node, "valuebl", 0.0)?;
+                let br = self.float(node, "valuebr", 0.0)?;
+                let (s, t) = self.texcoord(node)?;
+                self.builder.node(&node.path);
+                let zero = self.builder.constant(0.0).map_err(err)?;
+                let one = self.builder.constant(1.0).map_err(err)?;
+                let s = self.builder.clamp(s, zero, one).map_err(err)?;
+                let t = self.builder.clamp(t, zero, one).map_err(err)?;
+                let top = self.builder.mix(tl, tr, s).map_err(err)?;
+                let bottom = self.builder.mix(bl, br, s).map_err(err)?;
+                self.builder.mix(bottom, top, t).map_err(err)?
             }
             "add" | "subtract" | "multiply" | "divide" | "min" | "max" => {
                 let unit = if op == "multiply" || op == "divide" {

@@ -14,9 +14,10 @@
 //! attribute (register 3: the value of the volume's own density field at the point,
 //! MaterialX's `geompropvalue`). The output is one register.
 
-use super::interval::{blender_noise_bound, perlin_3d_bound, Interval};
-use super::materialx_noise::perlin_noise_3d;
+use super::interval::{blender_noise_bound, cell_noise_3d_bound, perlin_3d_bound, Interval};
+use super::materialx_noise::{cell_noise_3d, perlin_noise_3d};
 use super::noise::NoiseTexture;
+use super::voronoi::{VoronoiOutput, VoronoiTexture};
 
 /// A register index.
 pub type Reg = u16;
@@ -89,6 +90,19 @@ pub enum Instr {
         lo: Reg,
         hi: Reg,
     },
+    /// GLSL's `mix(a, b, t)`: `a (1 − t) + b t` (MaterialX `mix`, and the ramps
+    /// `ramplr`/`ramp4` built of it).
+    Mix {
+        dst: Reg,
+        a: Reg,
+        b: Reg,
+        t: Reg,
+    },
+    /// MaterialX `cellnoise3d` (float): the hash of the cell `floor(p)` in [0, 1].
+    MxCellNoise3d {
+        dst: Reg,
+        p: Reg,
+    },
     /// MaterialX `noise3d` (float): `perlin(p) · amplitude + pivot`.
     MxNoise3d {
         dst: Reg,
@@ -115,6 +129,15 @@ pub enum Instr {
         w: Reg,
         noise: u16,
     },
+    /// Blender's Voronoi Texture (3D, F1, Euclidean) at the Vector `p`: its Distance
+    /// (one register) or its Color or Position (three), the node in the program's
+    /// table (`voronoi`: the index there).
+    BlenderVoronoi {
+        dst: Reg,
+        p: Reg,
+        voronoi: u16,
+        output: VoronoiOutput,
+    },
     /// A lookup table over [0, 1] (Blender's Color Ramp as Cycles evaluates it: the
     /// ramp sampled at i / (n − 1), linearly interpolated between samples or not):
     /// `table` indexes the program's ramps.
@@ -133,6 +156,8 @@ pub struct Program {
     /// The Noise Texture nodes [`Instr::BlenderNoise`] evaluates (kept aside: they are
     /// larger than any instruction).
     noises: Vec<NoiseTexture>,
+    /// The Voronoi Texture nodes [`Instr::BlenderVoronoi`] evaluates.
+    voronois: Vec<VoronoiTexture>,
     /// The tables [`Instr::Ramp`] reads.
     ramps: Vec<Vec<f32>>,
     registers: usize,
@@ -182,6 +207,7 @@ impl Value {
 pub struct Builder {
     instrs: Vec<Instr>,
     noises: Vec<NoiseTexture>,
+    voronois: Vec<VoronoiTexture>,
     ramps: Vec<Vec<f32>>,
     nodes: Vec<String>,
     next: usize,
@@ -194,6 +220,7 @@ impl Default for Builder {
         Builder {
             instrs: Vec::new(),
             noises: Vec::new(),
+            voronois: Vec::new(),
             ramps: Vec::new(),
             nodes: Vec::new(),
             next: INPUTS as usize,
@@ -422,6 +449,24 @@ impl Builder {
         }
     }
 
+    /// GLSL's `mix(a, b, t)` of three floats.
+    pub fn mix(&mut self, a: Value, b: Value, t: Value) -> Result<Value, GraphError> {
+        let a = self.float(a, "mix's first value")?;
+        let b = self.float(b, "mix's second value")?;
+        let t = self.float(t, "mix's weight")?;
+        let dst = self.alloc(1)?;
+        self.push(Instr::Mix { dst, a, b, t });
+        Ok(Value::Float(dst))
+    }
+
+    /// MaterialX `cellnoise3d` (float) at `p`.
+    pub fn mx_cellnoise3d(&mut self, p: Value) -> Result<Value, GraphError> {
+        let p = self.position3(p)?;
+        let dst = self.alloc(1)?;
+        self.push(Instr::MxCellNoise3d { dst, p });
+        Ok(Value::Float(dst))
+    }
+
     pub fn mx_noise3d(
         &mut self,
         p: Value,
@@ -501,6 +546,39 @@ impl Builder {
         Ok(Value::Float(dst))
     }
 
+    /// Blender's Voronoi Texture node (3D, F1, Euclidean, one octave) at the Vector `p`:
+    /// its `output` (Distance a float, Color and Position vector3s).
+    pub fn blender_voronoi(
+        &mut self,
+        p: Value,
+        node: VoronoiTexture,
+        output: VoronoiOutput,
+    ) -> Result<Value, GraphError> {
+        let p = self.position3(p)?;
+        if !(node.scale.is_finite() && node.randomness.is_finite()) {
+            return Err(self.error("Scale and Randomness must be finite"));
+        }
+        let index = u16::try_from(self.voronois.len()).map_err(|_| GraphError::TooLarge)?;
+        self.voronois.push(node);
+        let (dst, v) = match output {
+            VoronoiOutput::Distance => {
+                let r = self.alloc(1)?;
+                (r, Value::Float(r))
+            }
+            _ => {
+                let r = self.alloc(3)?;
+                (r, Value::Vector3(r))
+            }
+        };
+        self.push(Instr::BlenderVoronoi {
+            dst,
+            p,
+            voronoi: index,
+            output,
+        });
+        Ok(v)
+    }
+
     /// A lookup of `x` in `table` (at least 2 finite entries, sampled at i / (n − 1)
     /// over [0, 1]; `x` clamped to [0, 1]), interpolated linearly or not.
     pub fn ramp(
@@ -549,6 +627,7 @@ impl Builder {
             output_width,
             instrs: self.instrs,
             noises: self.noises,
+            voronois: self.voronois,
             ramps: self.ramps,
             registers: self.next,
             output,
@@ -691,6 +770,14 @@ impl Program {
                 Instr::Smoothstep { dst, x, lo, hi } => {
                     r[dst as usize] = smoothstep(r[x as usize], r[lo as usize], r[hi as usize])
                 }
+                Instr::Mix { dst, a, b, t } => {
+                    let t = r[t as usize];
+                    r[dst as usize] = r[a as usize] * (1.0 - t) + r[b as usize] * t;
+                }
+                Instr::MxCellNoise3d { dst, p } => {
+                    let p = p as usize;
+                    r[dst as usize] = cell_noise_3d([r[p], r[p + 1], r[p + 2]]);
+                }
                 Instr::MxNoise3d {
                     dst,
                     p,
@@ -722,6 +809,20 @@ impl Program {
                     let p = p as usize;
                     let node = &self.noises[noise as usize];
                     r[dst as usize] = node.fac([r[p], r[p + 1], r[p + 2]], r[w as usize]);
+                }
+                Instr::BlenderVoronoi {
+                    dst,
+                    p,
+                    voronoi,
+                    output,
+                } => {
+                    let (p, dst) = (p as usize, dst as usize);
+                    let v = self.voronois[voronoi as usize].eval([r[p], r[p + 1], r[p + 2]]);
+                    match output {
+                        VoronoiOutput::Distance => r[dst] = v.distance,
+                        VoronoiOutput::Color => r[dst..dst + 3].copy_from_slice(&v.color),
+                        VoronoiOutput::Position => r[dst..dst + 3].copy_from_slice(&v.position),
+                    }
                 }
             }
         }
@@ -797,6 +898,23 @@ impl Program {
                         Interval::new(0.0, 1.0)
                     };
                 }
+                Instr::Mix { dst, a, b, t } => {
+                    let (a, b, t) = (r[a as usize], r[b as usize], r[t as usize]);
+                    // A weight in [0, 1] (the ramps clamp theirs) makes a convex
+                    // combination: it lies between a and b. Else the plain arithmetic.
+                    r[dst as usize] = if t.lo >= 0.0 && t.hi <= 1.0 {
+                        a.hull(b)
+                    } else {
+                        a.mul(Interval::point(1.0).sub(t)).add(b.mul(t))
+                    };
+                }
+                Instr::MxCellNoise3d { dst, p } => {
+                    let p = p as usize;
+                    r[dst as usize] = cell_noise_3d_bound(
+                        [r[p].lo, r[p + 1].lo, r[p + 2].lo],
+                        [r[p].hi, r[p + 1].hi, r[p + 2].hi],
+                    );
+                }
                 Instr::MxNoise3d {
                     dst,
                     p,
@@ -829,6 +947,23 @@ impl Program {
                     let node = &self.noises[noise as usize];
                     r[dst as usize] =
                         blender_noise_bound(node, [r[p], r[p + 1], r[p + 2], r[w as usize]]);
+                }
+                Instr::BlenderVoronoi {
+                    dst,
+                    p,
+                    voronoi,
+                    output,
+                } => {
+                    let (p, dst) = (p as usize, dst as usize);
+                    let (d, c, q) = self.voronois[voronoi as usize].bounds(
+                        [r[p].lo, r[p + 1].lo, r[p + 2].lo],
+                        [r[p].hi, r[p + 1].hi, r[p + 2].hi],
+                    );
+                    match output {
+                        VoronoiOutput::Distance => r[dst] = d,
+                        VoronoiOutput::Color => r[dst..dst + 3].copy_from_slice(&c),
+                        VoronoiOutput::Position => r[dst..dst + 3].copy_from_slice(&q),
+                    }
                 }
             }
         }
@@ -976,6 +1111,41 @@ mod tests {
             ..NoiseTexture::default()
         };
         assert!(b.blender_noise(p, w, ridged).is_err());
+    }
+
+    /// MaterialX's cell noise and a ramp (mix with a clamped weight) of it: bounds
+    /// hold over random boxes of every size, and are the exact value in a box inside
+    /// one cell.
+    #[test]
+    fn cell_noise_and_mix_are_bounded() {
+        let mut b = Builder::default();
+        let p = b.position();
+        let c = b.mx_cellnoise3d(p).unwrap();
+        let x = b.component(p, 0).unwrap();
+        let (zero, one) = (b.constant(0.0).unwrap(), b.constant(1.0).unwrap());
+        let t = b.clamp(x, zero, one).unwrap();
+        let two = b.constant(2.0).unwrap();
+        let m = b.mix(c, two, t).unwrap();
+        let prog = b.finish(m).unwrap();
+        let mut s = 23u32;
+        let mut next = || {
+            s = crate::shader::noise::hash_uint2(s, 0x9e37_79b9);
+            s as f32 / u32::MAX as f32
+        };
+        for k in 0..2000 {
+            let size = [0.05f32, 0.5, 3.0, 20.0][k % 4];
+            let lo: [f32; 3] = std::array::from_fn(|_| (next() - 0.5) * 40.0);
+            let hi: [f32; 3] = std::array::from_fn(|a| lo[a] + size * next());
+            let bound = prog.bounds(lo, hi, Interval::point(0.0));
+            for _ in 0..50 {
+                let q: [f32; 3] = std::array::from_fn(|a| lo[a] + (hi[a] - lo[a]) * next());
+                let v = prog.eval(q, 0.0);
+                assert!(v >= bound.lo && v <= bound.hi, "{v} outside {bound:?}");
+            }
+        }
+        let cell = super::super::interval::cell_noise_3d_bound([1.2, -3.5, 7.1], [1.9, -3.1, 7.8]);
+        let v = cell_noise_3d([1.5, -3.3, 7.5]);
+        assert_eq!((cell.lo, cell.hi), (v, v));
     }
 
     #[test]

@@ -260,6 +260,36 @@ pub fn blender_noise_bound(node: &NoiseTexture, p: [Interval; 4]) -> Interval {
     whole.hull(finish(sum2, maxamp + amp))
 }
 
+/// Bounds of MaterialX's cell noise ([`super::materialx_noise::cell_noise_3d`]) over
+/// the box `[lo, hi]`. The noise is `float(h) / 2^32` for a 32-bit hash h: float(h) lies
+/// in [0, 2^32] (u32::MAX rounds up to 2^32), so the value lies in [0, 1] everywhere.
+/// It is constant in each unit cell, so a box over at most [`MAX_LATTICE_CELLS`] cells
+/// gets the exact hull of its cells' values (the same floor and hash as the
+/// evaluation); larger boxes, and coordinates beyond ±2^31 or NaN, get [0, 1].
+pub fn cell_noise_3d_bound(lo: [f32; 3], hi: [f32; 3]) -> Interval {
+    let all = Interval::new(0.0, 1.0);
+    if !(lo.iter().chain(&hi).all(|c| c.abs() < 2.0e9)) {
+        return all;
+    }
+    let first = lo.map(|c| c.floor() as i64);
+    let last = hi.map(|c| c.floor() as i64);
+    let count: i64 = (0..3).map(|a| last[a] - first[a] + 1).product();
+    if count > MAX_LATTICE_CELLS {
+        return all;
+    }
+    let mut out: Option<Interval> = None;
+    for x in first[0]..=last[0] {
+        for y in first[1]..=last[1] {
+            for z in first[2]..=last[2] {
+                let c = [x, y, z].map(|c| c as f32);
+                let v = Interval::point(super::materialx_noise::cell_noise_3d(c));
+                out = Some(out.map_or(v, |o| o.hull(v)));
+            }
+        }
+    }
+    out.unwrap_or(all)
+}
+
 /// The gradient of a 3D Perlin corner as a vector: what `grad3` dots with the offset
 /// (its `u` and `v` components, each ±1).
 pub fn gradient_3d(hash: u32) -> [f32; 3] {

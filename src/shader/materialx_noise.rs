@@ -11,7 +11,7 @@
 //! bit for bit against a numpy transcription of the published GLSL
 //! (`tests/fixtures/materialx_noise_values.py`, `tests/materialx_noise.rs`).
 
-use super::noise::{perlin_3d, Arithmetic, Blenlib};
+use super::noise::{hash_uint3, perlin_3d, Arithmetic, Blenlib};
 
 /// The float grouping of MaterialX's GLSL: `t t t (t (6t - 15) + 10)` in single
 /// precision, and the trilinear interpolation `mx_trilerp`, which is written as
@@ -62,6 +62,18 @@ pub fn fractal_noise_3d(mut p: [f32; 3], octaves: i32, lacunarity: f32, diminish
         p = p.map(|c| c * lacunarity);
     }
     result
+}
+
+/// `mx_cell_noise_float(vec3)`, the `ND_cellnoise3d_float` node: the lookup3 hash of the
+/// integer cell `floor(p)` (`mx_hash_int(x, y, z)`, the hash of [`perlin_noise_3d`]'s
+/// corners) mapped to [0, 1] as `mx_bits_to_01` does: `float(bits) / float(0xffffffff)`,
+/// the hash rounded to a float and divided by 2^32 (0xffffffff rounds to 2^32), so both
+/// ends are reached: 0 for the hash 0, 1 for hashes from 0xffffff80 on. Constant in each
+/// unit cell. Coordinates beyond ±2^31 saturate (GLSL's `int()` of them is undefined).
+#[inline]
+pub fn cell_noise_3d(p: [f32; 3]) -> f32 {
+    let [x, y, z] = p.map(|c| c.floor() as i32 as u32);
+    hash_uint3(x, y, z) as f32 / u32::MAX as f32
 }
 
 /// The `ND_noise3d_float` node: `noise * amplitude + pivot`.
@@ -124,6 +136,25 @@ mod tests {
         let p = [0.3, -1.7, 2.2];
         assert_eq!(fractal_noise_3d(p, 1, 2.0, 0.5), perlin_noise_3d(p));
         assert_eq!(fractal_noise_3d(p, 0, 2.0, 0.5), 0.0);
+    }
+
+    #[test]
+    fn cell_noise_is_constant_per_cell_and_in_0_1() {
+        assert_eq!(
+            cell_noise_3d([0.1, 0.2, 0.3]),
+            cell_noise_3d([0.9, 0.99, 0.0])
+        );
+        assert_ne!(
+            cell_noise_3d([0.1, 0.2, 0.3]),
+            cell_noise_3d([-0.1, 0.2, 0.3])
+        );
+        // The bits-to-float map reaches both ends.
+        assert_eq!(0u32 as f32 / u32::MAX as f32, 0.0);
+        assert_eq!(u32::MAX as f32 / u32::MAX as f32, 1.0);
+        for i in 0..1000 {
+            let v = cell_noise_3d([i as f32 * 0.37 - 100.0, i as f32 * -0.11, 3.0]);
+            assert!((0.0..=1.0).contains(&v));
+        }
     }
 
     #[test]

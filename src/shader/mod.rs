@@ -4,10 +4,12 @@
 //! and the other fractal types, Distortion, the Color output), tested value for value
 //! against Blender itself in `tests/blender_noise.rs`; docs/shaders.md has the measured
 //! errors and costs. [`materialx_noise`] is MaterialX's `noise3d` and `fractal3d` on the
-//! same lattice noise. [`graph`] compiles a reader's node graph into a flat program,
+//! same lattice noise, and its `cellnoise3d`. [`voronoi`] is Blender's Voronoi Texture (3D
+//! F1 Euclidean) as Cycles evaluates it. [`graph`] compiles a reader's node graph into a flat program,
 //! evaluated per density lookup and, over [`interval`]s, per majorant cell.
 
 pub mod graph;
 pub mod interval;
 pub mod materialx_noise;
 pub mod noise;
+pub mod voronoi;
