@@ -78,6 +78,10 @@ pub fn denoise_channels(
     // threads).
     let scale = input_scale(&noisy);
     let device = oidn.device()?;
+    // The albedo is a Monte Carlo estimate too: denoised once on its own first (OIDN's
+    // advice for noisy auxiliary images, Cycles' "Accurate" prefilter), then handed to
+    // every filter below as clean.
+    let albedo = device.prefilter_albedo(&albedo, width, height)?;
     let mut images = 1;
     let out = device.denoise(&noisy, &albedo, width, height, scale, "the beauty")?;
     for (c, name) in ["R", "G", "B"].into_iter().enumerate() {
@@ -368,8 +372,20 @@ impl Device {
         ))
     }
 
-    /// `color` (FLOAT3 pixels) denoised by the RT filter with `albedo`, HDR, at
-    /// `scale`; `what` names the image in errors.
+    /// The albedo AOV (FLOAT3 pixels) denoised by the RT filter on its own (no colour
+    /// image: OIDN's auxiliary prefilter), so the beauty's filters may take it as
+    /// clean.
+    fn prefilter_albedo(
+        &self,
+        albedo: &[f32],
+        width: usize,
+        height: usize,
+    ) -> Result<Vec<f32>, String> {
+        self.rt_filter(None, albedo, width, height, "the albedo AOV")
+    }
+
+    /// `color` (FLOAT3 pixels) denoised by the RT filter with the prefiltered
+    /// `albedo`, HDR, at `scale`; `what` names the image in errors.
     fn denoise(
         &self,
         color: &[f32],
@@ -379,14 +395,28 @@ impl Device {
         scale: f32,
         what: &str,
     ) -> Result<Vec<f32>, String> {
+        self.rt_filter(Some((color, scale)), albedo, width, height, what)
+    }
+
+    /// One run of OIDN's RT filter: with `color` (and its HDR input scale), `color`
+    /// denoised with `albedo` as its clean auxiliary image; without, `albedo` itself
+    /// denoised (the auxiliary prefilter).
+    fn rt_filter(
+        &self,
+        color: Option<(&[f32], f32)>,
+        albedo: &[f32],
+        width: usize,
+        height: usize,
+        what: &str,
+    ) -> Result<Vec<f32>, String> {
         let n = width * height * 3;
-        if color.len() != n || albedo.len() != n {
+        let given = color.map_or(albedo.len(), |(c, _)| c.len());
+        if given != n || albedo.len() != n {
             return Err(format!(
-                "{what}: {} values for a {width}x{height} image",
-                color.len()
+                "{what}: {given} values for a {width}x{height} image"
             ));
         }
-        let mut color = color.to_vec();
+        let mut color_image = color.map(|(c, _)| c.to_vec());
         let mut albedo = albedo.to_vec();
         let mut output = vec![0f32; n];
         let rt = CString::new("RT").expect("no NUL");
@@ -403,12 +433,15 @@ impl Device {
         };
         let o = self.oidn;
         let name = |s: &str| CString::new(s).expect("no NUL");
+        let mut images = vec![
+            ("albedo", albedo.as_mut_ptr()),
+            ("output", output.as_mut_ptr()),
+        ];
+        if let Some(c) = color_image.as_mut() {
+            images.push(("color", c.as_mut_ptr()));
+        }
         unsafe {
-            for (image, data) in [
-                ("color", color.as_mut_ptr()),
-                ("albedo", albedo.as_mut_ptr()),
-                ("output", output.as_mut_ptr()),
-            ] {
+            for (image, data) in images {
                 let key = name(image);
                 (o.set_shared_filter_image)(
                     filter.handle,
@@ -422,11 +455,12 @@ impl Device {
                     0,
                 );
             }
-            (o.set_filter_bool)(filter.handle, name("hdr").as_ptr(), true);
-            // The albedo is a Monte Carlo estimate too (as noisy as the beauty's
-            // first scattering events): not clean.
-            (o.set_filter_bool)(filter.handle, name("cleanAux").as_ptr(), false);
-            (o.set_filter_float)(filter.handle, name("inputScale").as_ptr(), scale);
+            if let Some((_, scale)) = color {
+                (o.set_filter_bool)(filter.handle, name("hdr").as_ptr(), true);
+                // Prefiltered above.
+                (o.set_filter_bool)(filter.handle, name("cleanAux").as_ptr(), true);
+                (o.set_filter_float)(filter.handle, name("inputScale").as_ptr(), scale);
+            }
             (o.commit_filter)(filter.handle);
         }
         self.check(&format!("setting up the RT filter for {what}"))?;
