@@ -69,7 +69,8 @@ def test_denoise_is_nimbus_render_denoise_with_blenders_oidn(addon, smoke_vdb, n
                                                              tmp_path):
     """Cycles' Denoise checkbox (use_denoising on scene.nimbus): F12 denoises with Blender's
     own Open Image Denoise and equals `nimbus render --denoise` with that library bit for
-    bit; the Denoising Albedo pass is then the albedo the denoiser used."""
+    bit; the Denoising Albedo pass is then the albedo AOV the denoiser was given (it
+    prefilters it before use)."""
     import os
     scene, _, _ = smoke_scene(smoke_vdb, res=32, world=False, lights=("sun",))
     s = scene.nimbus
