@@ -16,9 +16,9 @@ pub struct Pixel {
     /// Samples whose estimate was NaN or infinite: dropped from the sums and counted.
     pub nonfinite: u32,
     pub counters: Counters,
-    /// Σ RGB over the even-numbered samples (0, 2, 4, …): adaptive sampling's error
-    /// estimate compares the two halves ([`crate::render::adaptive`]).
-    pub half: [f64; 3],
+    /// Σ RGB² (per channel): adaptive sampling's error estimate takes each channel's
+    /// sample variance ([`crate::render::adaptive`]).
+    pub rgb_sq: [f64; 3],
     /// Σ over samples of the single-scattering albedo at the first real scattering
     /// event of the camera path (0 for a sample with none): the denoiser's auxiliary
     /// image ([`Aov::AlbedoR`]).
@@ -33,7 +33,6 @@ pub fn luminance(c: [f64; 3]) -> f64 {
 impl Pixel {
     /// Adds one sample; `false` when it was NaN or infinite (counted, not added).
     pub fn add_sample(&mut self, rgb: [f64; 3], alpha: f64) -> bool {
-        let even = self.samples % 2 == 0;
         self.samples += 1;
         if !(rgb.iter().all(|v| v.is_finite()) && alpha.is_finite()) {
             self.nonfinite += 1;
@@ -41,11 +40,7 @@ impl Pixel {
         }
         for c in 0..3 {
             self.rgb[c] += rgb[c];
-        }
-        if even {
-            for c in 0..3 {
-                self.half[c] += rgb[c];
-            }
+            self.rgb_sq[c] += rgb[c] * rgb[c];
         }
         self.alpha += alpha;
         let l = luminance(rgb);
