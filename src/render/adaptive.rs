@@ -90,17 +90,25 @@ pub fn error(px: &Pixel) -> f64 {
     }
     // The finite samples the sums hold.
     let m = (px.samples - px.nonfinite) as f64;
-    let mut sigma = 0.0;
     let mut intensity = 0.0;
     for c in 0..3 {
         intensity += px.rgb[c] / n;
-        if m >= 2.0 {
-            let variance = (px.rgb_sq[c] - px.rgb[c] * px.rgb[c] / m) / (m - 1.0);
-            sigma += variance.max(0.0).sqrt();
-        }
     }
-    let expected_difference = (2.0 / std::f64::consts::PI).sqrt() * sigma / n.sqrt();
-    expected_difference / (1e-4 + intensity.max(0.0).sqrt())
+    let difference = match m >= 2.0 {
+        true => {
+            let mut sigma = 0.0;
+            for c in 0..3 {
+                let variance = (px.rgb_sq[c] - px.rgb[c] * px.rgb[c] / m) / (m - 1.0);
+                sigma += variance.max(0.0).sqrt();
+            }
+            (2.0 / std::f64::consts::PI).sqrt() * sigma / n.sqrt()
+        }
+        // One sample has no variance: the halves' difference is then the sample itself
+        // (I − A = x − 2x), as large as the noise could be. (No pixel stops here:
+        // the minimum is at least 2.)
+        false => (0..3).map(|c| (px.rgb[c] / n).abs()).sum(),
+    };
+    difference / (1e-4 + intensity.max(0.0).sqrt())
 }
 
 /// How converged a film is: the mean of its pixels' errors, and with adaptive
