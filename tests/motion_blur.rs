@@ -224,6 +224,16 @@ fn worst(z: &[f64]) -> f64 {
     z.iter().fold(0f64, |m, v| m.max(v.abs()))
 }
 
+/// The stage's `motion blur` warnings, each as "prim attribute message".
+fn blur_warnings(s: &Session) -> Vec<String> {
+    s.scene
+        .warnings
+        .iter()
+        .filter(|w| w.kind == "motion blur")
+        .map(|w| format!("{} {:?} {}", w.prim, w.attribute, w.message))
+        .collect()
+}
+
 /// A blurred render against its time average, and against the static frame.
 fn check_against_time_average(blurred: &Path, still: &Path, what: &str) {
     let s = open(blurred, 1.0, 512, 7, 2);
@@ -231,13 +241,8 @@ fn check_against_time_average(blurred: &Path, still: &Path, what: &str) {
         || s.scene.volumes[0].motion.is_some()
         || s.scene.sphere_lights.iter().any(|l| l.motion.is_some());
     assert!(motion, "{what}: the stage's motion was not read");
-    let blur_warnings: Vec<_> = s
-        .scene
-        .warnings
-        .iter()
-        .filter(|w| w.kind == "motion blur")
-        .collect();
-    assert!(blur_warnings.is_empty(), "{what}: {blur_warnings:?}");
+    let warnings = blur_warnings(&s);
+    assert!(warnings.is_empty(), "{what}: {warnings:?}");
     let blur = pixels(&render(&s));
     let reference = time_average(still, 16, 32);
     let z = block_z(&blur, &reference);
@@ -350,13 +355,7 @@ fn a_light_that_scales_warns_and_renders_at_the_frame() {
     );
     let s = open(&path, 1.0, 1, 1, 1);
     assert!(s.scene.sphere_lights[0].motion.is_none());
-    let w: Vec<_> = s
-        .scene
-        .warnings
-        .iter()
-        .filter(|w| w.kind == "motion blur")
-        .map(|w| format!("{} {:?} {}", w.prim, w.attribute, w.message))
-        .collect();
+    let w = blur_warnings(&s);
     assert_eq!(w.len(), 1, "{w:?}");
     assert!(
         w[0].contains("/World/Spot") && w[0].contains("scales"),
@@ -431,13 +430,7 @@ fn what_is_not_blurred_warns() {
     );
     std::fs::write(&path, text).unwrap();
     let s = open(&path, 1.0, 1, 1, 1);
-    let w: Vec<_> = s
-        .scene
-        .warnings
-        .iter()
-        .filter(|w| w.kind == "motion blur")
-        .map(|w| format!("{} {:?} {}", w.prim, w.attribute, w.message))
-        .collect();
+    let w = blur_warnings(&s);
     assert_eq!(w.len(), 1, "{w:?}");
     assert!(
         w[0].contains("/World/Sun") && w[0].contains("xformOp:rotateXYZ"),

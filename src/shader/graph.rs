@@ -17,7 +17,7 @@
 use super::interval::{blender_noise_bound, cell_noise_3d_bound, perlin_3d_bound, Interval};
 use super::materialx_noise::{cell_noise_3d, perlin_noise_3d};
 use super::noise::NoiseTexture;
-use super::voronoi::{VoronoiOutput, VoronoiTexture};
+use super::voronoi::{VoronoiF1, VoronoiOutput, VoronoiTexture};
 
 /// A register index.
 pub type Reg = u16;
@@ -722,6 +722,10 @@ impl Program {
         r[1] = position[1];
         r[2] = position[2];
         r[3] = attribute;
+        // A Voronoi node whose Distance, Color and Position are all used is one
+        // instruction per output: the last evaluation is kept, so the same node at the
+        // same point is searched once per lookup.
+        let mut last_voronoi: Option<(u16, [f32; 3], VoronoiF1)> = None;
         for i in &self.instrs {
             match *i {
                 Instr::Const { dst, value } => r[dst as usize] = value,
@@ -817,7 +821,15 @@ impl Program {
                     output,
                 } => {
                     let (p, dst) = (p as usize, dst as usize);
-                    let v = self.voronois[voronoi as usize].eval([r[p], r[p + 1], r[p + 2]]);
+                    let at = [r[p], r[p + 1], r[p + 2]];
+                    let v = match last_voronoi {
+                        Some((node, q, v)) if node == voronoi && q == at => v,
+                        _ => {
+                            let v = self.voronois[voronoi as usize].eval(at);
+                            last_voronoi = Some((voronoi, at, v));
+                            v
+                        }
+                    };
                     match output {
                         VoronoiOutput::Distance => r[dst] = v.distance,
                         VoronoiOutput::Color => r[dst..dst + 3].copy_from_slice(&v.color),
