@@ -254,3 +254,67 @@ fn a_light_description_is_flat_json_with_its_type() {
         serde_json::json!({"prim_path": "/Rig/New", "light_group": null, "type": "other", "motion_keys": 2})
     );
 }
+
+/// `nimbus info` says what `--light-sampling auto` does with the local lights (issue
+/// 44), in the text and the JSON: none in the example cloud (a sun and a sky); in its
+/// grid, of a spot and a point light, only the spot (docs/trackers.md: equiangular
+/// points towards unshaped lights were measured to lose in grids).
+#[test]
+fn info_says_which_local_lights_auto_samples_equiangularly() {
+    let cloud = root().join("scenes/cloud/cloud.usda");
+    let j = info_json(&[cloud.to_str().unwrap()]);
+    assert_eq!(
+        j["auto"]["light_sampling"],
+        "no local lights: next events at the collisions only"
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let stage = dir.path().join("lit.usda");
+    std::fs::write(
+        &stage,
+        format!(
+            r#"#usda 1.0
+(
+    subLayers = [@{}@]
+)
+
+over "World"
+{{
+    def SphereLight "Spot" (
+        prepend apiSchemas = ["ShapingAPI"]
+    )
+    {{
+        float inputs:intensity = 100
+        float inputs:radius = 0.1
+        float inputs:shaping:cone:angle = 20
+        double3 xformOp:translate = (0, 3, 0)
+        float3 xformOp:rotateXYZ = (-90, 0, 0)
+        uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateXYZ"]
+    }}
+
+    def SphereLight "Point"
+    {{
+        float inputs:intensity = 100
+        float inputs:radius = 0.1
+    }}
+}}
+"#,
+            cloud.display()
+        ),
+    )
+    .unwrap();
+    let stage = stage.to_str().unwrap();
+    let j = info_json(&[stage]);
+    let summary = j["auto"]["light_sampling"].as_str().unwrap();
+    assert!(
+        summary.starts_with("equiangular-mis: 1 of 2 local lights sampled equiangularly")
+            && summary.contains("heterogeneous medium only spots"),
+        "{summary}"
+    );
+    let o = nimbus(&["info", stage]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains(&format!("light sampling {summary}")),
+        "{text}"
+    );
+}

@@ -410,6 +410,7 @@ fn print_analysis(d: &StageDescription) {
     if t.one_global_majorant {
         println!("majorants auto: one global majorant per volume");
     }
+    println!("light sampling {}", t.light_sampling);
 }
 
 /// `nimbus info FILE.vdb`: the file's grids (name, type, active voxels) and, for float

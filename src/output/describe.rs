@@ -357,6 +357,8 @@ pub struct AutoChoice {
     pub reason: String,
     /// One global majorant per volume instead of an octree (a homogeneous medium).
     pub one_global_majorant: bool,
+    /// What `--light-sampling auto` does with the local lights, and why.
+    pub light_sampling: String,
 }
 
 fn as_map<S: Serializer, T: Serialize>(v: &[(String, T)], s: S) -> Result<S::Ok, S::Error> {
@@ -436,6 +438,7 @@ pub fn describe_stage(path: &Path, o: &DescribeOptions) -> Result<StageDescripti
     // From the scene read above: one read of the stage (a deep hierarchy's cost).
     match Session::from_scene(path, scene.clone(), &overrides) {
         Ok(session) => {
+            let light_sampling = session.job(false).light_sampling_summary();
             let a = session.analysis;
             // What `render` would do without flags: the stage may name the structure.
             let given = Given {
@@ -451,6 +454,7 @@ pub fn describe_stage(path: &Path, o: &DescribeOptions) -> Result<StageDescripti
                 reason,
                 one_global_majorant: a.majorants(given)
                     == Some(MajorantSpec::Uniform { cell_voxels: 0 }),
+                light_sampling,
             });
             d.analysis = Some(a);
             d.warnings = session.warnings;

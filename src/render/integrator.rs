@@ -774,7 +774,15 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                 }
                 irradiance = std::array::from_fn(|c| irradiance[c] * f[c]);
             }
-            let tr = self.shadow(p, wi, f32::INFINITY, tracked, &sun.link, rng, counters);
+            let tr = self.shadow(
+                p,
+                wi,
+                f32::INFINITY,
+                tracked,
+                (&sun.link, false),
+                rng,
+                counters,
+            );
             let f = hg(g, dir.dot(wi));
             let v = std::array::from_fn(|c| (throughput[c] * tr[c]) as f64 * irradiance[c] * f);
             radiance.add(sources.sun(i), events, v);
@@ -828,7 +836,15 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                 } else {
                     1.0
                 };
-                let tr = self.shadow(p, wi, f32::INFINITY, tracked, &Link::ALL, rng, counters);
+                let tr = self.shadow(
+                    p,
+                    wi,
+                    f32::INFINITY,
+                    tracked,
+                    (&Link::ALL, false),
+                    rng,
+                    counters,
+                );
                 let v = |l: [f64; 3]| -> [f64; 3] {
                     std::array::from_fn(|c| (throughput[c] * tr[c]) as f64 * l[c] * f / pdf * w)
                 };
@@ -849,7 +865,15 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             let (wi, le, pdf) = dome.sample(rng.gen(), rng.gen());
             if pdf > 0.0 {
                 let f = hg(g, dir.dot(wi));
-                let tr = self.shadow(p, wi, f32::INFINITY, tracked, &dome.link, rng, counters);
+                let tr = self.shadow(
+                    p,
+                    wi,
+                    f32::INFINITY,
+                    tracked,
+                    (&dome.link, false),
+                    rng,
+                    counters,
+                );
                 let v = std::array::from_fn(|c| (throughput[c] * tr[c]) as f64 * le[c] * f / pdf);
                 radiance.add(sources.linked_dome(i), events, v);
             }
@@ -882,7 +906,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             s.wi,
             s.distance as f32,
             (path.tracked, path.time),
-            link,
+            (link, true),
             rng,
             counters,
         );
@@ -1028,7 +1052,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             dir,
             (tx - ta) as f32,
             (path.tracked, time),
-            &Link::ALL,
+            (&Link::ALL, true),
             rng,
             counters,
         );
@@ -1040,7 +1064,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             ls.wi,
             ls.distance as f32,
             (path.tracked, time),
-            link,
+            (link, true),
             rng,
             counters,
         );
@@ -1123,7 +1147,9 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
 
     /// The transmittance estimate along the shadow ray `p + t·wi`, t < `tmax`, through
     /// the holdouts and media that shadow a light linked by `link` (every one without
-    /// shadow linking).
+    /// shadow linking). `local`: the ray serves a local light's estimate, whose
+    /// majorants the estimator may loosen
+    /// ([`TransmittanceEstimator::LOCAL_LIGHT_MAJORANT_SCALE`]).
     #[allow(clippy::too_many_arguments)]
     fn shadow<C: Tally>(
         &self,
@@ -1131,7 +1157,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         wi: DVec3,
         tmax: f32,
         at: At,
-        link: &Link,
+        (link, local): (&Link, bool),
         rng: &mut Sampler,
         counters: &mut C,
     ) -> Spectrum {
@@ -1149,12 +1175,16 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         let t0 = counters.tracker_start();
         // Spans of a ray meeting very many volumes multiply (independent estimates).
         let mut product = [1f32; 3];
+        let scale = match local {
+            true => self.majorant_scale * E::LOCAL_LIGHT_MAJORANT_SCALE,
+            false => self.majorant_scale,
+        };
         let tr = self.with_queries_in(
             p,
             wi,
             (0.0, tmax),
             at,
-            link.shadowing,
+            (link.shadowing, scale),
             |qs, _, _| {
                 let t = if let [q] = qs {
                     self.transmittance.transmittance(q, rng, counters)
@@ -1181,7 +1211,15 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         f: impl FnMut(&[Query], &[usize], bool) -> T,
         go_on: impl Fn(&T) -> bool,
     ) -> T {
-        self.with_queries_in(origin, dir, range, at, u64::MAX, f, go_on)
+        self.with_queries_in(
+            origin,
+            dir,
+            range,
+            at,
+            (u64::MAX, self.majorant_scale),
+            f,
+            go_on,
+        )
     }
 
     /// Calls `f(queries, ids, true)` with one tracker query per medium in `mask` (bit
@@ -1200,7 +1238,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         dir: DVec3,
         (tmin, tmax): (f32, f32),
         at: At,
-        mask: u64,
+        (mask, scale): (u64, f32),
         mut f: impl FnMut(&[Query], &[usize], bool) -> T,
         go_on: impl Fn(&T) -> bool,
     ) -> T {
@@ -1217,7 +1255,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                 ray: &ray,
                 tmin,
                 tmax,
-                majorant_scale: self.majorant_scale,
+                majorant_scale: scale,
             }];
             return f(&q, &[0], true);
         }
@@ -1233,14 +1271,16 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             }
         });
         if overflow {
-            return self.spans(origin, dir, tmin, tmax, at, mask, &mut f, &go_on);
+            return self.spans(origin, dir, tmin, tmax, at, (mask, scale), &mut f, &go_on);
         }
         // Media order, whatever order the index found them in: the race draws each
         // lane's random numbers in lane order, so the image depends on it.
         if self.extras.media_index.is_some() {
             ids[..k].sort_unstable();
         }
-        self.queries_sized(origin, dir, tmin, tmax, at, &ids[..k], |q, i| f(q, i, true))
+        self.queries_sized(origin, dir, (tmin, tmax), at, (&ids[..k], scale), |q, i| {
+            f(q, i, true)
+        })
     }
 
     /// A ray meeting more than [`MAX_MEDIA`] volumes (a cloudscape seen edge-on), cut
@@ -1262,7 +1302,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         tmin: f32,
         tmax: f32,
         at: At,
-        mask: u64,
+        (mask, scale): (u64, f32),
         f: &mut impl FnMut(&[Query], &[usize], bool) -> T,
         go_on: &impl Fn(&T) -> bool,
     ) -> T {
@@ -1309,7 +1349,9 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                     .fold(tmax, f32::min);
             }
             ids[..k].sort_unstable();
-            let r = self.queries_sized(origin, dir, s, e, at, &ids[..k], |q, i| f(q, i, false));
+            let r = self.queries_sized(origin, dir, (s, e), at, (&ids[..k], scale), |q, i| {
+                f(q, i, false)
+            });
             if e >= tmax || !go_on(&r) {
                 if dropped {
                     MEDIA_OVERFLOW.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
@@ -1356,18 +1398,18 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         &self,
         origin: DVec3,
         dir: DVec3,
-        tmin: f32,
-        tmax: f32,
+        (tmin, tmax): (f32, f32),
         at: At,
-        ids: &[usize],
+        (ids, scale): (&[usize], f32),
         f: impl FnOnce(&[Query], &[usize]) -> T,
     ) -> T {
+        let range = (tmin, tmax);
         match ids.len() {
-            0..=2 => self.queries::<2, T>(origin, dir, tmin, tmax, at, ids, f),
-            3..=4 => self.queries::<4, T>(origin, dir, tmin, tmax, at, ids, f),
-            5..=8 => self.queries::<8, T>(origin, dir, tmin, tmax, at, ids, f),
-            9..=16 => self.queries::<16, T>(origin, dir, tmin, tmax, at, ids, f),
-            _ => self.queries::<MAX_MEDIA, T>(origin, dir, tmin, tmax, at, ids, f),
+            0..=2 => self.queries::<2, T>(origin, dir, range, at, (ids, scale), f),
+            3..=4 => self.queries::<4, T>(origin, dir, range, at, (ids, scale), f),
+            5..=8 => self.queries::<8, T>(origin, dir, range, at, (ids, scale), f),
+            9..=16 => self.queries::<16, T>(origin, dir, range, at, (ids, scale), f),
+            _ => self.queries::<MAX_MEDIA, T>(origin, dir, range, at, (ids, scale), f),
         }
     }
 
@@ -1379,10 +1421,9 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         &self,
         origin: DVec3,
         dir: DVec3,
-        tmin: f32,
-        tmax: f32,
+        (tmin, tmax): (f32, f32),
         (tracked, time): At,
-        ids: &[usize],
+        (ids, scale): (&[usize], f32),
         f: impl FnOnce(&[Query], &[usize]) -> T,
     ) -> T {
         let k = ids.len().min(N);
@@ -1396,7 +1437,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             ray: &rays[i],
             tmin,
             tmax,
-            majorant_scale: self.majorant_scale,
+            majorant_scale: scale,
         });
         f(&qs[..k], &ids[..k])
     }

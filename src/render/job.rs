@@ -92,6 +92,35 @@ impl RenderJob<'_> {
         locals
     }
 
+    /// What [`Self::local_lights`] decided, in one line for `nimbus info`: how many
+    /// local lights get equiangular points, and why.
+    pub fn light_sampling_summary(&self) -> String {
+        let total = self.lights.locals().len();
+        if total == 0 {
+            return "no local lights: next events at the collisions only".into();
+        }
+        let sampled = self.local_lights().iter().filter(|l| l.power > 0.0).count();
+        let why = match self.tracking.light_sampling {
+            LightSampling::Collisions => "--light-sampling collisions",
+            LightSampling::EquiangularMis => "--light-sampling equiangular-mis",
+            LightSampling::Auto if self.media.iter().all(|m| m.constant) => {
+                "auto: every medium is homogeneous"
+            }
+            LightSampling::Auto => {
+                "auto: in a heterogeneous medium only spots, whose cones the collisions' light samples mostly miss; the others lose there and are left to the collisions (docs/trackers.md)"
+            }
+        };
+        format!(
+            "{} {sampled} of {total} local light{} sampled equiangularly with MIS ({why})",
+            if sampled > 0 {
+                "equiangular-mis:"
+            } else {
+                "collisions:"
+            },
+            if total == 1 { "" } else { "s" }
+        )
+    }
+
     /// Whether the render runs the single-channel trackers of grey media.
     pub fn grey_tracking(&self) -> bool {
         crate::track::select::grey_tracking(&self.tracking, self.grey())

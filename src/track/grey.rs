@@ -225,6 +225,8 @@ impl TransmittanceEstimator for GreyResidualRatio {
 }
 
 impl TransmittanceEstimator for GreyRatio {
+    const LOCAL_LIGHT_MAJORANT_SCALE: f32 = super::ratio::LOOSE_MAJORANT;
+
     #[inline]
     fn transmittance<R: Rng, C: Tally>(&self, q: &Query, rng: &mut R, c: &mut C) -> Spectrum {
         ratio::<f32, R, C, false>(q, rng, c).spectrum()
@@ -232,6 +234,8 @@ impl TransmittanceEstimator for GreyRatio {
 }
 
 impl TransmittanceEstimator for GreyStochasticRatio {
+    const LOCAL_LIGHT_MAJORANT_SCALE: f32 = super::ratio::LOOSE_MAJORANT;
+
     #[inline]
     fn transmittance<R: Rng, C: Tally>(&self, q: &Query, rng: &mut R, c: &mut C) -> Spectrum {
         ratio::<f32, R, C, true>(q, rng, c).spectrum()

@@ -24,6 +24,10 @@ use std::ops::ControlFlow;
 pub const RR_THRESHOLD: f32 = 0.1;
 pub const RR_SURVIVAL: f32 = 0.5;
 
+/// Ratio tracking's majorant multiplier on shadow rays towards local lights
+/// ([`TransmittanceEstimator::LOCAL_LIGHT_MAJORANT_SCALE`]).
+pub const LOOSE_MAJORANT: f32 = 2.0;
+
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Ratio;
 
@@ -240,6 +244,8 @@ pub(super) fn residual_ratio<T: Estimate, R: Rng, C: Tally>(
 }
 
 impl TransmittanceEstimator for Ratio {
+    const LOCAL_LIGHT_MAJORANT_SCALE: f32 = LOOSE_MAJORANT;
+
     fn transmittance<R: Rng, C: Tally>(&self, q: &Query, rng: &mut R, c: &mut C) -> Spectrum {
         ratio::<Spectrum, R, C, false>(q, rng, c)
     }
@@ -250,6 +256,8 @@ impl TransmittanceEstimator for Ratio {
 pub struct StochasticRatio;
 
 impl TransmittanceEstimator for StochasticRatio {
+    const LOCAL_LIGHT_MAJORANT_SCALE: f32 = LOOSE_MAJORANT;
+
     fn transmittance<R: Rng, C: Tally>(&self, q: &Query, rng: &mut R, c: &mut C) -> Spectrum {
         ratio::<Spectrum, R, C, true>(q, rng, c)
     }
