@@ -232,6 +232,12 @@ fn auto_is_the_default_and_is_reported() {
         .as_str()
         .unwrap()
         .contains("grey"));
+    // A sun and a sky: nothing for equiangular sampling (tests/cli_info.rs has a stage
+    // with local lights).
+    assert_eq!(
+        cloud["light_sampling"],
+        "no local lights: next events at the collisions only"
+    );
     let fire = run("fire", &[]);
     assert_eq!(fire["tracker"], "ratio-select");
     assert_eq!(fire["no_absorption_events"], false);

@@ -378,6 +378,12 @@ fn render_frame(
     if let Some(line) = session.auto_summary() {
         eprintln!("nimbus: {line}");
     }
+    if session.has_local_lights() {
+        eprintln!(
+            "nimbus: light sampling {}",
+            session.job(false).light_sampling_summary()
+        );
+    }
     for w in &session.warnings {
         eprintln!("nimbus: warning: {w}");
     }

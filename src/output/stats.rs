@@ -96,6 +96,8 @@ pub struct RenderStats {
     pub reduced_termination: bool,
     /// Why `--tracker auto` chose the tracker (null when one was named).
     pub tracker_auto_reason: Option<String>,
+    /// What `--light-sampling` did with the local lights, and why (as `nimbus info`).
+    pub light_sampling: String,
     /// The scene analysis the render was planned from.
     pub analysis: crate::render::analysis::Analysis,
     /// The specialised code paths the render ran (`grey_tracking`: grey media tracked
@@ -203,6 +205,7 @@ impl RenderStats {
             no_absorption_events: t.options.no_absorption_events,
             reduced_termination: t.options.reduced_termination,
             tracker_auto_reason: session.auto_reason.clone(),
+            light_sampling: job.light_sampling_summary(),
             analysis: session.analysis.clone(),
             code_paths: CodePathsUsed {
                 counting: job.paths.count,

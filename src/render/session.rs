@@ -631,6 +631,12 @@ impl Session {
         h.finish()
     }
 
+    /// Whether the stage has local lights (point, spot, sphere, rect, disk, cylinder):
+    /// then `render` says what `--light-sampling` does with them.
+    pub fn has_local_lights(&self) -> bool {
+        !self.lights.locals().is_empty()
+    }
+
     /// One line saying what `auto` chose and why (`None` when the tracker was named).
     pub fn auto_summary(&self) -> Option<String> {
         let reason = self.auto_reason.as_ref()?;
