@@ -28,11 +28,11 @@ conftest.against_cycles).
 """
 
 import csv
+import importlib.util
 import os
 import statistics
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
@@ -44,9 +44,16 @@ import bpy  # noqa: E402
 import numpy as np  # noqa: E402
 import nimbus_blender  # noqa: E402
 import blender_export_scene as bex  # noqa: E402
-from conftest import SMOKE_VDB, compare_stacks, render  # noqa: E402
+from conftest import SMOKE_VDB, compare_stacks, render, smoke_scene  # noqa: E402
 
 import test_fog  # noqa: E402
+
+# The add-on side of the fog comparison, shared: an F12 timed, and Nimbus' render of it.
+_fog = importlib.util.spec_from_file_location(
+    "fog_vs_cycles_run", REPO / "benches" / "fog_vs_cycles" / "run.py")
+fog_vs_cycles = importlib.util.module_from_spec(_fog)
+_fog.loader.exec_module(fog_vs_cycles)
+timed, run_nimbus = fog_vs_cycles.timed, fog_vs_cycles.run_nimbus
 
 RES = int(os.environ.get("RES", "96"))
 ROUNDS = int(os.environ.get("ROUNDS", "3"))
@@ -56,33 +63,16 @@ MAX_DEPTH = int(os.environ.get("MAX_DEPTH", "8"))
 
 
 def smoke(density):
-    """The smoke VDB with a Principled Volume of `density` (Color (0.9, 0.8, 0.6),
-    Anisotropy 0.3, no absorption colour), the add-on tests' camera, a black world."""
-    bex.DENSITY = density
-    bex.COLOR, bex.ABSORPTION_COLOR, bex.ANISOTROPY = (0.9, 0.8, 0.6), (0.0, 0.0, 0.0), 0.3
-    scene = bpy.context.scene
-    bex.add_volume(str(SMOKE_VDB))
-    cam_data = bpy.data.cameras.new("camera")
-    cam_data.lens = bex.FOCAL_MM
-    cam_data.sensor_fit = "HORIZONTAL"
-    cam_data.sensor_width = bex.SENSOR_MM
-    camera = bpy.data.objects.new("camera", cam_data)
-    scene.collection.objects.link(camera)
-    bex.look_at(camera, bex.CAMERA_AT, bex.CAMERA_TARGET)
-    scene.camera = camera
-    bex.set_world("point", None)  # black
-    r = scene.render
-    r.engine = "NIMBUS"
-    r.resolution_x = r.resolution_y = RES
-    r.resolution_percentage = 100
-    r.film_transparent = True
-    r.threads_mode = "FIXED"
-    r.threads = os.cpu_count() or 1
-    scene.view_settings.view_transform = "Standard"
-    scene.view_settings.look = "None"
-    s = r.image_settings
-    s.media_type = "MULTI_LAYER_IMAGE"
-    s.color_depth = "32"
+    """conftest.smoke_scene with no light and a black world (the add-on tests' smoke
+    VDB and camera), its Principled Volume set to `density`, Color (0.9, 0.8, 0.6),
+    no absorption colour, Anisotropy 0.3."""
+    scene, obj, _ = smoke_scene(SMOKE_VDB, res=RES, lights=(), world=False, max_depth=MAX_DEPTH)
+    pv = next(n for n in obj.data.materials[0].node_tree.nodes
+              if n.bl_idname == "ShaderNodeVolumePrincipled")
+    pv.inputs["Density"].default_value = density
+    pv.inputs["Color"].default_value = (0.9, 0.8, 0.6, 1.0)
+    pv.inputs["Absorption Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    pv.inputs["Anisotropy"].default_value = 0.3
     return scene
 
 
@@ -142,19 +132,6 @@ def setup(builder):
     scene = builder()
     scene.nimbus.max_depth = MAX_DEPTH
     return scene
-
-
-def timed(scene, path):
-    t = time.perf_counter()
-    img = render(scene, path)["Combined"].astype(np.float64)
-    return img, time.perf_counter() - t
-
-
-def run_nimbus(scene, out, spp, seed):
-    scene.render.engine = "NIMBUS"
-    scene.nimbus.samples = spp
-    scene.nimbus.seed = seed
-    return timed(scene, out)
 
 
 def run_cycles(scene, out, spp, seed):
