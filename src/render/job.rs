@@ -79,9 +79,7 @@ impl RenderJob<'_> {
             LightSampling::Collisions => return Vec::new(),
             _ => self.lights.locals(),
         };
-        if self.tracking.light_sampling == LightSampling::Auto
-            && !self.media.iter().all(|m| m.constant)
-        {
+        if self.tracking.light_sampling == LightSampling::Auto && !self.every_medium_constant() {
             for l in locals.iter_mut().filter(|l| l.cone.is_none()) {
                 l.power = 0.0;
             }
@@ -90,6 +88,12 @@ impl RenderJob<'_> {
             locals.clear();
         }
         locals
+    }
+
+    /// Whether every medium is homogeneous (fog boxes, world fog): where `auto`
+    /// samples every local light equiangularly.
+    fn every_medium_constant(&self) -> bool {
+        self.media.iter().all(|m| m.constant)
     }
 
     /// What [`Self::local_lights`] decided, in one line for `nimbus info`: how many
@@ -103,7 +107,7 @@ impl RenderJob<'_> {
         let why = match self.tracking.light_sampling {
             LightSampling::Collisions => "--light-sampling collisions",
             LightSampling::EquiangularMis => "--light-sampling equiangular-mis",
-            LightSampling::Auto if self.media.iter().all(|m| m.constant) => {
+            LightSampling::Auto if self.every_medium_constant() => {
                 "auto: every medium is homogeneous"
             }
             LightSampling::Auto => {
