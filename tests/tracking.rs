@@ -18,6 +18,7 @@ use nimbus::track::ratio::{Ratio, ResidualRatio};
 use nimbus::track::scheme::{Avg, HistAvg, HistMax, Max, SchemeOptions};
 use nimbus::track::spectral::Spectral;
 use nimbus::track::spectral_mis::{Denominator, SpectralMis};
+use nimbus::track::telescoping::{GreyTelescoping, Telescoping};
 use nimbus::track::track_length::Tracking;
 use nimbus::volume::counters::Counters;
 use nimbus::volume::grid::Grid;
@@ -114,7 +115,8 @@ const SIGMA_A: [f64; 3] = [0.02, 0.03, 0.06];
 const SIGMA_S: [f64; 3] = [0.11, 0.12, 0.10];
 
 /// Ratio and residual-ratio tracking are unbiased for bounding majorants and for
-/// majorants scaled by 0.5 (non-bounding: factors go negative, the mean is unchanged).
+/// majorants scaled by 0.5 (non-bounding: factors go negative, the mean is unchanged);
+/// telescoping ray marching (which ignores the scale) and its grey twin too.
 /// Estimator: T̂ per shadow ray (with Russian roulette); N = 100,000 per case, seed 1;
 /// |z| < 4 for every field, channel, cell size (global, 8 voxels) and estimator.
 #[test]
@@ -147,6 +149,7 @@ fn ratio_and_residual_ratio_transmittance_are_unbiased() {
     }
     run("ratio", Ratio);
     run("residual-ratio", ResidualRatio);
+    run("telescoping", Telescoping);
 }
 
 /// The track-length estimator (`--transmittance tracking`) is its free-path sampler's
@@ -653,5 +656,30 @@ fn spectral_mis_grey_non_bounding_is_unbiased() {
             &s,
             transmittances(sa, ss, &f),
         );
+    }
+}
+
+/// The grey twin of telescoping ray marching (one channel, as `dispatch_specialised`
+/// runs it on grey media) is unbiased: N = 100,000 per case, seed 3, |z| < 4 for every
+/// field and cell size.
+#[test]
+fn grey_telescoping_transmittance_is_unbiased() {
+    for (field, f) in fields() {
+        for cell in [0u32, 8] {
+            let m = medium_from(&f, [0.3; 3], [0.5; 3], cell);
+            let ray = m.index_ray(DVec3::new(X0, 16.0, 16.0), DVec3::X);
+            let q = query(&m, &ray, 1.0);
+            let mut rng = Pcg32::seed_from_u64(3);
+            let mut c = Counters::default();
+            let mut s: [Vec<f64>; 3] = Default::default();
+            for _ in 0..100_000 {
+                let t = GreyTelescoping.transmittance(&q, &mut rng, &mut c);
+                for ch in 0..3 {
+                    s[ch].push(t[ch] as f64);
+                }
+            }
+            let what = format!("grey telescoping {field} cell {cell}");
+            assert_unbiased(&what, &s, transmittances([0.3; 3], [0.5; 3], &f));
+        }
     }
 }

@@ -12,7 +12,7 @@ _TRACKERS = ["naive-delta", "delta", "weighted-delta", "decomposition",
              "decomposition-weighted", "spectral", "spectral-decomposition", "spectral-mis",
              "ratio-select"]
 _SCHEMES = ["max", "avg", "hist-max", "hist-avg"]
-_TRANSMITTANCES = ["ratio", "residual-ratio", "tracking"]
+_TRANSMITTANCES = ["ratio", "residual-ratio", "telescoping", "tracking"]
 
 
 def _names(fn, fallback):

@@ -20,4 +20,5 @@ pub mod scheme;
 pub mod select;
 pub mod spectral;
 pub mod spectral_mis;
+pub mod telescoping;
 pub mod track_length;

@@ -46,6 +46,9 @@ pub trait Estimate: Copy {
     fn magnitude(&self) -> f32;
     fn divide(&mut self, s: f32);
     fn spectrum(self) -> Spectrum;
+    /// `self + (fine − (even + odd)/2)·inv_p`: a telescoping estimate's base term plus
+    /// its correction ([`telescoping`](super::telescoping)).
+    fn telescope(self, fine: Self, even: Self, odd: Self, inv_p: f32) -> Self;
 }
 
 impl Estimate for Spectrum {
@@ -71,6 +74,10 @@ impl Estimate for Spectrum {
     fn spectrum(self) -> Spectrum {
         self
     }
+    #[inline(always)]
+    fn telescope(self, fine: Self, even: Self, odd: Self, inv_p: f32) -> Self {
+        std::array::from_fn(|ch| self[ch] + (fine[ch] - 0.5 * (even[ch] + odd[ch])) * inv_p)
+    }
 }
 
 impl Estimate for f32 {
@@ -91,6 +98,10 @@ impl Estimate for f32 {
     #[inline(always)]
     fn spectrum(self) -> Spectrum {
         [self; 3]
+    }
+    #[inline(always)]
+    fn telescope(self, fine: Self, even: Self, odd: Self, inv_p: f32) -> Self {
+        self + (fine - 0.5 * (even + odd)) * inv_p
     }
 }
 

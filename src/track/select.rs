@@ -4,7 +4,9 @@
 //! the integrator is instantiated once per render, the collision loops see no enum).
 
 use super::free_path::{FreePathSampler, TransmittanceEstimator};
-use super::{decomposition, delta, grey, ratio, scheme, spectral, spectral_mis, track_length};
+use super::{
+    decomposition, delta, grey, ratio, scheme, spectral, spectral_mis, telescoping, track_length,
+};
 
 /// A closed set of named options (a tracker, a scheme, a shadow-ray estimator, a clock):
 /// the names the CLI, the schema's tokens and the stats share, with a line of help each.
@@ -167,6 +169,7 @@ impl SchemeKind {
 pub enum TransmittanceKind {
     Ratio,
     ResidualRatio,
+    Telescoping,
     Tracking,
 }
 
@@ -174,6 +177,7 @@ impl Choice for TransmittanceKind {
     const ALL: &'static [Self] = &[
         TransmittanceKind::Ratio,
         TransmittanceKind::ResidualRatio,
+        TransmittanceKind::Telescoping,
         TransmittanceKind::Tracking,
     ];
 
@@ -181,6 +185,7 @@ impl Choice for TransmittanceKind {
         match self {
             TransmittanceKind::Ratio => "Ratio tracking: the product of null-collision probabilities",
             TransmittanceKind::ResidualRatio => "Residual ratio tracking: a control's closed form times ratio tracking of the residual",
+            TransmittanceKind::Telescoping => "Telescoping ray marching (Misso et al. 2022, as Cycles 5's shadow rays): a jittered march of each cell's residual, unbiased by one randomly drawn finer-march correction",
             TransmittanceKind::Tracking => "The tracker's own free-path sampler: its throughput if the shadow ray escapes, 0 at a real collision (the track-length estimator)",
         }
     }
@@ -196,6 +201,7 @@ impl TransmittanceKind {
         match self {
             TransmittanceKind::Ratio => "ratio",
             TransmittanceKind::ResidualRatio => "residual-ratio",
+            TransmittanceKind::Telescoping => "telescoping",
             TransmittanceKind::Tracking => "tracking",
         }
     }
@@ -273,7 +279,10 @@ impl TrackerSettings {
             TrackerKind::Decomposition
                 | TrackerKind::DecompositionWeighted
                 | TrackerKind::SpectralDecomposition
-        ) || self.transmittance == TransmittanceKind::ResidualRatio
+        ) || matches!(
+            self.transmittance,
+            TransmittanceKind::ResidualRatio | TransmittanceKind::Telescoping
+        )
     }
 }
 
@@ -303,6 +312,7 @@ pub fn dispatch<T>(s: &TrackerSettings, f: impl Dispatch<T>) -> T {
     match s.transmittance {
         TransmittanceKind::Ratio => dispatch_free_path(s, o, ratio::Ratio, f),
         TransmittanceKind::ResidualRatio => dispatch_free_path(s, o, ratio::ResidualRatio, f),
+        TransmittanceKind::Telescoping => dispatch_free_path(s, o, telescoping::Telescoping, f),
         TransmittanceKind::Tracking => dispatch_free_path(s, o, ratio::Ratio, TrackShadows(f)),
     }
 }
@@ -327,23 +337,27 @@ pub fn dispatch_specialised<T>(s: &TrackerSettings, grey: bool, f: impl Dispatch
         return dispatch(s, f);
     }
     use grey::{GreyDecomposition, GreyDelta, GreyRatio, GreyResidualRatio, GreyStochasticRatio};
+    use telescoping::GreyTelescoping;
     use track_length::Tracking;
-    use TransmittanceKind::{Ratio, ResidualRatio};
+    use TransmittanceKind::{Ratio, ResidualRatio, Telescoping};
     // ratio-select: the integrator walks segments single-channel; its fallback free
     // path is analog decomposition, its shadow rays read one voxel per collision.
     if s.tracker == TrackerKind::RatioSelect {
         return match s.transmittance {
             Ratio => f.run(GreyDecomposition, GreyStochasticRatio),
             ResidualRatio => f.run(GreyDecomposition, GreyResidualRatio),
+            Telescoping => f.run(GreyDecomposition, GreyTelescoping),
             TransmittanceKind::Tracking => f.run(GreyDecomposition, Tracking(GreyDecomposition)),
         };
     }
     match (s.tracker == TrackerKind::Delta, s.transmittance) {
         (true, Ratio) => f.run(GreyDelta, GreyRatio),
         (true, ResidualRatio) => f.run(GreyDelta, GreyResidualRatio),
+        (true, Telescoping) => f.run(GreyDelta, GreyTelescoping),
         (true, TransmittanceKind::Tracking) => f.run(GreyDelta, Tracking(GreyDelta)),
         (false, Ratio) => f.run(GreyDecomposition, GreyRatio),
         (false, ResidualRatio) => f.run(GreyDecomposition, GreyResidualRatio),
+        (false, Telescoping) => f.run(GreyDecomposition, GreyTelescoping),
         (false, TransmittanceKind::Tracking) => {
             f.run(GreyDecomposition, Tracking(GreyDecomposition))
         }
