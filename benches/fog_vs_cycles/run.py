@@ -105,23 +105,36 @@ def main(out_csv):
                     pair.append((seed, img, secs))
                 rows.append(dict(case=case, renderer=name, spp=spp, round=r, one_spp_s=one,
                                  pair=pair))
-        allimgs = np.stack(images["nimbus"] + images["cycles"])
-        mask = (np.stack(images["nimbus"])[..., 3].mean(0) > 0.01) | \
-               (np.stack(images["cycles"])[..., 3].mean(0) > 0.01)
-        m = allimgs.mean(0)[..., :3]
-        for row in rows:
-            if row["case"] != case:
-                continue
-            (_, a, sa), (_, b, sb) = row.pop("pair")
-            d = (a[..., :3] - b[..., :3]) ** 2 / (m ** 2 + 0.01)
-            row["relmse"] = 0.5 * d[mask].mean()
-            row["seconds"] = (sa + sb) / 2
-            row["sampling_s"] = row["seconds"] - row["one_spp_s"]
-            row["efficiency"] = 1 / (row["relmse"] * row["seconds"])
-            row["efficiency_sampling"] = 1 / (row["relmse"] * max(row["sampling_s"], 1e-9))
+        mask = score_case(rows, case, images)
         for name in images:
             mean = np.stack(images[name])[:, mask, :].mean(axis=(0, 1))
             print(f"{case} {name}: mean RGBA over {int(mask.sum())} px {np.round(mean, 5)}")
+    write_and_summarise(rows, CASES, out_csv)
+
+
+def score_case(rows, case, images):
+    """Fills in each of `case`'s rows its relMSE (from its round's seed pair), mean
+    seconds, sampling seconds and both efficiencies; returns the mask of pixels where
+    either renderer's mean alpha exceeds 0.01, over which relMSE is taken."""
+    stacks = {k: np.stack(v) for k, v in images.items()}
+    mask = (stacks["nimbus"][..., 3].mean(0) > 0.01) | (stacks["cycles"][..., 3].mean(0) > 0.01)
+    m = np.concatenate([stacks["nimbus"], stacks["cycles"]]).mean(0)[..., :3]
+    for row in rows:
+        if row["case"] != case:
+            continue
+        (_, a, sa), (_, b, sb) = row.pop("pair")
+        d = (a[..., :3] - b[..., :3]) ** 2 / (m ** 2 + 0.01)
+        row["relmse"] = 0.5 * d[mask].mean()
+        row["seconds"] = (sa + sb) / 2
+        row["sampling_s"] = row["seconds"] - row["one_spp_s"]
+        row["efficiency"] = 1 / (row["relmse"] * row["seconds"])
+        row["efficiency_sampling"] = 1 / (row["relmse"] * max(row["sampling_s"], 1e-9))
+    return mask
+
+
+def write_and_summarise(rows, cases, out_csv):
+    """Writes the rows to `out_csv` and prints, per case, each renderer's medians and
+    Nimbus' efficiency over Cycles' (whole F12 and sampling time)."""
     keys = ["case", "renderer", "spp", "round", "seconds", "one_spp_s", "sampling_s", "relmse",
             "efficiency", "efficiency_sampling"]
     with open(out_csv, "w", newline="") as f:
@@ -130,7 +143,7 @@ def main(out_csv):
         for row in rows:
             w.writerow({k: row[k] for k in keys})
     print("medians:")
-    for case in CASES:
+    for case in cases:
         eff = {}
         for name in ("nimbus", "cycles"):
             rs = [r for r in rows if r["case"] == case and r["renderer"] == name]
@@ -139,9 +152,10 @@ def main(out_csv):
             eff[name] = med
             print(f"  {case} {name} spp {rs[0]['spp']}: " +
                   ", ".join(f"{k} {v:.4g}" for k, v in med.items()))
-        print(f"  {case}: Nimbus/Cycles efficiency {eff['nimbus']['efficiency'] / eff['cycles']['efficiency']:.2f} (whole F12), "
-              f"{eff['nimbus']['efficiency_sampling'] / eff['cycles']['efficiency_sampling']:.2f} (sampling time)")
-
+        print(f"  {case}: Nimbus/Cycles efficiency "
+              f"{eff['nimbus']['efficiency'] / eff['cycles']['efficiency']:.2f} (whole F12), "
+              f"{eff['nimbus']['efficiency_sampling'] / eff['cycles']['efficiency_sampling']:.2f}"
+              " (sampling time)")
 
 if __name__ == "__main__":
     main(sys.argv[1] if len(sys.argv) > 1 else "benches/fog_vs_cycles/fog_vs_cycles.csv")

@@ -27,10 +27,8 @@ se_C^2) + 0.5 % of C (Cycles' null-scattering volumes measured 0.2-0.5 % bright,
 conftest.against_cycles).
 """
 
-import csv
 import importlib.util
 import os
-import statistics
 import sys
 import tempfile
 from pathlib import Path
@@ -167,19 +165,8 @@ def main(out_csv, only=None):
                     print(f"{case} {name} seed {seed} {spp} spp: {secs:.2f} s", flush=True)
                 rows.append(dict(case=case, renderer=name, spp=spp, round=r, one_spp_s=one,
                                  pair=pair))
+        mask = fog_vs_cycles.score_case(rows, case, images)
         stacks = {k: np.stack(v) for k, v in images.items()}
-        mask = (stacks["nimbus"][..., 3].mean(0) > 0.01) | (stacks["cycles"][..., 3].mean(0) > 0.01)
-        m = np.concatenate([stacks["nimbus"], stacks["cycles"]]).mean(0)[..., :3]
-        for row in rows:
-            if row["case"] != case:
-                continue
-            (_, a, sa), (_, b, sb) = row.pop("pair")
-            d = (a[..., :3] - b[..., :3]) ** 2 / (m ** 2 + 0.01)
-            row["relmse"] = 0.5 * d[mask].mean()
-            row["seconds"] = (sa + sb) / 2
-            row["sampling_s"] = row["seconds"] - row["one_spp_s"]
-            row["efficiency"] = 1 / (row["relmse"] * row["seconds"])
-            row["efficiency_sampling"] = 1 / (row["relmse"] * max(row["sampling_s"], 1e-9))
         ok, report, n = compare_stacks(stacks, z=Z, bias=CYCLES_BIAS, block=8)
         print(f"{case}: bias check over {n} px, |N - C| <= {Z} se + {CYCLES_BIAS:.1%} C: "
               f"{'agree' if ok else 'DISAGREE'}")
@@ -188,28 +175,7 @@ def main(out_csv, only=None):
         for name in images:
             mean = stacks[name][:, mask, :].mean(axis=(0, 1))
             print(f"{case} {name}: mean RGBA {np.round(mean, 5)}", flush=True)
-    keys = ["case", "renderer", "spp", "round", "seconds", "one_spp_s", "sampling_s", "relmse",
-            "efficiency", "efficiency_sampling"]
-    with open(out_csv, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=keys)
-        w.writeheader()
-        for row in rows:
-            w.writerow({k: row[k] for k in keys})
-    print("medians:")
-    for case in cases:
-        eff = {}
-        for name in ("nimbus", "cycles"):
-            rs = [r for r in rows if r["case"] == case and r["renderer"] == name]
-            med = {k: statistics.median(r[k] for r in rs)
-                   for k in ("seconds", "sampling_s", "relmse", "efficiency", "efficiency_sampling")}
-            eff[name] = med
-            print(f"  {case} {name} spp {rs[0]['spp']}: " +
-                  ", ".join(f"{k} {v:.4g}" for k, v in med.items()))
-        print(f"  {case}: Nimbus/Cycles efficiency "
-              f"{eff['nimbus']['efficiency'] / eff['cycles']['efficiency']:.2f} (whole F12), "
-              f"{eff['nimbus']['efficiency_sampling'] / eff['cycles']['efficiency_sampling']:.2f}"
-              " (sampling time)")
-
+    fog_vs_cycles.write_and_summarise(rows, cases, out_csv)
 
 if __name__ == "__main__":
     main(sys.argv[1] if len(sys.argv) > 1 else "benches/local_lights/vs_cycles.csv",
