@@ -146,9 +146,12 @@ fn march<T: Estimate, R: Rng, C: Tally>(q: &Query, plan: Plan, rng: &mut R, c: &
     let mut rho = 0.0f64; // ρ at the current segment's start
     let mut control = 0.0f32; // ∫ d_min dt
     let mut sums = Sums::default();
-    let mut weight = 1.0f32; // 1 / (the survival probabilities so far)
+    let mut survival = 1.0f32; // the product of the roulettes' survival probabilities
     with_walk!(q, |walk| {
         while let Some(seg) = c.next_segment(&mut walk) {
+            if !(seg.dmax > 0.0) {
+                continue; // empty: no depth, no point, the bound unchanged
+            }
             let len = seg.t1 - seg.t0;
             control += seg.dmin * len;
             let range = ((seg.dmax - seg.dmin) * sg.t_max) as f64; // dρ/dt
@@ -182,16 +185,16 @@ fn march<T: Estimate, R: Rng, C: Tally>(q: &Query, plan: Plan, rng: &mut R, c: &
             // Every later point adds optical depth: the least depth so far bounds the
             // estimate.
             let least = control + inv_sigma_max * least_sum(&sums, &plan);
-            if weight * (-sigma_min * least).exp() < RR_THRESHOLD {
+            if (-sigma_min * least).exp() < RR_THRESHOLD * survival {
                 if rng.gen::<f32>() >= RR_SURVIVAL {
                     return T::ZERO;
                 }
-                weight /= RR_SURVIVAL;
+                survival *= RR_SURVIVAL;
             }
         }
         let mut tr = estimate::<T>(&sg.t, control, inv_sigma_max, &sums, &plan);
-        if weight != 1.0 {
-            tr.divide(1.0 / weight);
+        if survival != 1.0 {
+            tr.divide(survival);
         }
         tr
     })
