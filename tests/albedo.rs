@@ -10,7 +10,7 @@ use glam::{DMat4, DVec3};
 use nimbus::render::lights::Lights;
 use nimbus::scene::{load_stage, LoadOptions};
 use nimbus::track::select::{SchemeKind, TrackerKind, TrackerSettings};
-use nimbus::volume::albedo::AlbedoGrid;
+use nimbus::volume::albedo::Albedo;
 use nimbus::volume::asset::AssetLocation;
 use nimbus::volume::counters::Counters;
 use nimbus::volume::grid::{RawGrid, RawTile};
@@ -216,9 +216,9 @@ const C: [f64; 3] = [0.3, 0.6, 0.9];
 /// A constant albedo grid c over [−0.8125, 0.8125]³ (14³ voxels of 1/8, another transform
 /// than the density's): its reconstruction is exactly c wherever the cube's density is
 /// non-zero.
-fn constant_albedo(c: [f64; 3]) -> AlbedoGrid {
+fn constant_albedo(c: [f64; 3]) -> Albedo {
     let raw = c.map(|v| grid_from_fn("Cd", [14, 14, 14], DVec3::splat(-0.8125), 0.125, |_| v));
-    AlbedoGrid::new("/Cube", "test albedo", "Cd", raw, DMat4::IDENTITY).unwrap()
+    Albedo::new("/Cube", "test albedo", "Cd", raw, DMat4::IDENTITY).unwrap()
 }
 
 fn estimators() -> Vec<(String, TrackerSettings)> {
@@ -389,7 +389,7 @@ fn albedo_values_are_clamped() {
     raw[1].leaves[0].values[1] = -0.25;
     raw[2].leaves[0].values[2] = f32::NAN;
     raw[2].background = f32::INFINITY;
-    let a = AlbedoGrid::new("/V", "test", "Cd", raw, DMat4::IDENTITY).unwrap();
+    let a = Albedo::new("/V", "test", "Cd", raw, DMat4::IDENTITY).unwrap();
     assert_eq!(a.clamped_values, 4);
     let mut c = Counters::default();
     assert_eq!(a.sample(DVec3::ZERO, &mut c), [1.0, 0.5, 0.5]);
@@ -576,5 +576,8 @@ fn render_stats_and_info_report_the_albedo_field() {
     assert_eq!(s["albedo_lookups"], 0);
     assert_eq!(s["analysis"]["albedo_field"], serde_json::Value::Null);
     assert!(!err.contains("albedo grid"), "{err}");
-    assert_mentions(&info, &["albedo: constant (no albedoField)"]);
+    assert_mentions(
+        &info,
+        &["albedo: constant (no albedoField, nimbus:albedo not connected)"],
+    );
 }

@@ -13,7 +13,7 @@ use nimbus::shader::materialx_noise::fractal_noise_3d;
 use nimbus::volume::counters::Counters;
 use nimbus::volume::majorant::MajorantSpec;
 use nimbus::volume::procedural::grid_from_fn;
-use nimbus::volume::vdb::write_float_grid;
+use nimbus::volume::vdb::{write_float_grid, write_grids, WriteGrid};
 use std::path::{Path, PathBuf};
 
 /// The density the graph computes at an object-space point (written out here, not
@@ -1123,4 +1123,201 @@ fn a_blender_voronoi_density_is_bounded_by_its_majorants() {
         stderr(&o)
     );
     assert!(!out.exists());
+}
+
+/// The albedo colour graph of the tests below (a Principled Volume's Color as the
+/// Blender add-on writes it): a Color Ramp of two entries, linear, from LOW to HIGH,
+/// whose Fac is a linear Gradient Texture on Object coordinates (x clamped into
+/// [0,1]).
+const ALBEDO_LOW: [f64; 3] = [0.2, 0.9, 0.5];
+const ALBEDO_HIGH: [f64; 3] = [1.0, 0.3, 0.5];
+
+/// That graph's colour at an object-space point, written out here.
+fn albedo_colour(p: DVec3) -> [f64; 3] {
+    let t = p.x.clamp(0.0, 1.0);
+    std::array::from_fn(|c| ALBEDO_LOW[c] + t * (ALBEDO_HIGH[c] - ALBEDO_LOW[c]))
+}
+
+/// A Volume whose density is 1 over [-1, 1]³ (a 9³ grid of ones), white scattering
+/// (σs = 2·d, σa = 0) and an albedo multiplier: `albedo` is either the connection of
+/// `nimbus:albedo` to the graph ("graph", the ramp's `low` red replacing ALBEDO_LOW's)
+/// or the baked `Cd` grid ("grid").
+fn albedo_volume_stage(dir: &Path, name: &str, albedo: &str, low_red: f64) -> PathBuf {
+    let ones = grid_from_fn("density", [9, 9, 9], DVec3::splat(-1.0), 0.25, |_| 1.0);
+    // The colour baked over [-1.5, 1.5]³ at 8 voxels per unit: the function is linear
+    // between its kinks at x = 0 and x = 1, which are voxel centres, so trilinear
+    // reconstruction is exact wherever the density is not 0.
+    let cd: [_; 3] = std::array::from_fn(|c| {
+        grid_from_fn("Cd", [25, 25, 25], DVec3::splat(-1.5), 0.125, |p| {
+            albedo_colour(p)[c]
+        })
+    });
+    write_grids(
+        &dir.join("albedo.vdb"),
+        &[WriteGrid::Float(&ones), WriteGrid::Vec3s(&cd)],
+    )
+    .unwrap();
+    let (lo, hi) = (ALBEDO_LOW, ALBEDO_HIGH);
+    let multiplier = match albedo {
+        "graph" => "color3f nimbus:albedo.connect = </Graphs/ramp.outputs:Color>".to_string(),
+        _ => "token nimbus:albedoField = \"Cd\"\n    rel field:Cd = </Cloud/Cd>".to_string(),
+    };
+    let body = format!(
+        r#"def Scope "Graphs"
+{{
+    def Shader "coords"
+    {{
+        uniform token info:id = "ShaderNodeTexCoord"
+    }}
+    def Shader "gradient"
+    {{
+        uniform token info:id = "ShaderNodeTexGradient"
+        uniform token inputs:gradient_type = "LINEAR"
+        float3 inputs:Vector.connect = </Graphs/coords.outputs:Object>
+    }}
+    def Shader "ramp"
+    {{
+        uniform token info:id = "ShaderNodeValToRGB"
+        float[] inputs:red_table = [{low_red}, {}]
+        float[] inputs:green_table = [{}, {}]
+        float[] inputs:blue_table = [{}, {}]
+        float[] inputs:alpha_table = [1, 1]
+        float inputs:interpolate = 1
+        float inputs:Fac.connect = </Graphs/gradient.outputs:Fac>
+    }}
+}}
+def Volume "Cloud" (
+    prepend apiSchemas = ["NimbusVolumeAPI"]
+)
+{{
+    rel field:density = </Cloud/density>
+    float nimbus:densityScale = 2
+    color3f nimbus:absorption = (0, 0, 0)
+    color3f nimbus:scattering = (1, 1, 1)
+    float nimbus:anisotropy = 0.2
+    {multiplier}
+    {PLACE}
+    def OpenVDBAsset "density"
+    {{
+        asset filePath = @./albedo.vdb@
+        token fieldName = "density"
+    }}
+    def OpenVDBAsset "Cd"
+    {{
+        asset filePath = @./albedo.vdb@
+        token fieldName = "Cd"
+    }}
+}}
+"#,
+        hi[0], lo[1], hi[1], lo[2], hi[2]
+    );
+    stage(dir, name, &body)
+}
+
+/// Issue 47's colour graphs for scattering: `nimbus:albedo` connected to a Blender
+/// colour graph (a Color Ramp of a Gradient: the albedo varies across the volume)
+/// renders as the same colour baked into an albedo grid (`nimbus:albedoField`), whose
+/// multiplier model it shares. Estimator and tolerance as in
+/// `a_fractal3d_density_renders_as_its_baked_vdb`: 4 seeds × 64 spp at 32×32, |z| < 4
+/// on the image mean and each 8×8 block mean of R, G and B. Both renders draw the same
+/// random numbers (an albedo lookup draws none) and their multipliers agree to float
+/// rounding, so the z found is near 0 (measured 0.00). The same graph with the ramp's
+/// low red 0.6 in place of 0.2 is told apart (measured |z| 266 on the image), so the
+/// test can fail.
+#[test]
+fn an_albedo_colour_graph_renders_as_its_baked_albedo_grid() {
+    let dir = tempfile::tempdir().unwrap();
+    let grid = moments(&albedo_volume_stage(
+        dir.path(),
+        "grid.usda",
+        "grid",
+        ALBEDO_LOW[0],
+    ));
+    let mean = |m: &[(Vec<f64>, Vec<f64>); 3]| m[0].0.iter().sum::<f64>() / (RES * RES) as f64;
+    assert!(mean(&grid) > 0.02, "lit and seen: {}", mean(&grid));
+    let graph = moments(&albedo_volume_stage(
+        dir.path(),
+        "graph.usda",
+        "graph",
+        ALBEDO_LOW[0],
+    ));
+    let (image, block) = worst_z(&graph, &grid);
+    eprintln!(
+        "albedo graph: mean R {:.5} against the grid's {:.5}; worst |z| image {image:.2}, 8x8 block {block:.2}",
+        mean(&graph),
+        mean(&grid)
+    );
+    assert!(
+        image < 4.0 && block < 4.0,
+        "|z| image {image:.2}, block {block:.2}"
+    );
+    let other = moments(&albedo_volume_stage(dir.path(), "other.usda", "graph", 0.6));
+    let (image, block) = worst_z(&other, &grid);
+    eprintln!("low red 0.6: worst |z| image {image:.2}, 8x8 block {block:.2}");
+    assert!(
+        image.max(block) > 4.0,
+        "|z| image {image:.2}, block {block:.2}"
+    );
+}
+
+/// A constant `nimbus:albedo` folds into the coefficients (σs → c·σs, σa → σa + (1 −
+/// c)·σs, c clamped into [0,1]); a connected one becomes the volume's albedo graph; a
+/// connection beside `nimbus:albedoField` is an error naming both; `nimbus info` names
+/// the graph.
+#[test]
+fn nimbus_albedo_is_read_as_a_constant_or_a_graph() {
+    let dir = tempfile::tempdir().unwrap();
+    let graph = albedo_volume_stage(dir.path(), "graph.usda", "graph", ALBEDO_LOW[0]);
+    let text = std::fs::read_to_string(&graph).unwrap();
+    let constant = dir.path().join("constant.usda");
+    std::fs::write(
+        &constant,
+        text.replace(
+            "color3f nimbus:albedo.connect = </Graphs/ramp.outputs:Color>",
+            "color3f nimbus:albedo = (0.25, 1.5, -1)\n    color3f nimbus:absorption = (0.1, 0.1, 0.1)",
+        )
+        .replace("color3f nimbus:absorption = (0, 0, 0)\n", ""),
+    )
+    .unwrap();
+    let load = |p: &Path| load_stage(p, &LoadOptions::default());
+    let v = &load(&constant).unwrap().volumes[0];
+    // The authored colours are float (color3f): equal to f32 rounding.
+    let close = |a: [f64; 3], b: [f64; 3]| a.iter().zip(b).all(|(a, b)| (a - b).abs() < 1e-6);
+    assert!(close(v.scattering, [0.25, 1.0, 0.0]), "{:?}", v.scattering);
+    assert!(
+        close(v.absorption, [0.1 + 0.75, 0.1, 0.1 + 1.0]),
+        "{:?}",
+        v.absorption
+    );
+    assert!(v.albedo_graph.is_none());
+    let v = &load(&graph).unwrap().volumes[0];
+    assert_eq!((v.scattering, v.absorption), ([1.0; 3], [0.0; 3]));
+    let g = v.albedo_graph.as_ref().expect("the albedo graph");
+    assert!(g.source.contains("/Graphs/ramp"), "{}", g.source);
+    let both = dir.path().join("both.usda");
+    std::fs::write(
+        &both,
+        text.replace(
+            "color3f nimbus:albedo.connect",
+            "token nimbus:albedoField = \"Cd\"\n    rel field:Cd = </Cloud/Cd>\n    color3f nimbus:albedo.connect",
+        ),
+    )
+    .unwrap();
+    let e = format!("{:#}", load(&both).unwrap_err());
+    for needle in [
+        "/Cloud",
+        "nimbus:albedoField",
+        "`Cd`",
+        "nimbus:albedo is connected",
+    ] {
+        assert!(e.contains(needle), "{needle} in {e}");
+    }
+    let o = nimbus(&["info", graph.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        out.contains("albedo: colour graph from /Graphs/ramp"),
+        "{out}"
+    );
+    assert!(out.contains("constant albedo false"), "{out}");
 }

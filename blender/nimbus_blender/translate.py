@@ -155,6 +155,11 @@ class _Medium:
         self.density_graph = None
         # The same for a node tree driving the emission colour.
         self.emission_graph = None
+        # The same for a node tree driving Principled Volume's Color (an albedo
+        # multiplier), with what undoing it adds to (sigma_s, sigma_a): the socket's
+        # colour in place of the white the graph's translation assumes.
+        self.albedo_graph = None
+        self.albedo_undo = None
         self.emission = None  # (color, strength, attribute or None = constant)
         self.blackbody = None  # (intensity, temperature, attribute, tint)
 
@@ -408,6 +413,42 @@ def _emission_color_graph(node, owner, medium, warnings, graph):
         f"{reason}; Nimbus uses the socket's colour")
 
 
+def _albedo_graph(node, owner, medium, warnings, graph):
+    """A node tree linked into Principled Volume's Color, compiled by Nimbus as an
+    albedo multiplier (`medium.albedo_graph`, nimbus:albedo) when it translates and
+    Cycles' coefficients are those of one: Absorption Color black and unlinked (then
+    sigma_s + sigma_a = Density, whatever the colour, as nimbus:albedo keeps it) and no
+    emission (whose source needs the absorption the multiplier moves). Returns whether
+    it was; the caller warns otherwise, and uses the socket's colour."""
+    sock = node.inputs["Color"]
+    src = _linked(sock)
+    if src is None:
+        return False
+    absorption = node.inputs["Absorption Color"]
+    emits = (float(node.inputs["Emission Strength"].default_value) > 0
+             or float(node.inputs["Blackbody Intensity"].default_value) > 0
+             or _linked(node.inputs["Emission Strength"]) is not None)
+    if graph is None:
+        reason = "not translated here (a world volume)"
+    elif medium.albedo_graph is not None:
+        reason = "a second Color graph in one medium is not translated"
+    elif _linked(absorption) is not None or max(_socket_value(absorption)[:3]) > 0:
+        reason = ("translated only with Absorption Color black (then the extinction "
+                  "does not depend on the colour)")
+    elif emits:
+        reason = "translated only in a medium that does not emit"
+    else:
+        try:
+            medium.albedo_graph = _graph(sock, graph[0], owner, graph[1])
+            return True
+        except _Untranslatable as e:
+            reason = f"{e}"
+    warnings.append(
+        f"{owner}: node '{src.name}' ({src.bl_idname}) drives '{node.name}'.Color: "
+        f"{reason}; Nimbus uses the socket's colour")
+    return False
+
+
 def _closure(node, owner, medium, warnings, weight=1.0, fog=None, graph=None):
     """Adds the volume closure `node` (Cycles' meaning) to `medium`. `owner` names the
     node tree in warnings ("material 'M'", "world 'W'"); `fog` as in _density."""
@@ -429,6 +470,12 @@ def _closure(node, owner, medium, warnings, weight=1.0, fog=None, graph=None):
         g = float(node.inputs["Anisotropy"].default_value)
         s = [weight * d * x for x in c]
         ab = [weight * d * max(1.0 - x, 0.0) * max(1.0 - math.sqrt(y), 0.0) for x, y in zip(c, a)]
+        if _albedo_graph(node, owner, medium, warnings, graph if fog != "world" else None):
+            # Color is the graph's multiplier c(x) of white: sigma_s = c D d and
+            # sigma_a = (1 - c) D d, so the medium is white scattering D d.
+            white = [weight * d] * 3
+            medium.albedo_undo = ([x - y for x, y in zip(s, white)], ab)
+            s, ab = white, [0.0, 0.0, 0.0]
         medium.add(s, ab, g)
         medium.density_attribute = medium.density_attribute or attr
         if node.inputs["Color Attribute"].default_value and not fog:
@@ -438,7 +485,7 @@ def _closure(node, owner, medium, warnings, weight=1.0, fog=None, graph=None):
                 "Nimbus uses Color")
         for linked in ("Color", "Absorption Color", "Anisotropy"):
             n = _linked(node.inputs[linked])
-            if n is not None:
+            if n is not None and linked != "Color":
                 warnings.append(
                     f"{owner}: node '{n.name}' drives '{node.name}'."
                     f"{linked}: not translated; Nimbus uses the socket's value")
@@ -501,6 +548,19 @@ def _medium_attrs(medium, who, warnings, density_field=None):
     """The NimbusVolumeAPI attributes of `medium` and its single-scattering albedo.
     `who` names the object or world in warnings; `density_field` the density grid
     (None for a fog: density 1, coefficients per world unit)."""
+    if medium.albedo_graph is not None and (
+            len(medium.anisotropy) > 1 or medium.emission is not None
+            or medium.blackbody is not None):
+        # The multiplier would scale every closure's scattering, and an emission
+        # source needs the absorption it moves: the socket's colour instead.
+        ds, da = medium.albedo_undo
+        medium.sigma_s = [a + b for a, b in zip(medium.sigma_s, ds)]
+        medium.sigma_a = [a + b for a, b in zip(medium.sigma_a, da)]
+        medium.albedo_graph = None
+        warnings.append(
+            f"{who}: a node tree drives Principled Volume's Color beside another "
+            "scattering or emitting closure: not translated; Nimbus uses the socket's "
+            "colour")
     # Nimbus' coefficients are per unit of density x densityScale: factor out the
     # largest so the colours stay in a readable range.
     scale = max(max(medium.sigma_s), max(medium.sigma_a), 1e-30)
@@ -526,6 +586,8 @@ def _medium_attrs(medium, who, warnings, density_field=None):
         attrs["float nimbus:densityScale.connect"] = f"<{node}.outputs:Value>"
     else:
         attrs["float nimbus:densityScale"] = _f(scale)
+    if medium.albedo_graph is not None:
+        attrs["color3f nimbus:albedo.connect"] = f"<{medium.albedo_graph[1]}>"
     attrs.update({
         "color3f nimbus:scattering": _c([x / scale for x in medium.sigma_s]),
         "color3f nimbus:absorption": _c([x / scale for x in medium.sigma_a]),
@@ -580,7 +642,7 @@ def _graph_target(obj, prims):
 def _add_graph(medium, prims):
     """Adds the overlay prims of `medium`'s node trees (density, emission colour) to
     `prims`."""
-    for graph in (medium.density_graph, medium.emission_graph):
+    for graph in (medium.density_graph, medium.emission_graph, medium.albedo_graph):
         if graph is None:
             continue
         graph_prims, output = graph

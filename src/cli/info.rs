@@ -149,12 +149,15 @@ fn print_stage(d: &StageDescription) {
         } else if v.temperature_field.is_some() || v.emission_field.is_some() {
             println!("  emission source term: absorption * density * Le (nothing emits where density is 0)");
         }
-        match &v.albedo_field {
-            Some(name) => println!(
+        match (&v.albedo_field, &v.albedo_graph) {
+            (_, Some(source)) => println!(
+                "  albedo: colour graph from {source}, evaluated at scatter events: multiplier c(x) clamped into [0,1]^3, scattering * c, absorption + (1 - c) * scattering (extinction unchanged)"
+            ),
+            (Some(name), None) => println!(
                 "  albedo: albedoField {name} ({}): multiplier c(x) in [0,1]^3, scattering * c, absorption + (1 - c) * scattering (extinction unchanged)",
                 prim(name)
             ),
-            None => println!("  albedo: constant (no albedoField)"),
+            (None, None) => println!("  albedo: constant (no albedoField, nimbus:albedo not connected)"),
         }
         if v.motion_keys > 0 {
             println!(

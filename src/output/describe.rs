@@ -247,6 +247,8 @@ pub struct VolumeDescription {
     /// `nimbus:emissionKind`: "radiance" or "source".
     pub emission_kind: &'static str,
     pub albedo_field: Option<String>,
+    /// The colour graph `nimbus:albedo` is connected to, as its source shader.
+    pub albedo_graph: Option<String>,
     /// Keys of the volume's transform over the shutter (0: it does not move).
     pub motion_keys: usize,
     /// The velocity field (a key of `fields`) that advects the fields over the shutter,
@@ -639,6 +641,7 @@ fn volume(v: &crate::scene::Volume, depth: u32) -> VolumeDescription {
         emission_scale: e.emission_scale,
         emission_kind: e.kind.token(),
         albedo_field: albedo.clone(),
+        albedo_graph: v.albedo_graph.as_ref().map(|g| g.source.clone()),
         motion_keys: v.motion.as_ref().map_or(0, |m| m.keys().len()),
         velocity_field: v.velocity.as_ref().map(|x| x.field.0.clone()),
         velocity_seconds_per_time_code: v

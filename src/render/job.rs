@@ -13,9 +13,10 @@ use crate::scene::schema::tokens;
 use crate::scene::{Field, Scene, Volume, VolumeShape};
 use crate::track::free_path::{FreePathSampler, TransmittanceEstimator};
 use crate::track::select::{Dispatch, LightSampling, TrackerKind, TrackerSettings};
-use crate::volume::albedo::AlbedoGrid;
+use crate::volume::albedo::Albedo;
 use crate::volume::boundary::{InsideRule, MediumRegion};
-use crate::volume::emission::{ColorGraph, Emission, EmissionGrid};
+use crate::volume::color_graph::ColorGraph;
+use crate::volume::emission::{Emission, EmissionGrid};
 use crate::volume::graph_density::DensityShader;
 use crate::volume::grid::Grid;
 use crate::volume::majorant::MajorantSpec;
@@ -267,6 +268,8 @@ fn same_medium(a: &Volume, b: &Volume) -> bool {
         && ea.color_graph.as_ref().map(|g| &g.program)
             == eb.color_graph.as_ref().map(|g| &g.program)
         && same_named(&a.albedo, &b.albedo)
+        && a.albedo_graph.as_ref().map(|g| &g.program)
+            == b.albedo_graph.as_ref().map(|g| &g.program)
         && a.velocity
             .as_ref()
             .map(|v| (&v.field.1, v.seconds_per_time_code))
@@ -308,6 +311,7 @@ fn fog_medium(
         volume.anisotropy,
     )?;
     medium.set_emission(emission_for_volume(volume)?);
+    medium.set_albedo(albedo_for_volume(volume)?);
     Ok(medium)
 }
 
@@ -395,13 +399,22 @@ fn graph_fog_medium(
         spec,
     )?;
     medium.set_emission(emission_for_volume(volume)?);
+    medium.set_albedo(albedo_for_volume(volume)?);
     Ok(medium)
 }
 
-/// The albedo multiplier grid of a volume: loaded only when `nimbus:albedoField` names
-/// a field (a Vec3s grid, or a float grid as grey). Values outside [0,1] are clamped,
-/// with one warning naming the file, the grid and the count.
-pub fn albedo_for_volume(volume: &Volume) -> anyhow::Result<Option<AlbedoGrid>> {
+/// The albedo multiplier of a volume: the colour graph `nimbus:albedo` is connected
+/// to, or the grid `nimbus:albedoField` names (a Vec3s grid, or a float grid as grey),
+/// loaded only then. A grid's values outside [0,1] are clamped, with one warning
+/// naming the file, the grid and the count.
+pub fn albedo_for_volume(volume: &Volume) -> anyhow::Result<Option<Albedo>> {
+    if let Some(g) = &volume.albedo_graph {
+        let graph = ColorGraph {
+            program: g.program.clone(),
+            world_to_shading: g.shading_to_world.inverse(),
+        };
+        return Ok(Some(Albedo::graph(&g.source, graph)));
+    }
     let Some((name, field)) = &volume.albedo else {
         return Ok(None);
     };
@@ -414,7 +427,7 @@ pub fn albedo_for_volume(volume: &Volume) -> anyhow::Result<Option<AlbedoGrid>> 
             )
         })?;
     let grid_name = raw[0].name.clone();
-    let albedo = AlbedoGrid::new(&volume.prim_path, &role, name, raw, volume.volume_to_world)
+    let albedo = Albedo::new(&volume.prim_path, &role, name, raw, volume.volume_to_world)
         .with_context(|| format!("{}: {}", field.file, field.prim_path))?;
     if albedo.clamped_values > 0 {
         eprintln!(

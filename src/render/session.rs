@@ -927,6 +927,7 @@ fn scene_for_vdb(path: &Path, grid: Option<&str>) -> Result<Scene> {
         fields: vec![(chosen.name.clone(), field)],
         emission: VolumeEmission::default(),
         albedo: None,
+        albedo_graph: None,
         velocity: None,
         material_shader: None,
         density_graph: None,

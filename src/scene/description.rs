@@ -424,6 +424,9 @@ pub struct Volume {
     /// float grid, an albedo multiplier c ∈ [0,1]³: σs → c·σs, σa → σa + (1 − c)·σs).
     /// `None` = constant albedo; a `Cd` field is not used unless named.
     pub albedo: Option<(String, Field)>,
+    /// The colour graph `nimbus:albedo` is connected to (issue 47): the same
+    /// multiplier, evaluated at scatter events; at most one of it and `albedo`.
+    pub albedo_graph: Option<DensityGraph>,
     /// The velocity field whose flow blurs the volume's fields over the shutter
     /// (`nimbus:velocityField`, else a field `vel` or `velocity`), and the seconds of
     /// flow per time code from the frame (`nimbus:velocityScale` × `motion:blurScale`
@@ -490,6 +493,7 @@ pub struct FogParams {
     pub emission: VolumeEmission,
     pub material_shader: Option<String>,
     pub density_graph: Option<DensityGraph>,
+    pub albedo_graph: Option<DensityGraph>,
 }
 
 impl FogParams {
@@ -514,10 +518,22 @@ impl FogParams {
             fields: Vec::new(),
             emission: self.emission,
             albedo: None,
+            albedo_graph: self.albedo_graph,
             velocity: None,
             material_shader: self.material_shader,
             density_graph: self.density_graph,
         }
+    }
+}
+
+/// Folds a constant albedo multiplier `c` (`nimbus:albedo`) into a medium's
+/// coefficients: σs → c·σs and σa → σa + (1 − c)·σs, with c clamped into [0,1], so
+/// extinction is unchanged (as for a varying multiplier, `volume::albedo`).
+pub fn fold_albedo(c: [f64; 3], absorption: &mut [f64; 3], scattering: &mut [f64; 3]) {
+    for ((a, s), c) in absorption.iter_mut().zip(scattering.iter_mut()).zip(c) {
+        let c = c.clamp(0.0, 1.0);
+        *a += (1.0 - c) * *s;
+        *s *= c;
     }
 }
 

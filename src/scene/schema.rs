@@ -52,6 +52,7 @@ pub mod tokens {
     pub const EMISSION_SCALE: &str = "nimbus:emissionScale";
     pub const EMISSION_KIND: &str = "nimbus:emissionKind";
     pub const ALBEDO_FIELD: &str = "nimbus:albedoField";
+    pub const ALBEDO: &str = "nimbus:albedo";
     pub const VELOCITY_FIELD: &str = "nimbus:velocityField";
     pub const VELOCITY_SCALE: &str = "nimbus:velocityScale";
     pub const SAMPLES: &str = "nimbus:samples";

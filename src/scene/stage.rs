@@ -462,10 +462,13 @@ impl Loader<'_> {
                 Some(_) => 1.0,
                 None => read_f64(prim, tokens::DENSITY_SCALE, t)?.unwrap_or(1.0),
             };
+            let mut absorption = read_vec3(prim, tokens::ABSORPTION, t)?.unwrap_or([0.1; 3]);
+            let mut scattering = read_vec3(prim, tokens::SCATTERING, t)?.unwrap_or([0.9; 3]);
+            let albedo_graph = self.albedo(prim, &mut absorption, &mut scattering)?;
             return Ok(Some(FogParams {
                 density_scale,
-                absorption: read_vec3(prim, tokens::ABSORPTION, t)?.unwrap_or([0.1; 3]),
-                scattering: read_vec3(prim, tokens::SCATTERING, t)?.unwrap_or([0.9; 3]),
+                absorption,
+                scattering,
                 anisotropy: read_f64(prim, tokens::ANISOTROPY, t)?.unwrap_or(0.0),
                 emission: self.emission(prim, &[])?,
                 material_shader: None,
@@ -474,6 +477,7 @@ impl Loader<'_> {
                     shading_to_world: DMat4::IDENTITY,
                     source,
                 }),
+                albedo_graph,
             }));
         }
         let Some(m) = shading::bound_volume_material(self.stage, prim, t)? else {
@@ -514,6 +518,7 @@ impl Loader<'_> {
             emission: VolumeEmission::default(),
             material_shader: Some(source),
             density_graph,
+            albedo_graph: None,
         }))
     }
 
@@ -536,6 +541,9 @@ impl Loader<'_> {
             g.shading_to_world = *to_world;
         }
         if let Some(g) = &mut p.emission.color_graph {
+            g.shading_to_world = *to_world;
+        }
+        if let Some(g) = &mut p.albedo_graph {
             g.shading_to_world = *to_world;
         }
         if let Some(problem) = problem {
@@ -775,6 +783,7 @@ impl Loader<'_> {
                 fields,
                 emission: VolumeEmission::default(),
                 albedo: None,
+                albedo_graph: None,
                 velocity,
                 density_graph: m.density_graph.map(|g| DensityGraph {
                     program: g.program,
@@ -789,9 +798,26 @@ impl Loader<'_> {
         let density = self.density_field(prim, &density_name, &fields)?;
         let mut emission = self.emission(prim, &fields)?;
         let albedo = self.named_field(prim, tokens::ALBEDO_FIELD, &fields)?;
+        let mut absorption = read_vec3(prim, tokens::ABSORPTION, t)?.unwrap_or([0.1; 3]);
+        let mut scattering = read_vec3(prim, tokens::SCATTERING, t)?.unwrap_or([0.9; 3]);
+        let mut albedo_graph = self.albedo(prim, &mut absorption, &mut scattering)?;
+        if let (Some((name, _)), Some(g)) = (&albedo, &albedo_graph) {
+            return Err(prim_error(
+                prim.path(),
+                format!(
+                    "{} names the field `{name}` and {} is connected to {}: one albedo multiplier may vary in space, not two",
+                    tokens::ALBEDO_FIELD,
+                    tokens::ALBEDO,
+                    g.source
+                ),
+            ));
+        }
         let (volume_to_world, motion) = self.blurred_transform(prim)?;
         let velocity = self.velocity(prim, &fields)?;
         if let Some(g) = &mut emission.color_graph {
+            g.shading_to_world = volume_to_world;
+        }
+        if let Some(g) = &mut albedo_graph {
             g.shading_to_world = volume_to_world;
         }
         let graph = self.density_scale_graph(prim, true)?;
@@ -814,13 +840,14 @@ impl Loader<'_> {
             motion,
             shape: VolumeShape::Field(density),
             density_scale,
-            absorption: read_vec3(prim, tokens::ABSORPTION, t)?.unwrap_or([0.1; 3]),
-            scattering: read_vec3(prim, tokens::SCATTERING, t)?.unwrap_or([0.9; 3]),
+            absorption,
+            scattering,
             anisotropy: read_f64(prim, tokens::ANISOTROPY, t)?.unwrap_or(0.0),
             fields,
             velocity,
             emission,
             albedo,
+            albedo_graph,
             material_shader: None,
             density_graph: graph.map(|(g, source)| DensityGraph {
                 program: g.program,
@@ -899,6 +926,41 @@ impl Loader<'_> {
             output.to_string(),
             format!("{path} (Blender nodes)"),
         )))
+    }
+
+    /// `nimbus:albedo`: the colour graph it is connected to (in the prim's object
+    /// space, placed by the caller), or its constant value, folded here into the
+    /// coefficients (σs → c·σs, σa → σa + (1 − c)·σs, c clamped into [0,1]; the
+    /// fallback (1, 1, 1) changes nothing). A graph reading a field is refused.
+    fn albedo(
+        &self,
+        prim: &Prim,
+        absorption: &mut [f64; 3],
+        scattering: &mut [f64; 3],
+    ) -> Result<Option<DensityGraph>, SceneError> {
+        if let Some((shader, output, source)) = self.connected_shader(prim, tokens::ALBEDO)? {
+            let graph = blender_graph::usd_color(&shader, &output, self.time)?;
+            if let Some(a) = graph.attribute {
+                return Err(prim_error(
+                    prim.path(),
+                    format!("{source}: the albedo colour graph reads the field `{a}` (an Attribute node); Nimbus reads fields in density graphs only"),
+                ));
+            }
+            return Ok(Some(DensityGraph {
+                program: graph.program,
+                shading_to_world: DMat4::IDENTITY,
+                source,
+            }));
+        }
+        let c = read_vec3(prim, tokens::ALBEDO, self.time)?.unwrap_or([1.0; 3]);
+        if c.iter().any(|v| !v.is_finite()) {
+            return Err(prim_error(
+                prim.path(),
+                format!("{} = {c:?} is not finite", tokens::ALBEDO),
+            ));
+        }
+        fold_albedo(c, absorption, scattering);
+        Ok(None)
     }
 
     /// World fog: a Volume with `nimbus:fill = "world"` (its fields are not read).

@@ -17,7 +17,7 @@
 //! the free-path loops never touch emission.
 
 use crate::color::usd_blackbody_rgb;
-use crate::shader::graph::Program;
+use crate::volume::color_graph::ColorGraph;
 use crate::volume::counters::Tally;
 use crate::volume::grid::Grid;
 use crate::volume::grid::{world_to_index, MediumError};
@@ -149,26 +149,6 @@ impl EmissionParams {
     }
 }
 
-/// A compiled colour graph ([`Program::eval_rgb`]) and where its positions are.
-#[derive(Clone, Debug)]
-pub struct ColorGraph {
-    pub program: Program,
-    /// World → the graph's position space (the prim's object space).
-    pub world_to_shading: DMat4,
-}
-
-impl ColorGraph {
-    #[inline]
-    fn rgb(&self, p: DVec3) -> [f64; 3] {
-        let q = self
-            .world_to_shading
-            .transform_point3(p)
-            .as_vec3()
-            .to_array();
-        self.program.eval_rgb(q, 0.0).map(|c| f64::from(c.max(0.0)))
-    }
-}
-
 /// The emission of a medium: at least one of the two grids, or a source-kind emission
 /// whose field is the constant 1.
 pub struct Emission {
@@ -221,10 +201,7 @@ impl Emission {
             field: place(&self.field)?,
             params: self.params,
             // A Volume's graph is in its volume space.
-            color_graph: self.color_graph.as_ref().map(|g| ColorGraph {
-                program: g.program.clone(),
-                world_to_shading: volume_to_world.inverse(),
-            }),
+            color_graph: self.color_graph.as_ref().map(|g| g.placed(volume_to_world)),
             field_rgb: self.field_rgb,
             constant_field: self.constant_field,
         })

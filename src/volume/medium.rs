@@ -6,14 +6,15 @@
 //! direction is *not* normalised, so `t` keeps world units and the coefficients stay
 //! per world unit length, whatever the grid's voxel size or the volume's transform).
 //!
-//! An optional albedo grid c(x) ∈ [0,1]³ (`nimbus:albedoField`, [`AlbedoGrid`]) turns
+//! An optional albedo multiplier c(x) ∈ [0,1]³ ([`Albedo`]: a grid, `nimbus:albedoField`,
+//! or a colour graph, `nimbus:albedo`) turns
 //! μs into c·μs and μa into μa + (1 − c)·μs, leaving μt (hence majorants and trackers)
 //! unchanged; the integrator applies it as a weight c(x) at scatter events (the model and
 //! the unbiasedness argument are in [`crate::volume::albedo`]).
 
 use crate::color::Spectrum;
 use crate::motion::TransformMotion;
-use crate::volume::albedo::AlbedoGrid;
+use crate::volume::albedo::Albedo;
 use crate::volume::boundary::{Inside, MediumRegion, MediumWalk};
 use crate::volume::counters::Tally;
 use crate::volume::emission::Emission;
@@ -115,9 +116,10 @@ pub struct Medium {
     /// Emission (temperature and/or emission grids), collected at absorption events;
     /// `None` for a non-emissive medium. Set with [`Medium::set_emission`].
     pub emission: Option<Emission>,
-    /// Albedo multiplier c(x) (`nimbus:albedoField`), looked up at scatter events;
+    /// Albedo multiplier c(x) (`nimbus:albedoField`'s grid or `nimbus:albedo`'s colour
+    /// graph), looked up at scatter events;
     /// `None` = constant albedo σs/σt. Set with [`Medium::set_albedo`].
-    pub albedo: Option<AlbedoGrid>,
+    pub albedo: Option<Albedo>,
     /// Where the medium is: where its grid is, inside a closed surface (a fog box;
     /// walks are clipped to it) or everywhere (world fog).
     pub region: MediumRegion,
@@ -668,7 +670,7 @@ impl Medium {
 
     /// Sets (or with `None` removes) the albedo multiplier grid. It changes no majorant:
     /// extinction is unchanged, and the grid is looked up only at scatter events.
-    pub fn set_albedo(&mut self, albedo: Option<AlbedoGrid>) {
+    pub fn set_albedo(&mut self, albedo: Option<Albedo>) {
         self.albedo = albedo;
     }
 

@@ -21,9 +21,9 @@ use nimbus::scene::materialx_graph;
 use nimbus::scene::schema::tokens;
 use nimbus::scene::shader_network::{Input, ParamValue, ShaderNetwork, ShaderNode};
 use nimbus::scene::{
-    fog, Camera, Collection, CylinderLight, DensityGraph, DiskLight, DistantLight, DomeLight,
-    Field, FogParams, HoldoutMesh, LightControls, Projection, RectLight, RenderSettings, Scene,
-    Shaping, SphereLight, Volume, VolumeEmission, VolumeShape,
+    fog, fold_albedo, Camera, Collection, CylinderLight, DensityGraph, DiskLight, DistantLight,
+    DomeLight, Field, FogParams, HoldoutMesh, LightControls, Projection, RectLight, RenderSettings,
+    Scene, Shaping, SphereLight, Volume, VolumeEmission, VolumeShape,
 };
 use nimbus::shader::graph::Program;
 use nimbus::volume::asset::AssetLocation;
@@ -606,13 +606,14 @@ impl<'a> Material<'a> {
 /// reader reads a prim with `NimbusVolumeAPI`). `nimbus:fill` (which says what a
 /// Volume is, not what its medium is) and `nimbus:lightGroup` (NimbusLightAPI's) do
 /// not count, nor does `nimbus:holdout`.
-const VOLUME_API_PRIMVARS: [&str; 13] = [
+const VOLUME_API_PRIMVARS: [&str; 14] = [
     tokens::DENSITY_FIELD,
     tokens::DENSITY_SCALE,
     tokens::ABSORPTION,
     tokens::SCATTERING,
     tokens::ANISOTROPY,
     tokens::ALBEDO_FIELD,
+    tokens::ALBEDO,
     tokens::TEMPERATURE_FIELD,
     tokens::TEMPERATURE_SCALE,
     tokens::BLACKBODY_INTENSITY,
@@ -693,6 +694,7 @@ fn fog_medium(
         scattering: m.scattering,
         anisotropy: m.anisotropy,
         emission: VolumeEmission::default(),
+        albedo_graph: None,
         material_shader: Some(material.shader_name()),
         // Placed in the mesh's object space by `mesh` (world fog refuses it).
         density_graph: m.density_graph.map(|program| DensityGraph {
@@ -717,15 +719,31 @@ fn api_medium(path: &str, pv: &[ParamDesc]) -> Result<FogParams> {
             );
         }
     }
+    let (absorption, scattering) = coefficients(path, pv)?;
     Ok(FogParams {
         density_scale: scalar(path, pv, tokens::DENSITY_SCALE)?.unwrap_or(1.0),
-        absorption: color3(path, pv, tokens::ABSORPTION)?.unwrap_or([0.1; 3]),
-        scattering: color3(path, pv, tokens::SCATTERING)?.unwrap_or([0.9; 3]),
+        absorption,
+        scattering,
         anisotropy: scalar(path, pv, tokens::ANISOTROPY)?.unwrap_or(0.0),
         emission: emission(path, pv, &|_| Ok(None))?,
         material_shader: None,
         density_graph: None,
+        albedo_graph: None,
     })
+}
+
+/// `nimbus:absorption` and `nimbus:scattering` with a constant `nimbus:albedo` folded
+/// in (as the USD reader does; a primvar cannot carry a colour graph's connection).
+fn coefficients(path: &str, pv: &[ParamDesc]) -> Result<([f64; 3], [f64; 3])> {
+    let mut absorption = color3(path, pv, tokens::ABSORPTION)?.unwrap_or([0.1; 3]);
+    let mut scattering = color3(path, pv, tokens::SCATTERING)?.unwrap_or([0.9; 3]);
+    if let Some(c) = color3(path, pv, tokens::ALBEDO)? {
+        if c.iter().any(|v| !v.is_finite()) {
+            bail!("{path}: {} = {c:?} is not finite", tokens::ALBEDO);
+        }
+        fold_albedo(c, &mut absorption, &mut scattering);
+    }
+    Ok((absorption, scattering))
 }
 
 /// The warning for an rprim whose material is not one Nimbus reads (`what` it is read
@@ -861,6 +879,7 @@ fn volume(
             fields,
             emission: VolumeEmission::default(),
             albedo: None,
+            albedo_graph: None,
             velocity: None,
             material_shader: Some(material.shader_name()),
             density_graph: m.density_graph.map(|program| DensityGraph {
@@ -880,6 +899,7 @@ fn volume(
     let emission = emission(path, pv, &optional)?;
     let density = named(density_name)?;
     let albedo = optional(tokens::ALBEDO_FIELD)?;
+    let (absorption, scattering) = coefficients(path, pv)?;
     Ok(Volume {
         prim_path: v.path.clone(),
         light_group,
@@ -887,8 +907,8 @@ fn volume(
         motion,
         shape: VolumeShape::Field(density),
         density_scale: scalar(path, pv, tokens::DENSITY_SCALE)?.unwrap_or(1.0),
-        absorption: color3(path, pv, tokens::ABSORPTION)?.unwrap_or([0.1; 3]),
-        scattering: color3(path, pv, tokens::SCATTERING)?.unwrap_or([0.9; 3]),
+        absorption,
+        scattering,
         anisotropy: scalar(path, pv, tokens::ANISOTROPY)?.unwrap_or(0.0),
         fields,
         emission,
