@@ -719,7 +719,7 @@ fn api_medium(path: &str, pv: &[ParamDesc]) -> Result<FogParams> {
             );
         }
     }
-    let (absorption, scattering) = coefficients(path, pv)?;
+    let (absorption, scattering) = api_coefficients(path, pv)?;
     Ok(FogParams {
         density_scale: scalar(path, pv, tokens::DENSITY_SCALE)?.unwrap_or(1.0),
         absorption,
@@ -734,7 +734,7 @@ fn api_medium(path: &str, pv: &[ParamDesc]) -> Result<FogParams> {
 
 /// `nimbus:absorption` and `nimbus:scattering` with a constant `nimbus:albedo` folded
 /// in (as the USD reader does; a primvar cannot carry a colour graph's connection).
-fn coefficients(path: &str, pv: &[ParamDesc]) -> Result<([f64; 3], [f64; 3])> {
+fn api_coefficients(path: &str, pv: &[ParamDesc]) -> Result<([f64; 3], [f64; 3])> {
     let mut absorption = color3(path, pv, tokens::ABSORPTION)?.unwrap_or([0.1; 3]);
     let mut scattering = color3(path, pv, tokens::SCATTERING)?.unwrap_or([0.9; 3]);
     if let Some(c) = color3(path, pv, tokens::ALBEDO)? {
@@ -899,7 +899,7 @@ fn volume(
     let emission = emission(path, pv, &optional)?;
     let density = named(density_name)?;
     let albedo = optional(tokens::ALBEDO_FIELD)?;
-    let (absorption, scattering) = coefficients(path, pv)?;
+    let (absorption, scattering) = api_coefficients(path, pv)?;
     Ok(Volume {
         prim_path: v.path.clone(),
         light_group,
@@ -913,6 +913,7 @@ fn volume(
         fields,
         emission,
         albedo,
+        albedo_graph: None,
         velocity: None,
         material_shader: None,
         density_graph: None,
@@ -1289,9 +1290,22 @@ pub(crate) mod tests {
                 text: String::new(),
             },
         ];
-        let (s, _) = scene_of(&desc(pv)).unwrap();
+        let (s, _) = scene_of(&desc(pv.clone())).unwrap();
         assert_eq!(s.volumes[0].density_scale, 4.0);
         assert_eq!(s.volumes[0].scattering, [0.5, 0.6, 0.7]);
+
+        // A constant nimbus:albedo folds as the USD reader folds it: σs → c·σs,
+        // σa → σa + (1 − c)·σs, c clamped into [0,1].
+        pv.primvars.push(ParamDesc {
+            name: "nimbus:albedo".into(),
+            numbers: vec![0.5, 2.0, -1.0],
+            text: String::new(),
+        });
+        let (s, _) = scene_of(&desc(pv)).unwrap();
+        let v = &s.volumes[0];
+        assert_eq!(v.scattering, [0.25, 0.6, 0.0]);
+        assert_eq!(v.absorption, [0.1 + 0.25, 0.1, 0.1 + 0.7]);
+        assert!(v.albedo_graph.is_none());
 
         let mut m = smoke_volume();
         m.material_path = "/mat".into();
