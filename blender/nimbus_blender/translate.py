@@ -194,6 +194,18 @@ _GRAPH_NODES = {
     "ShaderNodeAttribute": ("attribute_name",),
     "ShaderNodeValue": (),
 }
+# The operations Nimbus compiles of the nodes that have one (src/scene/blender_graph.rs'
+# `math` and Vector Math): another is untranslatable here, so the add-on warns and keeps
+# the socket's value instead of writing a stage Nimbus refuses.
+_OPERATIONS = {
+    "ShaderNodeMath": {
+        "ADD", "SUBTRACT", "MULTIPLY", "DIVIDE", "MULTIPLY_ADD", "POWER", "LOGARITHM",
+        "SQRT", "INVERSE_SQRT", "ABSOLUTE", "EXPONENT", "MINIMUM", "MAXIMUM", "LESS_THAN",
+        "GREATER_THAN", "SIGN", "COMPARE", "ROUND", "FLOOR", "CEIL", "TRUNC", "FRACT",
+        "MODULO", "FLOORED_MODULO"},
+    "ShaderNodeVectorMath": {
+        "ADD", "SUBTRACT", "MULTIPLY", "SCALE", "LENGTH", "DOT_PRODUCT", "DISTANCE"},
+}
 # Texture nodes whose unlinked Vector is Blender's Generated coordinates.
 _TEXTURES = ("ShaderNodeTexNoise", "ShaderNodeTexVoronoi", "ShaderNodeTexGradient")
 # Cycles bakes a Color Ramp into this many intervals (RAMP_TABLE_SIZE).
@@ -241,6 +253,9 @@ def _graph(socket, obj, owner, folder_prim):
         kind = node.bl_idname
         if kind not in _GRAPH_NODES:
             raise _Untranslatable(f"node '{node.name}' ({kind}) is not one Nimbus compiles")
+        if kind in _OPERATIONS and node.operation not in _OPERATIONS[kind]:
+            raise _Untranslatable(
+                f"node '{node.name}': operation {node.operation} is not one Nimbus compiles")
         prims[path] = None  # a cycle stops here
         lines = [f'uniform token info:id = "{kind}"']
         for prop in _GRAPH_NODES[kind]:

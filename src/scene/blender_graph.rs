@@ -20,7 +20,7 @@
 use super::attrs::{prim_error_str, SceneError};
 use super::materialx_graph::{colour, number, usd_network};
 use super::shader_network::{Input, ParamValue, ShaderNetwork, ShaderNode};
-use crate::shader::graph::{Binary, Builder, Program, Unary, Value as Reg};
+use crate::shader::graph::{Binary, Builder, GraphError, Program, Unary, Value as Reg};
 use crate::shader::noise::{Dimensions, NoiseTexture, NoiseType};
 use crate::shader::voronoi::{VoronoiOutput, VoronoiTexture};
 use openusd::usd::{Prim, TimeCode};
@@ -71,6 +71,65 @@ pub fn usd_color(
         .finish_rgb(v)
         .map_err(|e| prim_error_str(node, e))?;
     Ok(BlenderDensity { program, attribute })
+}
+
+/// Blender's Math node operation `op` (its `operation` identifier) of `a`, `b` and `c`
+/// (the third input, read by Multiply Add and Compare), with Cycles' semantics
+/// ([`crate::shader::math`]); `None` for an operation not compiled.
+pub fn math(bl: &mut Builder, op: &str, a: Reg, b: Reg, c: Reg) -> Result<Option<Reg>, GraphError> {
+    let binary = match op {
+        "ADD" => Some(Binary::Add),
+        "SUBTRACT" => Some(Binary::Sub),
+        "MULTIPLY" => Some(Binary::Mul),
+        "DIVIDE" => Some(Binary::SafeDiv),
+        "MINIMUM" => Some(Binary::Min),
+        "MAXIMUM" => Some(Binary::Max),
+        "LESS_THAN" => Some(Binary::Less),
+        "GREATER_THAN" => Some(Binary::Greater),
+        "POWER" => Some(Binary::Pow),
+        "LOGARITHM" => Some(Binary::Log),
+        "MODULO" => Some(Binary::Mod),
+        "FLOORED_MODULO" => Some(Binary::FlooredMod),
+        _ => None,
+    };
+    if let Some(o) = binary {
+        return bl.binary(o, a, b).map(Some);
+    }
+    let unary = match op {
+        "ABSOLUTE" => Some(Unary::Abs),
+        "SQRT" => Some(Unary::Sqrt),
+        "INVERSE_SQRT" => Some(Unary::InverseSqrt),
+        "EXPONENT" => Some(Unary::Exp),
+        "SIGN" => Some(Unary::Sign),
+        "ROUND" => Some(Unary::Round),
+        "FLOOR" => Some(Unary::Floor),
+        "CEIL" => Some(Unary::Ceil),
+        "TRUNC" => Some(Unary::Trunc),
+        "FRACT" => Some(Unary::Fract),
+        _ => None,
+    };
+    if let Some(o) = unary {
+        return bl.unary(o, a).map(Some);
+    }
+    Ok(match op {
+        "MULTIPLY_ADD" => {
+            let m = bl.binary(Binary::Mul, a, b)?;
+            Some(bl.binary(Binary::Add, m, c)?)
+        }
+        // Cycles: 1 where a == b or |a − b| ≤ max(c, FLT_EPSILON), else 0; written as
+        // 1 − (|a − b| > max(c, ε)), the same for every a and b (a == b gives
+        // |a − b| = 0, or NaN for equal infinities, and NaN > m is false).
+        "COMPARE" => {
+            let d = bl.binary(Binary::Sub, a, b)?;
+            let d = bl.unary(Unary::Abs, d)?;
+            let eps = bl.constant(f32::EPSILON)?;
+            let m = bl.binary(Binary::Max, c, eps)?;
+            let far = bl.binary(Binary::Greater, d, m)?;
+            let one = bl.constant(1.0)?;
+            Some(bl.binary(Binary::Sub, one, far)?)
+        }
+        _ => None,
+    })
 }
 
 /// The Blender graph whose output `output` of the shader prim `shader` is connected
@@ -549,7 +608,7 @@ impl<'a> Reader<'a> {
                 let op = Self::text(node, "operation", "ADD")?;
                 let a = self.float(node, "Value", 0.5)?;
                 let b = self.float(node, "Value_001", 0.5)?;
-                let c = if op == "MULTIPLY_ADD" {
+                let c = if op == "MULTIPLY_ADD" || op == "COMPARE" {
                     Some(self.float(node, "Value_002", 0.5)?)
                 } else {
                     None
@@ -557,32 +616,9 @@ impl<'a> Reader<'a> {
                 let clamp = self.constant(node, "use_clamp", 0.0)? != 0.0;
                 self.builder.node(&at);
                 let bl = &mut self.builder;
-                let binary = |o| match o {
-                    "ADD" => Some(Binary::Add),
-                    "SUBTRACT" => Some(Binary::Sub),
-                    "MULTIPLY" => Some(Binary::Mul),
-                    "DIVIDE" => Some(Binary::SafeDiv),
-                    "MINIMUM" => Some(Binary::Min),
-                    "MAXIMUM" => Some(Binary::Max),
-                    "LESS_THAN" => Some(Binary::Less),
-                    "GREATER_THAN" => Some(Binary::Greater),
-                    _ => None,
-                };
-                let v = if let Some(o) = binary(op.as_str()) {
-                    bl.binary(o, a, b).map_err(&err)?
-                } else {
-                    match op.as_str() {
-                        "MULTIPLY_ADD" => {
-                            let m = bl.binary(Binary::Mul, a, b).map_err(&err)?;
-                            bl.binary(Binary::Add, m, c.expect("read above"))
-                                .map_err(&err)?
-                        }
-                        "ABSOLUTE" => bl.unary(Unary::Abs, a).map_err(&err)?,
-                        "SQRT" => bl.unary(Unary::Sqrt, a).map_err(&err)?,
-                        "FLOOR" => bl.unary(Unary::Floor, a).map_err(&err)?,
-                        o => return Err(Self::refuse(node, "operation", o)),
-                    }
-                };
+                let v = math(bl, &op, a, b, c.unwrap_or(a))
+                    .map_err(&err)?
+                    .ok_or_else(|| Self::refuse(node, "operation", &op))?;
                 if clamp {
                     let (zero, one) = (
                         bl.constant(0.0).map_err(&err)?,

@@ -16,6 +16,7 @@
 
 use super::interval::{blender_noise_bound, cell_noise_3d_bound, perlin_3d_bound, Interval};
 use super::materialx_noise::{cell_noise_3d, perlin_noise_3d};
+use super::math;
 use super::noise::NoiseTexture;
 use super::voronoi::{VoronoiF1, VoronoiOutput, VoronoiTexture};
 
@@ -39,6 +40,14 @@ pub enum Unary {
     Abs,
     Sqrt,
     Floor,
+    /// Blender's Math operations of one operand ([`super::math`]: Cycles' semantics).
+    Ceil,
+    Round,
+    Trunc,
+    Fract,
+    Sign,
+    Exp,
+    InverseSqrt,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -55,6 +64,12 @@ pub enum Binary {
     Less,
     /// 1 where a > b, else 0 (Blender's Math Greater Than).
     Greater,
+    /// Blender's Math Power, Logarithm, Truncated and Floored Modulo
+    /// ([`super::math`]: Cycles' safe functions).
+    Pow,
+    Log,
+    Mod,
+    FlooredMod,
 }
 
 /// One instruction. Noise instructions read a position from three consecutive
@@ -737,6 +752,13 @@ impl Program {
                         Unary::Abs => a.abs(),
                         Unary::Sqrt => a.max(0.0).sqrt(),
                         Unary::Floor => a.floor(),
+                        Unary::Ceil => a.ceil(),
+                        Unary::Round => math::round(a),
+                        Unary::Trunc => math::trunc(a),
+                        Unary::Fract => math::fract(a),
+                        Unary::Sign => math::sign(a),
+                        Unary::Exp => a.exp(),
+                        Unary::InverseSqrt => math::inverse_sqrt(a),
                     }
                 }
                 Instr::Binary { op, dst, a, b } => {
@@ -757,6 +779,10 @@ impl Program {
                         }
                         Binary::Less => f32::from(u8::from(a < b)),
                         Binary::Greater => f32::from(u8::from(a > b)),
+                        Binary::Pow => math::pow(a, b),
+                        Binary::Log => math::log(a, b),
+                        Binary::Mod => math::modulo(a, b),
+                        Binary::FlooredMod => math::floored_modulo(a, b),
                     }
                 }
                 Instr::Ramp {
@@ -861,6 +887,13 @@ impl Program {
                         Unary::Abs => a.abs(),
                         Unary::Sqrt => a.monotone(|x| x.max(0.0).sqrt()),
                         Unary::Floor => a.monotone(f32::floor),
+                        Unary::Ceil => a.monotone(f32::ceil),
+                        Unary::Round => a.monotone(math::round),
+                        Unary::Trunc => a.monotone(math::trunc),
+                        Unary::Fract => math::fract_bound(a),
+                        Unary::Sign => a.monotone(math::sign),
+                        Unary::Exp => math::exp_bound(a),
+                        Unary::InverseSqrt => math::inverse_sqrt_bound(a),
                     }
                 }
                 Instr::Binary { op, dst, a, b } => {
@@ -893,6 +926,10 @@ impl Program {
                                 Interval::new(0.0, 1.0)
                             }
                         }
+                        Binary::Pow => math::pow_bound(a, b),
+                        Binary::Log => math::log_bound(a, b),
+                        Binary::Mod => math::modulo_bound(a, b),
+                        Binary::FlooredMod => math::floored_modulo_bound(a, b),
                     }
                 }
                 Instr::Ramp { dst, x, table, .. } => {

@@ -5,11 +5,12 @@
 //! against Blender itself in `tests/blender_noise.rs`; docs/shaders.md has the measured
 //! errors and costs. [`materialx_noise`] is MaterialX's `noise3d` and `fractal3d` on the
 //! same lattice noise, and its `cellnoise3d`. [`voronoi`] is Blender's Voronoi Texture (3D
-//! F1 Euclidean) as Cycles evaluates it. [`graph`] compiles a reader's node graph into a flat program,
+//! F1 Euclidean) as Cycles evaluates it; [`math`] its Math node's operations. [`graph`] compiles a reader's node graph into a flat program,
 //! evaluated per density lookup and, over [`interval`]s, per majorant cell.
 
 pub mod graph;
 pub mod interval;
 pub mod materialx_noise;
+pub mod math;
 pub mod noise;
 pub mod voronoi;

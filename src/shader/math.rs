@@ -1,0 +1,194 @@
+//! Blender's Math node operations as Cycles evaluates them (`svm_math_util.h`: the
+//! "safe" functions, 0 where the operation is undefined), each with its interval bound
+//! for the range analysis ([`super::graph::Program::bounds`]). Tested value for value
+//! against bpy 5.0.1's Geometry Nodes, which evaluates the same definitions
+//! (`tests/blender_math.rs`): equal, or within 2 ulps where the operation calls a
+//! transcendental function of the C library (powf, expf, logf).
+
+use super::interval::Interval;
+
+/// The smallest positive f32: where `ln` and `1/√` of a positive operand are largest.
+const TINY: f32 = f32::from_bits(1);
+/// The smallest nonzero |ln b| of an f32 b (b = 1 − 2⁻²⁴): bounds a quotient by ln b.
+const LN_NEAREST_ONE: f32 = 5.960_464_5e-8;
+/// Relative room for a transcendental function's rounding (a few ulps).
+const ULPS: f32 = 1e-6;
+
+/// Power: `a^b`, 0 for a negative base with a non-integer exponent (`safe_powf`).
+#[inline]
+pub fn pow(a: f32, b: f32) -> f32 {
+    if a < 0.0 && b != b.trunc() {
+        0.0
+    } else {
+        a.powf(b)
+    }
+}
+
+/// Logarithm of `a` to base `b`, 0 where either is not positive or ln b is 0
+/// (`safe_logf`).
+#[inline]
+pub fn log(a: f32, b: f32) -> f32 {
+    if a <= 0.0 || b <= 0.0 {
+        return 0.0;
+    }
+    let lb = b.ln();
+    if lb != 0.0 {
+        a.ln() / lb
+    } else {
+        0.0
+    }
+}
+
+/// Inverse square root, 0 where `a ≤ 0` (`inversesqrtf`).
+#[inline]
+pub fn inverse_sqrt(a: f32) -> f32 {
+    if a > 0.0 {
+        1.0 / a.sqrt()
+    } else {
+        0.0
+    }
+}
+
+/// Sign: −1, 0 or 1 (`compatible_signf`).
+#[inline]
+pub fn sign(a: f32) -> f32 {
+    if a == 0.0 {
+        0.0
+    } else if a < 0.0 {
+        -1.0
+    } else {
+        1.0
+    }
+}
+
+/// Round: `floor(a + 0.5)` (halves up, as Cycles, not away from zero).
+#[inline]
+pub fn round(a: f32) -> f32 {
+    (a + 0.5).floor()
+}
+
+/// Truncate towards zero.
+#[inline]
+pub fn trunc(a: f32) -> f32 {
+    if a >= 0.0 {
+        a.floor()
+    } else {
+        a.ceil()
+    }
+}
+
+/// Fraction: `a − floor(a)`.
+#[inline]
+pub fn fract(a: f32) -> f32 {
+    a - a.floor()
+}
+
+/// Truncated modulo: `fmod(a, b)`, 0 where b is 0 (`safe_modulo`).
+#[inline]
+pub fn modulo(a: f32, b: f32) -> f32 {
+    if b != 0.0 {
+        a % b
+    } else {
+        0.0
+    }
+}
+
+/// Floored modulo: `a − floor(a/b)·b`, 0 where b is 0 (`safe_floored_modulo`).
+#[inline]
+pub fn floored_modulo(a: f32, b: f32) -> f32 {
+    if b != 0.0 {
+        a - (a / b).floor() * b
+    } else {
+        0.0
+    }
+}
+
+/// Bound of [`pow`]. On |a| ≥ 0 the power is monotone in each argument, so its
+/// extremes over the box are at the corners; a negative base gives ± that magnitude (an
+/// integer exponent) or 0.
+pub fn pow_bound(a: Interval, b: Interval) -> Interval {
+    let m = a.abs();
+    let corners = [
+        pow(m.lo, b.lo),
+        pow(m.lo, b.hi),
+        pow(m.hi, b.lo),
+        pow(m.hi, b.hi),
+    ];
+    if corners.iter().any(|c| !c.is_finite()) {
+        return Interval::EVERYTHING;
+    }
+    let lo = corners.iter().copied().fold(f32::INFINITY, f32::min);
+    let hi = corners.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+    let r = if a.lo >= 0.0 {
+        Interval::new(lo, hi)
+    } else {
+        Interval::new(-hi, hi)
+    };
+    r.widened(ULPS, 0.0)
+}
+
+/// Bound of [`log`]: ln over the operands' positive parts (a positive f32 is at least
+/// [`TINY`]), their quotient where ln b keeps one sign, else ± the largest |ln a| over
+/// the smallest nonzero |ln b|; and 0 where an operand can be ≤ 0 or ln b 0.
+pub fn log_bound(a: Interval, b: Interval) -> Interval {
+    let zero = Interval::point(0.0);
+    if a.hi <= 0.0 || b.hi <= 0.0 {
+        return zero;
+    }
+    let ln = |x: Interval| Interval::new(x.lo.max(TINY).ln(), x.hi.ln());
+    let (la, lb) = (ln(a), ln(b));
+    let q = if lb.lo > 0.0 || lb.hi < 0.0 {
+        la.div(lb)
+    } else {
+        let m = la.lo.abs().max(la.hi.abs()) / LN_NEAREST_ONE;
+        Interval::new(-m, m)
+    };
+    let q = q.widened(ULPS, 0.0);
+    if a.lo <= 0.0 || b.lo <= 0.0 || (lb.lo <= 0.0 && lb.hi >= 0.0) {
+        q.hull(zero)
+    } else {
+        q
+    }
+}
+
+/// Bound of [`inverse_sqrt`] (decreasing on the positive part; 0 where a ≤ 0).
+pub fn inverse_sqrt_bound(a: Interval) -> Interval {
+    if a.hi <= 0.0 {
+        return Interval::point(0.0);
+    }
+    let lo = if a.lo <= 0.0 { 0.0 } else { inverse_sqrt(a.hi) };
+    Interval::new(lo, inverse_sqrt(a.lo.max(TINY))).widened(ULPS, 0.0)
+}
+
+/// Bound of `exp` (increasing; unbounded where it overflows).
+pub fn exp_bound(a: Interval) -> Interval {
+    a.monotone(f32::exp).widened(ULPS, 0.0)
+}
+
+/// Bound of [`fract`]: increasing within one integer step, else [0, 1] (1 itself is
+/// reached by rounding: a − floor(a) of a tiny negative a).
+pub fn fract_bound(a: Interval) -> Interval {
+    if a.lo.floor() == a.hi.floor() {
+        a.monotone(fract)
+    } else {
+        Interval::new(0.0, 1.0)
+    }
+}
+
+/// Bound of [`modulo`]: exact (fmod rounds nothing); the sign of a, and a magnitude
+/// below both |a| and |b|.
+pub fn modulo_bound(a: Interval, b: Interval) -> Interval {
+    let bmax = b.lo.abs().max(b.hi.abs());
+    let lo = if a.lo < 0.0 { -(-a.lo).min(bmax) } else { 0.0 };
+    let hi = if a.hi > 0.0 { a.hi.min(bmax) } else { 0.0 };
+    Interval::new(lo, hi)
+}
+
+/// Bound of [`floored_modulo`]: [0, b] for b > 0, [b, 0] for b < 0, and 0 at b = 0;
+/// widened by a few ulps of |a|, since a/b rounded to an integer can leave a − floor(a/b)·b
+/// a rounding error below 0 (or past b).
+pub fn floored_modulo_bound(a: Interval, b: Interval) -> Interval {
+    let r = Interval::new(b.lo.min(0.0), b.hi.max(0.0));
+    let amax = a.lo.abs().max(a.hi.abs());
+    r.widened(0.0, ULPS * (amax + r.lo.abs().max(r.hi)))
+}
