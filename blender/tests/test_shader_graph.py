@@ -374,12 +374,12 @@ def _power_scene(operation="POWER"):
 
 
 def test_a_math_operation_nimbus_does_not_compile_is_a_warning(addon, tmp_path):
-    """A Math node whose operation Nimbus does not compile (Sine) drives the Density:
+    """A Math node whose operation Nimbus does not compile (Wrap) drives the Density:
     the add-on warns naming the node and the operation and writes no graph (the
     socket's value), instead of a stage Nimbus would refuse."""
-    _power_scene("SINE")
+    _power_scene("WRAP")
     t, _ = translated(tmp_path)
-    warned = [w for w in t.warnings if "'shape'" in w and "SINE" in w]
+    warned = [w for w in t.warnings if "'shape'" in w and "WRAP" in w]
     assert warned and "drives" in warned[0], t.warnings
     assert "nimbus:densityScale.connect" not in open(t.stage).read()
 

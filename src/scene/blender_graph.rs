@@ -90,6 +90,7 @@ pub fn math(bl: &mut Builder, op: &str, a: Reg, b: Reg, c: Reg) -> Result<Option
         "LOGARITHM" => Some(Binary::Log),
         "MODULO" => Some(Binary::Mod),
         "FLOORED_MODULO" => Some(Binary::FlooredMod),
+        "ARCTAN2" => Some(Binary::Atan2),
         _ => None,
     };
     if let Some(o) = binary {
@@ -106,6 +107,15 @@ pub fn math(bl: &mut Builder, op: &str, a: Reg, b: Reg, c: Reg) -> Result<Option
         "CEIL" => Some(Unary::Ceil),
         "TRUNC" => Some(Unary::Trunc),
         "FRACT" => Some(Unary::Fract),
+        "SINE" => Some(Unary::Sin),
+        "COSINE" => Some(Unary::Cos),
+        "TANGENT" => Some(Unary::Tan),
+        "ARCSINE" => Some(Unary::Asin),
+        "ARCCOSINE" => Some(Unary::Acos),
+        "ARCTANGENT" => Some(Unary::Atan),
+        "SINH" => Some(Unary::Sinh),
+        "COSH" => Some(Unary::Cosh),
+        "TANH" => Some(Unary::Tanh),
         _ => None,
     };
     if let Some(o) = unary {
@@ -127,6 +137,60 @@ pub fn math(bl: &mut Builder, op: &str, a: Reg, b: Reg, c: Reg) -> Result<Option
             let far = bl.binary(Binary::Greater, d, m)?;
             let one = bl.constant(1.0)?;
             Some(bl.binary(Binary::Sub, one, far)?)
+        }
+        // Cycles: a · (π/180) and a · (180/π), the constants in float.
+        "RADIANS" => {
+            let k = bl.constant(std::f32::consts::PI / 180.0)?;
+            Some(bl.binary(Binary::Mul, a, k)?)
+        }
+        "DEGREES" => {
+            let k = bl.constant(180.0 / std::f32::consts::PI)?;
+            Some(bl.binary(Binary::Mul, a, k)?)
+        }
+        // Cycles' smoothminf: h = max(c − |a − b|, 0)/c, min(a, b) − h·h·h·c·(1/6), and
+        // min(a, b) at c = 0 (a safe division gives h = 0 there); the same operations
+        // in the same order.
+        "SMOOTH_MIN" | "SMOOTH_MAX" => {
+            let (a, b) = match op {
+                "SMOOTH_MAX" => (bl.unary(Unary::Neg, a)?, bl.unary(Unary::Neg, b)?),
+                _ => (a, b),
+            };
+            let d = bl.binary(Binary::Sub, a, b)?;
+            let d = bl.unary(Unary::Abs, d)?;
+            let zero = bl.constant(0.0)?;
+            let h = bl.binary(Binary::Sub, c, d)?;
+            let h = bl.binary(Binary::Max, h, zero)?;
+            let h = bl.binary(Binary::SafeDiv, h, c)?;
+            let m = bl.binary(Binary::Min, a, b)?;
+            let t = bl.binary(Binary::Mul, h, h)?;
+            let t = bl.binary(Binary::Mul, t, h)?;
+            let t = bl.binary(Binary::Mul, t, c)?;
+            let sixth = bl.constant(1.0 / 6.0)?;
+            let t = bl.binary(Binary::Mul, t, sixth)?;
+            let v = bl.binary(Binary::Sub, m, t)?;
+            Some(match op {
+                "SMOOTH_MAX" => bl.unary(Unary::Neg, v)?,
+                _ => v,
+            })
+        }
+        // Cycles: floor(safe_divide(a, b)) · b.
+        "SNAP" => {
+            let q = bl.binary(Binary::SafeDiv, a, b)?;
+            let q = bl.unary(Unary::Floor, q)?;
+            Some(bl.binary(Binary::Mul, q, b)?)
+        }
+        // Cycles' pingpongf: |fract((a − b)/(2b))·b·2 − b|, 0 at b = 0 (the safe
+        // division gives fract(0) = 0 and so 0 there).
+        "PINGPONG" => {
+            let two = bl.constant(2.0)?;
+            let n = bl.binary(Binary::Sub, a, b)?;
+            let w = bl.binary(Binary::Mul, b, two)?;
+            let t = bl.binary(Binary::SafeDiv, n, w)?;
+            let f = bl.unary(Unary::Fract, t)?;
+            let f = bl.binary(Binary::Mul, f, b)?;
+            let f = bl.binary(Binary::Mul, f, two)?;
+            let f = bl.binary(Binary::Sub, f, b)?;
+            Some(bl.unary(Unary::Abs, f)?)
         }
         _ => None,
     })
@@ -608,7 +672,10 @@ impl<'a> Reader<'a> {
                 let op = Self::text(node, "operation", "ADD")?;
                 let a = self.float(node, "Value", 0.5)?;
                 let b = self.float(node, "Value_001", 0.5)?;
-                let c = if op == "MULTIPLY_ADD" || op == "COMPARE" {
+                let c = if matches!(
+                    op.as_str(),
+                    "MULTIPLY_ADD" | "COMPARE" | "SMOOTH_MIN" | "SMOOTH_MAX"
+                ) {
                     Some(self.float(node, "Value_002", 0.5)?)
                 } else {
                     None

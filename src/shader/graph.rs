@@ -48,6 +48,15 @@ pub enum Unary {
     Sign,
     Exp,
     InverseSqrt,
+    Sin,
+    Cos,
+    Tan,
+    Asin,
+    Acos,
+    Atan,
+    Sinh,
+    Cosh,
+    Tanh,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -70,6 +79,8 @@ pub enum Binary {
     Log,
     Mod,
     FlooredMod,
+    /// Blender's Math Arctan2: atan2(a, b).
+    Atan2,
 }
 
 /// One instruction. Noise instructions read a position from three consecutive
@@ -759,6 +770,15 @@ impl Program {
                         Unary::Sign => math::sign(a),
                         Unary::Exp => a.exp(),
                         Unary::InverseSqrt => math::inverse_sqrt(a),
+                        Unary::Sin => a.sin(),
+                        Unary::Cos => a.cos(),
+                        Unary::Tan => a.tan(),
+                        Unary::Asin => math::asin(a),
+                        Unary::Acos => math::acos(a),
+                        Unary::Atan => a.atan(),
+                        Unary::Sinh => a.sinh(),
+                        Unary::Cosh => a.cosh(),
+                        Unary::Tanh => a.tanh(),
                     }
                 }
                 Instr::Binary { op, dst, a, b } => {
@@ -783,6 +803,7 @@ impl Program {
                         Binary::Log => math::log(a, b),
                         Binary::Mod => math::modulo(a, b),
                         Binary::FlooredMod => math::floored_modulo(a, b),
+                        Binary::Atan2 => a.atan2(b),
                     }
                 }
                 Instr::Ramp {
@@ -894,6 +915,18 @@ impl Program {
                         Unary::Sign => a.monotone(math::sign),
                         Unary::Exp => math::exp_bound(a),
                         Unary::InverseSqrt => math::inverse_sqrt_bound(a),
+                        Unary::Sin => math::sin_bound(a, 0.0),
+                        Unary::Cos => math::sin_bound(a, std::f64::consts::FRAC_PI_2),
+                        Unary::Tan => math::tan_bound(a),
+                        // Increasing (asin, atan, sinh, tanh) or decreasing (acos).
+                        Unary::Asin => a.monotone(math::asin).widened(1e-6, 0.0),
+                        Unary::Acos => {
+                            Interval::new(math::acos(a.hi), math::acos(a.lo)).widened(1e-6, 0.0)
+                        }
+                        Unary::Atan => a.monotone(f32::atan).widened(1e-6, 0.0),
+                        Unary::Sinh => a.monotone(f32::sinh).widened(1e-6, 0.0),
+                        Unary::Cosh => math::cosh_bound(a),
+                        Unary::Tanh => a.monotone(f32::tanh).widened(1e-6, 0.0),
                     }
                 }
                 Instr::Binary { op, dst, a, b } => {
@@ -930,6 +963,8 @@ impl Program {
                         Binary::Log => math::log_bound(a, b),
                         Binary::Mod => math::modulo_bound(a, b),
                         Binary::FlooredMod => math::floored_modulo_bound(a, b),
+                        Binary::Atan2 => Interval::new(-std::f32::consts::PI, std::f32::consts::PI)
+                            .widened(1e-6, 0.0),
                     }
                 }
                 Instr::Ramp { dst, x, table, .. } => {

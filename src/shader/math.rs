@@ -192,3 +192,69 @@ pub fn floored_modulo_bound(a: Interval, b: Interval) -> Interval {
     let amax = a.lo.abs().max(a.hi.abs());
     r.widened(0.0, ULPS * (amax + r.lo.abs().max(r.hi)))
 }
+
+/// Arcsine of `a` clamped into [-1, 1] (`safe_asinf`).
+#[inline]
+pub fn asin(a: f32) -> f32 {
+    a.clamp(-1.0, 1.0).asin()
+}
+
+/// Arccosine of `a` clamped into [-1, 1] (`safe_acosf`).
+#[inline]
+pub fn acos(a: f32) -> f32 {
+    a.clamp(-1.0, 1.0).acos()
+}
+
+/// Bound of `sin` over `a`: ±1 where the interval holds a crest (π/2 + 2πk) or a
+/// trough (−π/2 + 2πk), else the ends' values; `phase` shifts it (π/2 gives `cos`).
+pub fn sin_bound(a: Interval, phase: f64) -> Interval {
+    let (lo, hi) = (a.lo as f64 + phase, a.hi as f64 + phase);
+    if !(lo.is_finite() && hi.is_finite()) || hi - lo >= std::f64::consts::TAU {
+        return Interval::new(-1.0, 1.0);
+    }
+    let holds = |x0: f64| {
+        // Some x0 + 2πk in [lo, hi]?
+        let k = ((lo - x0) / std::f64::consts::TAU).ceil();
+        x0 + k * std::f64::consts::TAU <= hi
+    };
+    let ends = Interval::new(lo.sin() as f32, hi.sin() as f32);
+    let top = if holds(std::f64::consts::FRAC_PI_2) {
+        1.0
+    } else {
+        ends.hi
+    };
+    let bottom = if holds(-std::f64::consts::FRAC_PI_2) {
+        -1.0
+    } else {
+        ends.lo
+    };
+    // The f32 evaluation is within an ulp or two of the f64 one here.
+    let w = Interval::new(bottom, top).widened(0.0, 1e-6);
+    Interval::new(w.lo.max(-1.0), w.hi.min(1.0))
+}
+
+/// Bound of `tan`: increasing between its poles (π/2 + πk); unbounded where the
+/// interval comes within 1e-3 of one.
+pub fn tan_bound(a: Interval) -> Interval {
+    let (lo, hi) = (a.lo as f64, a.hi as f64);
+    if !(lo.is_finite() && hi.is_finite()) {
+        return Interval::EVERYTHING;
+    }
+    let pi = std::f64::consts::PI;
+    let k = ((lo - std::f64::consts::FRAC_PI_2 - 1e-3) / pi).ceil();
+    if std::f64::consts::FRAC_PI_2 + k * pi <= hi + 1e-3 {
+        return Interval::EVERYTHING;
+    }
+    Interval::new(lo.tan() as f32, hi.tan() as f32).widened(ULPS, 0.0)
+}
+
+/// Bound of `cosh` (decreasing below 0, increasing above).
+pub fn cosh_bound(a: Interval) -> Interval {
+    let ends = Interval::new(a.lo.cosh(), a.hi.cosh());
+    let lo = if a.lo <= 0.0 && a.hi >= 0.0 {
+        1.0
+    } else {
+        ends.lo
+    };
+    Interval::new(lo, ends.hi).widened(ULPS, 0.0)
+}
