@@ -50,15 +50,21 @@ def _sun(strength):
     return sun
 
 
-def noise_cube_scene():
-    """Scene (a): a cube [-1, 1]^3 of that material lit by a sun (strength 3, angle 0),
-    black world, film transparent, camera 5.5 units away, 32 x 32."""
+def _cube_scene(name, material):
+    """Scene (a)'s set-up: a cube [-1, 1]^3 object `name` of `material` lit by a sun
+    (strength 3, angle 0), black world, film transparent, camera 5.5 units away,
+    32 x 32."""
     scene = _render_settings((32, 32), True)
     _world()
-    _mesh_object("noise cube", "cube", noise_ramp_material())
+    _mesh_object(name, "cube", material)
     _sun(3.0)
     _camera((0.0, -5.5, 0.5), (1.5, 0.0, 0.0))
     return scene
+
+
+def noise_cube_scene():
+    """Scene (a): a cube of that material (_cube_scene)."""
+    return _cube_scene("noise cube", noise_ramp_material())
 
 
 def test_a_noise_ramp_density_is_translated_as_a_graph(addon, tmp_path):
@@ -243,12 +249,7 @@ def noise_colour_material(name="tinted", absorption=(0.0, 0.0, 0.0, 1.0)):
 
 def noise_colour_scene(absorption=(0.0, 0.0, 0.0, 1.0)):
     """Scene (a) with that material."""
-    scene = _render_settings((32, 32), True)
-    _world()
-    _mesh_object("tinted cube", "cube", noise_colour_material(absorption=absorption))
-    _sun(3.0)
-    _camera((0.0, -5.5, 0.5), (1.5, 0.0, 0.0))
-    return scene
+    return _cube_scene("tinted cube", noise_colour_material(absorption=absorption))
 
 
 def test_a_colour_ramp_on_principled_color_is_an_albedo_graph(addon, tmp_path):
@@ -325,11 +326,7 @@ def test_a_voronoi_cube_against_cycles(addon, tmp_path):
     coordinates, the majorants): the overlay has the Voronoi node and no warning says a
     node drives the Density; 4 seeds x 32 spp, image and 8 x 8 block means within 5
     combined standard errors + 0.5 % of Cycles' (as above)."""
-    scene = _render_settings((32, 32), True)
-    _world()
-    _mesh_object("voronoi cube", "cube", voronoi_material())
-    _sun(3.0)
-    _camera((0.0, -5.5, 0.5), (1.5, 0.0, 0.0))
+    scene = _cube_scene("voronoi cube", voronoi_material())
     (tmp_path / "overlay").mkdir()
     t, _ = translated(tmp_path / "overlay")
     assert not [w for w in t.warnings if "drives" in w], t.warnings
@@ -365,12 +362,7 @@ def _power_material(name="cubed", operation="POWER"):
 
 
 def _power_scene(operation="POWER"):
-    scene = _render_settings((32, 32), True)
-    _world()
-    _mesh_object("cubed cube", "cube", _power_material(operation=operation))
-    _sun(3.0)
-    _camera((0.0, -5.5, 0.5), (1.5, 0.0, 0.0))
-    return scene
+    return _cube_scene("cubed cube", _power_material(operation=operation))
 
 
 def test_a_math_operation_nimbus_does_not_compile_is_a_warning(addon, tmp_path):

@@ -403,17 +403,22 @@ fn graph_fog_medium(
     Ok(medium)
 }
 
+/// A colour graph as read (its position space → world) placed for lookups at world
+/// points.
+fn placed_color_graph(g: &crate::scene::DensityGraph) -> ColorGraph {
+    ColorGraph {
+        program: g.program.clone(),
+        world_to_shading: g.shading_to_world.inverse(),
+    }
+}
+
 /// The albedo multiplier of a volume: the colour graph `nimbus:albedo` is connected
 /// to, or the grid `nimbus:albedoField` names (a Vec3s grid, or a float grid as grey),
 /// loaded only then. A grid's values outside [0,1] are clamped, with one warning
 /// naming the file, the grid and the count.
 pub fn albedo_for_volume(volume: &Volume) -> anyhow::Result<Option<Albedo>> {
     if let Some(g) = &volume.albedo_graph {
-        let graph = ColorGraph {
-            program: g.program.clone(),
-            world_to_shading: g.shading_to_world.inverse(),
-        };
-        return Ok(Some(Albedo::graph(&g.source, graph)));
+        return Ok(Some(Albedo::graph(&g.source, placed_color_graph(g))));
     }
     let Some((name, field)) = &volume.albedo else {
         return Ok(None);
@@ -519,10 +524,7 @@ pub fn emission_for_volume(volume: &Volume) -> anyhow::Result<Option<Emission>> 
     };
     let temperature = load(tokens::TEMPERATURE_FIELD, &e.temperature)?;
     let field = load(tokens::EMISSION_FIELD, &e.emission)?;
-    let color_graph = e.color_graph.as_ref().map(|g| ColorGraph {
-        program: g.program.clone(),
-        world_to_shading: g.shading_to_world.inverse(),
-    });
+    let color_graph = e.color_graph.as_ref().map(placed_color_graph);
     Ok(Emission::new(
         &volume.prim_path,
         temperature,

@@ -875,18 +875,28 @@ impl Loader<'_> {
     }
 
     /// The colour graph `nimbus:emissionColor` is connected to (the Blender add-on's
-    /// node trees), placed in the prim's object space by the caller. A graph reading a
-    /// field is refused (the emission colour reads none).
+    /// node trees), placed in the prim's object space by the caller.
     fn emission_color_graph(&self, prim: &Prim) -> Result<Option<DensityGraph>, SceneError> {
-        let Some((shader, output, source)) = self.connected_shader(prim, tokens::EMISSION_COLOR)?
-        else {
+        self.color_graph(prim, tokens::EMISSION_COLOR, "emission")
+    }
+
+    /// The Blender colour graph `attr` of `prim` is connected to (`None` when it is
+    /// not), in the prim's object space (placed by the caller). A graph reading a field
+    /// is refused: colour graphs read none. `what` names the colour in messages.
+    fn color_graph(
+        &self,
+        prim: &Prim,
+        attr: &str,
+        what: &str,
+    ) -> Result<Option<DensityGraph>, SceneError> {
+        let Some((shader, output, source)) = self.connected_shader(prim, attr)? else {
             return Ok(None);
         };
         let graph = blender_graph::usd_color(&shader, &output, self.time)?;
         if let Some(a) = graph.attribute {
             return Err(prim_error(
                 prim.path(),
-                format!("{source}: the emission colour graph reads the field `{a}` (an Attribute node); Nimbus reads fields in density graphs only"),
+                format!("{source}: the {what} colour graph reads the field `{a}` (an Attribute node); Nimbus reads fields in density graphs only"),
             ));
         }
         Ok(Some(DensityGraph {
@@ -938,19 +948,8 @@ impl Loader<'_> {
         absorption: &mut [f64; 3],
         scattering: &mut [f64; 3],
     ) -> Result<Option<DensityGraph>, SceneError> {
-        if let Some((shader, output, source)) = self.connected_shader(prim, tokens::ALBEDO)? {
-            let graph = blender_graph::usd_color(&shader, &output, self.time)?;
-            if let Some(a) = graph.attribute {
-                return Err(prim_error(
-                    prim.path(),
-                    format!("{source}: the albedo colour graph reads the field `{a}` (an Attribute node); Nimbus reads fields in density graphs only"),
-                ));
-            }
-            return Ok(Some(DensityGraph {
-                program: graph.program,
-                shading_to_world: DMat4::IDENTITY,
-                source,
-            }));
+        if let Some(graph) = self.color_graph(prim, tokens::ALBEDO, "albedo")? {
+            return Ok(Some(graph));
         }
         let c = read_vec3(prim, tokens::ALBEDO, self.time)?.unwrap_or([1.0; 3]);
         if c.iter().any(|v| !v.is_finite()) {
