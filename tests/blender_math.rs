@@ -34,8 +34,9 @@ const EXACT: f64 = 0.0;
 const LIBM: f64 = 2.5e-7;
 const ONE_ULP: f64 = 1.2e-7;
 
-/// The operations compiled since stop 59, and their tolerance against Geometry Nodes.
-const OPERATIONS: [(&str, f64); 28] = [
+/// The operations compiled since stop 59 (Wrap since stop 60), and their tolerance
+/// against Geometry Nodes.
+const OPERATIONS: [(&str, f64); 29] = [
     ("POWER", LIBM),
     ("LOGARITHM", LIBM),
     ("INVERSE_SQRT", EXACT),
@@ -64,6 +65,7 @@ const OPERATIONS: [(&str, f64); 28] = [
     ("SMOOTH_MAX", EXACT),
     ("SNAP", EXACT),
     ("PINGPONG", EXACT),
+    ("WRAP", EXACT),
 ];
 
 /// The program of Math `op` with A, B, C the position's x, y, z.

@@ -44,6 +44,36 @@ pub struct Analysis {
     pub volume_visible: bool,
     /// The costliest density shader graph of the stage, if any (issue 47).
     pub density_graph: Option<GraphCost>,
+    /// Majorant cells whose density graph has no usable bound, so that their majorant
+    /// is an estimate (issue 47): `auto` then tracks with signed weights.
+    pub estimated_majorants: Option<EstimatedMajorants>,
+}
+
+/// Where majorants are estimates, not bounds ([`crate::volume::graph_density`]).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct EstimatedMajorants {
+    /// The first such medium.
+    pub prim_path: String,
+    /// Its density graph's shader.
+    pub source: String,
+    /// Leaf cells with an estimated majorant, and all leaf cells, over every medium.
+    pub cells: usize,
+    pub of: usize,
+}
+
+impl EstimatedMajorants {
+    fn of(media: &[Medium]) -> Option<EstimatedMajorants> {
+        let first = media.iter().find(|m| m.majorants.estimated_cells() > 0)?;
+        Some(EstimatedMajorants {
+            prim_path: first.prim_path.clone(),
+            source: first
+                .shader
+                .as_ref()
+                .map_or(String::new(), |s| s.source.clone()),
+            cells: media.iter().map(|m| m.majorants.estimated_cells()).sum(),
+            of: media.iter().map(|m| m.majorants.cell_count()).sum(),
+        })
+    }
 }
 
 /// What a density shader graph costs the trackers: measured time per lookup (reported
@@ -149,6 +179,7 @@ impl Analysis {
                 .iter()
                 .filter_map(GraphCost::of)
                 .max_by(|a, b| a.ns_per_lookup.total_cmp(&b.ns_per_lookup)),
+            estimated_majorants: EstimatedMajorants::of(media),
         }
     }
 
@@ -184,6 +215,21 @@ impl Analysis {
     /// `given`: what the user set (a named scheme or shadow-ray estimator is kept).
     pub fn choose(&self, base: TrackerSettings, given: Given) -> (TrackerSettings, String) {
         let mut t = base;
+        if let Some(e) = &self.estimated_majorants {
+            // Analog trackers clamp a negative null probability where the density
+            // exceeds the majorant, which biases the image. ratio-select's walk and
+            // shadow rays take signed weights (tests/agreement.rs, majorant × 0.5), and
+            // so does its spectral-decomposition fallback; the session runs grey media
+            // on the general path here ([`Analysis::specialise`]), whose fallback is
+            // that one too, not the analog single-channel decomposition.
+            let mut reason = self.ratio_select(&mut t, given).to_string();
+            if !given.transmittance {
+                t.transmittance = TransmittanceKind::Ratio;
+            }
+            reason.push_str("; ");
+            reason.push_str(&e.reason());
+            return (t, reason);
+        }
         if !self.homogeneous {
             let mut reason = self.ratio_select(&mut t, given).to_string();
             if let Some(g) = &self.density_graph {
@@ -256,6 +302,13 @@ impl Analysis {
         "chromatic, non-emissive, heterogeneous medium: ratio-select (each segment's transmittance and scattering collision from one ratio-tracking walk: no coin flip between the background and the cloud); where volumes overlap, spectral decomposition tracking with history-aware avg and no absorption events"
     }
 
+    /// Whether grey media may run the single-channel trackers: not where a majorant is
+    /// an estimate, since the single-channel decomposition (ratio-select's fallback
+    /// where volumes overlap) is analog and would clamp where the density exceeds it.
+    pub fn specialise(&self) -> bool {
+        self.estimated_majorants.is_none()
+    }
+
     /// The majorant structure `auto` builds in place of the one the media were loaded
     /// with, `None` to keep that: for homogeneous media, when the user named no
     /// structure (`given.majorants`), one global majorant. It is tight everywhere but
@@ -265,6 +318,21 @@ impl Analysis {
     /// (`docs/trackers.md`, "Scene analysis and `--tracker auto`").
     pub fn majorants(&self, given: Given) -> Option<MajorantSpec> {
         (self.homogeneous && !given.majorants).then_some(MajorantSpec::Uniform { cell_voxels: 0 })
+    }
+}
+
+impl EstimatedMajorants {
+    /// Why `auto` picks weighted delta tracking.
+    pub fn reason(&self) -> String {
+        format!(
+            "the density graph of {} ({}) has no usable bound in {} of {} majorant cells (a division by a range holding 0, a negative power of a range reaching 0, an Exponent past float range): their majorants are estimates ({}x the largest of {} lookups in the cell), not bounds, so only trackers with signed weights stay unbiased where the density exceeds them (majorant_violations counts those collisions); grey media run on the general path",
+            self.prim_path,
+            self.source,
+            self.cells,
+            self.of,
+            crate::volume::graph_density::ESTIMATE_MARGIN,
+            crate::volume::graph_density::ESTIMATE_POINTS.pow(3) + 8,
+        )
     }
 }
 

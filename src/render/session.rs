@@ -323,6 +323,22 @@ impl Session {
                 spec = majorants;
             }
         }
+        if let Some(e) = analysis
+            .estimated_majorants
+            .as_ref()
+            .filter(|_| !request.auto)
+        {
+            if !tracking.tracker.tolerates_estimated_majorants() {
+                warnings.push(format!(
+                    "{}: the density graph of {} has no usable bound in {} of {} majorant cells, whose majorants are estimates; --tracker {} is biased where the density exceeds them (auto, ratio-select, weighted-delta and spectral-mis are not)",
+                    e.prim_path,
+                    e.source,
+                    e.cells,
+                    e.of,
+                    tracking.tracker.name()
+                ));
+            }
+        }
         if !analysis.volume_visible {
             warnings.push(format!(
                 "no camera ray of a 16x16 probe grid reaches the volume {}: only light it scatters or shadows could show",
@@ -333,6 +349,7 @@ impl Session {
                     .join(", ")
             ));
         }
+        let specialise = !o.no_specialise && analysis.specialise();
         let mut session = Session {
             stage_path: stage.to_path_buf(),
             frame: o.frame,
@@ -355,7 +372,7 @@ impl Session {
             analysis,
             load_seconds,
             octree_prune: prune,
-            specialise: !o.no_specialise,
+            specialise,
             threads: o.threads,
             warnings,
             holdouts,

@@ -179,6 +179,25 @@ pub fn math(bl: &mut Builder, op: &str, a: Reg, b: Reg, c: Reg) -> Result<Option
             let q = bl.unary(Unary::Floor, q)?;
             Some(bl.binary(Binary::Mul, q, b)?)
         }
+        // Cycles' wrapf(a, b, c): with r = b − c, a − r·floor((a − c)/r) where r ≠ 0,
+        // else c. The choice is written as z·v + (1 − z)·c with z = (|r| > 0): exactly v
+        // or c (0·v and 0·c add nothing), the safe division giving a finite v at r = 0.
+        "WRAP" => {
+            let r = bl.binary(Binary::Sub, b, c)?;
+            let n = bl.binary(Binary::Sub, a, c)?;
+            let q = bl.binary(Binary::SafeDiv, n, r)?;
+            let q = bl.unary(Unary::Floor, q)?;
+            let q = bl.binary(Binary::Mul, r, q)?;
+            let v = bl.binary(Binary::Sub, a, q)?;
+            let zero = bl.constant(0.0)?;
+            let one = bl.constant(1.0)?;
+            let size = bl.unary(Unary::Abs, r)?;
+            let z = bl.binary(Binary::Greater, size, zero)?;
+            let y = bl.binary(Binary::Sub, one, z)?;
+            let v = bl.binary(Binary::Mul, z, v)?;
+            let c = bl.binary(Binary::Mul, y, c)?;
+            Some(bl.binary(Binary::Add, v, c)?)
+        }
         // Cycles' pingpongf: |fract((a − b)/(2b))·b·2 − b|, 0 at b = 0 (the safe
         // division gives fract(0) = 0 and so 0 there).
         "PINGPONG" => {
@@ -500,17 +519,19 @@ impl<'a> Reader<'a> {
                     "4D" => Dimensions::D4,
                     d => return Err(Self::refuse(node, "noise_dimensions", d)),
                 };
-                let kind = Self::text(node, "noise_type", "FBM")?;
-                if kind != "FBM" {
-                    return Err(Self::refuse(
-                        node,
-                        "noise_type (only fBM has a range analysis)",
-                        &kind,
-                    ));
-                }
+                let kind = match Self::text(node, "noise_type", "FBM")?.as_str() {
+                    "FBM" => NoiseType::Fbm,
+                    "MULTIFRACTAL" => NoiseType::Multifractal,
+                    "HETERO_TERRAIN" => NoiseType::HeteroTerrain,
+                    "HYBRID_MULTIFRACTAL" => NoiseType::HybridMultifractal,
+                    "RIDGED_MULTIFRACTAL" => NoiseType::RidgedMultifractal,
+                    t => return Err(Self::refuse(node, "noise_type", t)),
+                };
                 let texture = NoiseTexture {
                     dimensions,
-                    kind: NoiseType::Fbm,
+                    kind,
+                    offset: self.constant(node, "Offset", 0.0)? as f32,
+                    gain: self.constant(node, "Gain", 1.0)? as f32,
                     normalize: self.constant(node, "normalize", 1.0)? != 0.0,
                     scale: self.constant(node, "Scale", 5.0)? as f32,
                     detail: self.constant(node, "Detail", 2.0)? as f32,

@@ -541,8 +541,7 @@ impl Builder {
     }
 
     /// Blender's Noise Texture node's Fac at the Vector `p` (a vector3) and `w` (a float,
-    /// read in 4D only). Of its types only fBM can be bounded ([`blender_noise_bound`]):
-    /// the others are refused here, naming the node.
+    /// read in 4D only), of any type ([`blender_noise_bound`] bounds them all).
     pub fn blender_noise(
         &mut self,
         p: Value,
@@ -551,14 +550,15 @@ impl Builder {
     ) -> Result<Value, GraphError> {
         let p = self.position3(p)?;
         let w = self.float(w, "W")?;
-        if !blender_noise_bound(&node, [Interval::point(0.0); 4]).is_bounded() {
-            return Err(self.error(format!(
-                "Noise Texture type {:?} has no range analysis (only fBM is bounded), so no majorant can be built",
-                node.kind
-            )));
-        }
-        if !(node.scale.is_finite() && node.lacunarity.is_finite() && node.distortion.is_finite()) {
-            return Err(self.error("Scale, Lacunarity and Distortion must be finite"));
+        let finite = [
+            node.scale,
+            node.lacunarity,
+            node.distortion,
+            node.offset,
+            node.gain,
+        ];
+        if !finite.iter().all(|v| v.is_finite()) {
+            return Err(self.error("Scale, Lacunarity, Distortion, Offset and Gain must be finite"));
         }
         let index = u16::try_from(self.noises.len()).map_err(|_| GraphError::TooLarge)?;
         self.noises.push(node);
@@ -1159,6 +1159,54 @@ mod tests {
                 detail: 3.0,
                 ..NoiseTexture::default()
             },
+            // The other types: their bounds also hold, and are finite.
+            NoiseTexture {
+                kind: NoiseType::Multifractal,
+                scale: 2.0,
+                detail: 3.4,
+                roughness: 0.6,
+                ..NoiseTexture::default()
+            },
+            NoiseTexture {
+                kind: NoiseType::HeteroTerrain,
+                scale: 2.5,
+                detail: 2.5,
+                offset: 0.3,
+                distortion: 0.2,
+                ..NoiseTexture::default()
+            },
+            NoiseTexture {
+                kind: NoiseType::HybridMultifractal,
+                scale: 3.0,
+                detail: 4.7,
+                offset: 0.2,
+                gain: 2.5,
+                ..NoiseTexture::default()
+            },
+            NoiseTexture {
+                kind: NoiseType::HybridMultifractal,
+                scale: 1.0,
+                detail: 6.0,
+                offset: -0.3,
+                gain: 1.0,
+                ..NoiseTexture::default()
+            },
+            NoiseTexture {
+                kind: NoiseType::RidgedMultifractal,
+                scale: 2.0,
+                detail: 5.0,
+                offset: 1.0,
+                gain: 2.0,
+                ..NoiseTexture::default()
+            },
+            NoiseTexture {
+                kind: NoiseType::RidgedMultifractal,
+                dimensions: Dimensions::D4,
+                detail: 3.0,
+                offset: 0.8,
+                gain: 3.0,
+                ..NoiseTexture::default()
+            },
         ];
         let mut s = 17u32;
         let mut next = || {
@@ -1176,6 +1224,7 @@ mod tests {
                 let size = 0.3 * next();
                 let hi = lo.map(|c| c + size);
                 let bound = prog.bounds(lo, hi, Interval::point(0.0));
+                assert!(bound.is_bounded(), "{node:?}: {bound:?}");
                 for _ in 0..50 {
                     let q: [f32; 3] = std::array::from_fn(|a| lo[a] + (hi[a] - lo[a]) * next());
                     let v = prog.eval(q, 0.0);
@@ -1190,11 +1239,11 @@ mod tests {
         let mut b = Builder::default();
         let p = b.position();
         let w = b.constant(0.0).unwrap();
-        let ridged = NoiseTexture {
-            kind: NoiseType::RidgedMultifractal,
+        let odd = NoiseTexture {
+            gain: f32::NAN,
             ..NoiseTexture::default()
         };
-        assert!(b.blender_noise(p, w, ridged).is_err());
+        assert!(b.blender_noise(p, w, odd).is_err());
     }
 
     /// MaterialX's cell noise and a ramp (mix with a clamped weight) of it: bounds

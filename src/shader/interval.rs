@@ -48,8 +48,11 @@ impl Interval {
 
     /// Widened by `rel` of its largest magnitude plus `abs`: room for the rounding of
     /// the evaluation the interval bounds.
+    /// An infinite end stays infinite and does not widen the other: the rounding of
+    /// values near a finite end is relative to that end.
     pub fn widened(self, rel: f32, abs: f32) -> Interval {
-        let m = self.lo.abs().max(self.hi.abs()) * rel + abs;
+        let magnitude = |x: f32| if x.is_finite() { x.abs() } else { 0.0 };
+        let m = magnitude(self.lo).max(magnitude(self.hi)) * rel + abs;
         Interval {
             lo: self.lo - m,
             hi: self.hi + m,
@@ -199,12 +202,9 @@ const BLENDER_FOLD_FROM: f32 = 90000.0;
 /// [`perlin_3d_bound`] does (4D: the global bound), summed with its amplitude; a
 /// fractional Detail blends two normalized sums, so the result lies in their hull;
 /// Distortion moves the position by at most |Distortion| × the global bound per axis.
-/// Other types (their products and offsets are not bounded here) give
-/// [`Interval::EVERYTHING`].
+/// The other types take the same octave bounds through their products, sums and clamps
+/// ([`musgrave_bound`]).
 pub fn blender_noise_bound(node: &NoiseTexture, p: [Interval; 4]) -> Interval {
-    if node.kind != NoiseType::Fbm {
-        return Interval::EVERYTHING;
-    }
     let detail = node.detail.clamp(0.0, 15.0);
     let roughness = node.roughness.max(0.0);
     let s = node.scale;
@@ -237,6 +237,11 @@ pub fn blender_noise_bound(node: &NoiseTexture, p: [Interval; 4]) -> Interval {
         let h = [0, 1, 2].map(|a| (lo[a] * f).max(hi[a] * f));
         perlin_3d_bound(l, h).mul(Interval::point(BLENDER_SCALE_3D))
     };
+    if node.kind != NoiseType::Fbm {
+        // Each octave's noise widened for the fused multiply-adds around it.
+        let octave = |f: f32| octave(f).widened(1e-6, 1e-7);
+        return musgrave_bound(node, detail, roughness, &octave);
+    }
     let mut sum = Interval::point(0.0);
     let (mut fscale, mut amp, mut maxamp) = (1.0f32, 1.0f32, 0.0f32);
     for _ in 0..=(detail as i32) {
@@ -258,6 +263,119 @@ pub fn blender_noise_bound(node: &NoiseTexture, p: [Interval; 4]) -> Interval {
     }
     let sum2 = sum.add(octave(fscale).mul(Interval::point(amp)));
     whole.hull(finish(sum2, maxamp + amp))
+}
+
+/// Bounds of the Noise Texture's other types ([`super::noise`]: multifractal, hetero
+/// terrain, hybrid and ridged multifractal), from `octave(f)`, the bound of the signed
+/// noise at the position times `f`: the same products, sums and clamps over intervals.
+/// Hybrid multifractal stops where its weight falls to 0.001: where a weight's interval
+/// straddles that, the value so far joins the result (the points that stop) and the
+/// loop goes on with the weights above it.
+fn musgrave_bound(
+    node: &NoiseTexture,
+    detail: f32,
+    roughness: f32,
+    octave: &dyn Fn(f32) -> Interval,
+) -> Interval {
+    let p = Interval::point;
+    let whole = detail as i32;
+    let rmd = detail - detail.floor();
+    let (l, offset, gain) = (node.lacunarity, node.offset, node.gain);
+    match node.kind {
+        NoiseType::Fbm => unreachable!("fBM is bounded by blender_noise_bound"),
+        NoiseType::Multifractal => {
+            let (mut value, mut pwr, mut f) = (p(1.0), 1.0f32, 1.0f32);
+            for _ in 0..=whole {
+                value = value.mul(octave(f).mul(p(pwr)).add(p(1.0)));
+                pwr *= roughness;
+                f *= l;
+            }
+            if rmd != 0.0 {
+                value = value.mul(octave(f).mul(p(rmd * pwr)).add(p(1.0)));
+            }
+            value
+        }
+        NoiseType::HeteroTerrain => {
+            let mut value = octave(1.0).add(p(offset));
+            let (mut pwr, mut f) = (roughness, l);
+            for _ in 1..=whole {
+                let increment = octave(f).add(p(offset)).mul(p(pwr)).mul(value);
+                value = value.add(increment);
+                pwr *= roughness;
+                f *= l;
+            }
+            if rmd != 0.0 {
+                let increment = octave(f).add(p(offset)).mul(p(pwr)).mul(value);
+                value = value.add(increment.mul(p(rmd)));
+            }
+            value
+        }
+        NoiseType::HybridMultifractal => {
+            let (mut pwr, mut f) = (1.0f32, 1.0f32);
+            let mut value = p(0.0);
+            let mut weight = p(1.0);
+            let mut stopped: Option<Interval> = None;
+            let join = |stopped: &mut Option<Interval>, v: Interval| {
+                *stopped = Some(stopped.map_or(v, |s| s.hull(v)));
+            };
+            let mut i = 0;
+            let mut running = true;
+            while i <= whole {
+                if weight.hi <= 0.001 {
+                    running = false;
+                    break;
+                }
+                if weight.lo <= 0.001 {
+                    join(&mut stopped, value);
+                    weight = Interval::new(0.001, weight.hi);
+                }
+                weight = Interval::new(weight.lo.min(1.0), weight.hi.min(1.0));
+                let signal = octave(f).add(p(offset)).mul(p(pwr));
+                pwr *= roughness;
+                value = value.add(weight.mul(signal));
+                weight = weight.mul(signal.mul(p(gain)));
+                f *= l;
+                i += 1;
+            }
+            if running && rmd != 0.0 && weight.hi > 0.001 {
+                if weight.lo <= 0.001 {
+                    join(&mut stopped, value);
+                    weight = Interval::new(0.001, weight.hi);
+                }
+                weight = Interval::new(weight.lo.min(1.0), weight.hi.min(1.0));
+                let signal = octave(f).add(p(offset)).mul(p(pwr));
+                value = value.add(weight.mul(p(rmd)).mul(signal));
+            }
+            stopped.map_or(value, |s| s.hull(value))
+        }
+        NoiseType::RidgedMultifractal => {
+            let ridge = |f: f32| square(p(offset).sub(octave(f).abs()));
+            let mut signal = ridge(1.0);
+            let mut value = signal;
+            let (mut pwr, mut f) = (roughness, 1.0f32);
+            for _ in 1..=whole {
+                f *= l;
+                let s = signal.mul(p(gain));
+                let weight = Interval::new(s.lo.clamp(0.0, 1.0), s.hi.clamp(0.0, 1.0));
+                signal = ridge(f).mul(weight);
+                value = value.add(signal.mul(p(pwr)));
+                pwr *= roughness;
+            }
+            value
+        }
+    }
+}
+
+/// `x²` over an interval (tighter than `x.mul(x)` where it holds 0).
+fn square(x: Interval) -> Interval {
+    let (a, b) = (x.lo * x.lo, x.hi * x.hi);
+    if x.lo >= 0.0 {
+        Interval::new(a, b)
+    } else if x.hi <= 0.0 {
+        Interval::new(b, a)
+    } else {
+        Interval::new(0.0, a.max(b))
+    }
 }
 
 /// Bounds of MaterialX's cell noise ([`super::materialx_noise::cell_noise_3d`]) over

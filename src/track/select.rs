@@ -253,6 +253,19 @@ impl LightSampling {
     }
 }
 
+impl TrackerKind {
+    /// Whether the tracker stays unbiased where the density exceeds the majorant
+    /// (signed weights; ratio-select's fallback where volumes overlap too, off the
+    /// single-channel path, which the session leaves then): tested in
+    /// tests/agreement.rs with every majorant halved.
+    pub fn tolerates_estimated_majorants(self) -> bool {
+        matches!(
+            self,
+            TrackerKind::WeightedDelta | TrackerKind::SpectralMis | TrackerKind::RatioSelect
+        )
+    }
+}
+
 /// Everything that selects and parameterises the estimators of a render.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TrackerSettings {

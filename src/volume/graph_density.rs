@@ -5,7 +5,11 @@
 //!
 //! The majorants come from the graph's range analysis: each cell's bound is the
 //! program's interval over the cell's box, with the grid's range over the cell as the
-//! attribute ([`DensityShader::cell_bounds`]), so the trackers stay exact.
+//! attribute ([`DensityShader::cell_bounds`]), so the trackers stay exact. Where the
+//! analysis finds no usable bound (a division by a range holding 0, a negative power
+//! of a range reaching 0, an Exponent past f32's range), the cell's majorant is an
+//! estimate from lookups instead ([`DensityShader::cell_estimate`]) and `auto` tracks
+//! with signed weights, which stay unbiased under a majorant that does not bound.
 
 use crate::shader::graph::Program;
 use crate::shader::interval::Interval;
@@ -59,9 +63,97 @@ impl DensityShader {
             b.1.as_vec3().to_array(),
             attribute,
         );
-        if !v.is_bounded() {
+        // Only the top matters for a majorant: a graph capped by a Minimum is bounded
+        // even where what it caps is not, and below 0 the density is 0.
+        if !v.hi.is_finite() {
             return (0.0, f32::INFINITY);
         }
-        (v.lo.max(0.0), v.hi.max(0.0))
+        let lo = if v.lo.is_finite() { v.lo.max(0.0) } else { 0.0 };
+        (lo, v.hi.max(0.0))
+    }
+
+    /// A majorant for the index box `[lo, hi]` where [`cell_bounds`](Self::cell_bounds)
+    /// gives none that can be used: [`ESTIMATE_MARGIN`] times the largest density at
+    /// the box's 8 corners and the centres of its [`ESTIMATE_POINTS`]³ sub-boxes, the
+    /// grid read by `grid` at each. Not a bound: near a singularity the density
+    /// exceeds it, and only weighted trackers stay unbiased there.
+    pub fn cell_estimate(&self, lo: Vec3, hi: Vec3, grid: &dyn Fn(Vec3) -> f32) -> f32 {
+        let n = ESTIMATE_POINTS;
+        let mut largest = 0f32;
+        let mut look = |p: Vec3| {
+            let d = self.density(p, grid(p));
+            // A NaN (0·∞ inside the graph) says nothing; an ∞ makes the estimate ∞,
+            // which the medium refuses.
+            if !d.is_nan() {
+                largest = largest.max(d);
+            }
+        };
+        for c in crate::volume::grid::box_corners(lo.as_dvec3(), hi.as_dvec3()) {
+            look(c.as_vec3());
+        }
+        for i in 0..n * n * n {
+            let f = Vec3::new((i % n) as f32, (i / n % n) as f32, (i / (n * n)) as f32);
+            look(lo + (hi - lo) * (f + 0.5) / n as f32);
+        }
+        ESTIMATE_MARGIN * largest
+    }
+}
+
+/// The majorant cell's (min, max) from the range analysis' `bounds`, or where they are
+/// no use (not finite, or finite but beyond [`TRUSTED_BOUND`] and [`LOOSE_BOUND`] times
+/// the estimate) from `estimate` (called only then); and whether it is an estimate.
+pub fn usable_bounds(bounds: (f32, f32), estimate: impl FnOnce() -> f32) -> ((f32, f32), bool) {
+    let (min, max) = bounds;
+    if max <= TRUSTED_BOUND {
+        return (bounds, false);
+    }
+    let guess = estimate();
+    if max.is_finite() && max <= LOOSE_BOUND * guess {
+        return (bounds, false);
+    }
+    ((min.min(guess), guess), true)
+}
+
+/// Sub-boxes per axis where [`DensityShader::cell_estimate`] looks the density up.
+pub const ESTIMATE_POINTS: usize = 5;
+
+/// The estimate's multiple of the largest density seen: room for peaks between the
+/// points, so that in smooth parts of the cell the estimate still bounds.
+pub const ESTIMATE_MARGIN: f32 = 2.0;
+
+/// A finite bound above this many times the cell's estimate is not used: tracking
+/// under it would cost that many lookups per unit of the density's own optical depth
+/// (the cells beside a singularity, where the bound is finite but huge).
+pub const LOOSE_BOUND: f32 = 1000.0;
+
+/// Bounds at or below this density are used without looking at an estimate (which
+/// costs lookups at load): every scene whose graph is not singular.
+pub const TRUSTED_BOUND: f32 = 1.0e6;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Bounds are kept up to the trusted size without an estimate, and beyond it while
+    /// within [`LOOSE_BOUND`] of the estimate; an infinite or a far looser bound gives
+    /// way to the estimate, with a minimum no higher than it.
+    #[test]
+    fn an_unusable_bound_gives_way_to_the_estimate() {
+        let never = || -> f32 { panic!("no estimate needed") };
+        assert_eq!(usable_bounds((0.5, 3.0), never), ((0.5, 3.0), false));
+        assert_eq!(
+            usable_bounds((0.0, TRUSTED_BOUND), never),
+            ((0.0, TRUSTED_BOUND), false)
+        );
+        assert_eq!(usable_bounds((1.0, 2.0e6), || 1.0e4), ((1.0, 2.0e6), false));
+        assert_eq!(usable_bounds((1.0, 2.0e9), || 1.0e4), ((1.0, 1.0e4), true));
+        assert_eq!(
+            usable_bounds((0.0, f32::INFINITY), || 7.0),
+            ((0.0, 7.0), true)
+        );
+        assert_eq!(
+            usable_bounds((9.0, f32::INFINITY), || 7.0),
+            ((7.0, 7.0), true)
+        );
     }
 }

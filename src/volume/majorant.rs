@@ -202,6 +202,8 @@ pub struct MajorantTree {
     /// See [`MajorantTree::margin`].
     margin: f32,
     build_seconds: f64,
+    /// See [`MajorantTree::estimated_cells`].
+    estimated_cells: usize,
 }
 
 impl MajorantTree {
@@ -246,6 +248,7 @@ impl MajorantTree {
                 spec,
                 margin: 0.0,
                 build_seconds: start.elapsed().as_secs_f64(),
+                estimated_cells: 0,
             };
         };
         // The region where the field can differ from the background: the active voxel
@@ -344,6 +347,7 @@ impl MajorantTree {
             spec,
             margin,
             build_seconds: start.elapsed().as_secs_f64(),
+            estimated_cells: 0,
         }
     }
 
@@ -438,6 +442,19 @@ impl MajorantTree {
     /// Wall time of [`MajorantTree::build`].
     pub fn build_seconds(&self) -> f64 {
         self.build_seconds
+    }
+
+    /// Leaf cells whose majorant is an estimate, not a bound (a density graph with no
+    /// usable bound there, [`crate::volume::graph_density`]): 0 unless the trackers
+    /// must tolerate a density above the majorant.
+    pub fn estimated_cells(&self) -> usize {
+        self.estimated_cells
+    }
+
+    /// Records [`estimated_cells`](Self::estimated_cells) (set by the builder's caller,
+    /// which made the estimates).
+    pub fn set_estimated_cells(&mut self, n: usize) {
+        self.estimated_cells = n;
     }
 
     /// Bytes held by the bounds and flags of every level (and the flat walk's copy).

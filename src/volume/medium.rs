@@ -18,12 +18,13 @@ use crate::volume::albedo::Albedo;
 use crate::volume::boundary::{Inside, MediumRegion, MediumWalk};
 use crate::volume::counters::Tally;
 use crate::volume::emission::Emission;
-use crate::volume::graph_density::DensityShader;
+use crate::volume::graph_density::{self, DensityShader};
 use crate::volume::grid::{world_to_index, Grid, MediumError, RawGrid, RawLeaf};
 use crate::volume::majorant::{MajorantSpec, MajorantTree, PruneCost, Segment};
 use crate::volume::ticks;
 use crate::volume::velocity::VelocityGrid;
 use glam::{DMat4, DVec3, Vec3};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
 
 /// A ray mapped into a medium's index space.
@@ -574,7 +575,8 @@ impl Medium {
             Some(v) => v.widening(self.velocity_reach * v.seconds_per_time_code as f64),
             None => [0; 3],
         };
-        MajorantTree::build_widened(&self.density, spec, w, &|lo, hi| {
+        let estimated = AtomicUsize::new(0);
+        let mut tree = MajorantTree::build_widened(&self.density, spec, w, &|lo, hi| {
             let lo = [0, 1, 2].map(|a| lo[a].saturating_sub(w[a]));
             let hi = [0, 1, 2].map(|a| hi[a].saturating_add(w[a]));
             let grid = self.density.value_range(lo, hi);
@@ -583,10 +585,20 @@ impl Medium {
                 Some(s) => {
                     let [lo, hi] =
                         [lo, hi].map(|v| DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64));
-                    s.cell_bounds(lo, hi, grid)
+                    let at = |p: Vec3| self.density.sample_trilinear(p.to_array());
+                    let (bounds, is_estimate) =
+                        graph_density::usable_bounds(s.cell_bounds(lo, hi, grid), || {
+                            s.cell_estimate(lo.as_vec3(), hi.as_vec3(), &at)
+                        });
+                    if is_estimate {
+                        estimated.fetch_add(1, Ordering::Relaxed);
+                    }
+                    bounds
                 }
             }
-        })
+        });
+        tree.set_estimated_cells(estimated.into_inner());
+        tree
     }
 
     /// Sends the density through `shader` (its position space placed in this medium's
@@ -608,7 +620,7 @@ impl Medium {
             return Err(MediumError::Invalid {
                 prim: self.prim_path.clone(),
                 message: format!(
-                    "the density graph of {source} has no finite bound (a division by a range holding 0, or values too large) so no majorant can be built"
+                    "the density graph of {source} is infinite where it is looked up (a division by 0 or an overflow at a lookup point), so not even an estimated majorant can be built"
                 ),
             });
         }
