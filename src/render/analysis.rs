@@ -45,7 +45,7 @@ pub struct Analysis {
     /// The costliest density shader graph of the stage, if any (issue 47).
     pub density_graph: Option<GraphCost>,
     /// Majorant cells whose density graph has no usable bound, so that their majorant
-    /// is an estimate (issue 47): `auto` then tracks with signed weights.
+    /// is an estimate (issue 47): `auto` then keeps to trackers with signed weights.
     pub estimated_majorants: Option<EstimatedMajorants>,
 }
 
@@ -322,7 +322,7 @@ impl Analysis {
 }
 
 impl EstimatedMajorants {
-    /// Why `auto` picks weighted delta tracking.
+    /// What `auto`'s reason says of the estimates (and `info` with it).
     pub fn reason(&self) -> String {
         format!(
             "the density graph of {} ({}) has no usable bound in {} of {} majorant cells (a division by a range holding 0, a negative power of a range reaching 0, an Exponent past float range): their majorants are estimates ({}x the largest of {} lookups in the cell), not bounds, so only trackers with signed weights stay unbiased where the density exceeds them (majorant_violations counts those collisions); grey media run on the general path",
