@@ -35,31 +35,7 @@ fn material(field: bool) -> String {
         "float inputs:in2 = 3"
     };
     format!(
-        r#"def Material "Mat"
-{{
-    token outputs:mtlx:volume.connect = </Mat/vdf.outputs:out>
-    def Shader "vdf"
-    {{
-        uniform token info:id = "ND_anisotropic_vdf"
-        color3f inputs:absorption.connect = </Mat/absorb.outputs:out>
-        color3f inputs:scattering.connect = </Mat/scatter.outputs:out>
-        float inputs:anisotropy = 0.2
-        token outputs:out
-    }}
-    def Shader "absorb"
-    {{
-        uniform token info:id = "ND_multiply_color3FA"
-        color3f inputs:in1 = (0.1, 0.1, 0.1)
-        float inputs:in2.connect = </Mat/graph.outputs:density>
-        color3f outputs:out
-    }}
-    def Shader "scatter"
-    {{
-        uniform token info:id = "ND_multiply_color3FA"
-        color3f inputs:in1 = (0.9, 0.8, 0.7)
-        float inputs:in2.connect = </Mat/graph.outputs:density>
-        color3f outputs:out
-    }}
+        r#"{}
     def NodeGraph "graph"
     {{
         float outputs:density.connect = </Mat/graph/shaped.outputs:out>
@@ -153,7 +129,41 @@ fn material(field: bool) -> String {
         }}
     }}
 }}
-"#
+"#,
+        vdf_material("(0.1, 0.1, 0.1)", "(0.9, 0.8, 0.7)")
+    )
+}
+
+/// The opening of a material whose `ND_anisotropic_vdf` (anisotropy 0.2) has absorption
+/// and scattering = the constant colours times the float output `density` of its
+/// NodeGraph "graph", which the caller writes after it (and closes the material).
+fn vdf_material(absorption: &str, scattering: &str) -> String {
+    format!(
+        r#"def Material "Mat"
+{{
+    token outputs:mtlx:volume.connect = </Mat/vdf.outputs:out>
+    def Shader "vdf"
+    {{
+        uniform token info:id = "ND_anisotropic_vdf"
+        color3f inputs:absorption.connect = </Mat/absorb.outputs:out>
+        color3f inputs:scattering.connect = </Mat/scatter.outputs:out>
+        float inputs:anisotropy = 0.2
+        token outputs:out
+    }}
+    def Shader "absorb"
+    {{
+        uniform token info:id = "ND_multiply_color3FA"
+        color3f inputs:in1 = {absorption}
+        float inputs:in2.connect = </Mat/graph.outputs:density>
+        color3f outputs:out
+    }}
+    def Shader "scatter"
+    {{
+        uniform token info:id = "ND_multiply_color3FA"
+        color3f inputs:in1 = {scattering}
+        float inputs:in2.connect = </Mat/graph.outputs:density>
+        color3f outputs:out
+    }}"#
     )
 }
 
@@ -663,14 +673,19 @@ fn blender_sphere_density(p: DVec3) -> f64 {
 /// Color Ramp lookup of the table [0, 0.2, 1] (linear between entries) of the Noise
 /// Texture's Fac at the generated coordinates p/2 + 1/2, × 2 × 1.5.
 fn blender_density(p: DVec3) -> f64 {
-    use nimbus::shader::noise::NoiseTexture;
-    let noise = NoiseTexture {
+    let noise = nimbus::shader::noise::NoiseTexture {
         scale: 2.0,
         detail: 4.0,
-        ..NoiseTexture::default()
+        ..Default::default()
     };
+    cube_density(&noise, 1.0, p)
+}
+
+/// The Blender cube's tree with `noise` in place of its Noise Texture and the Fac times
+/// `squash` before the ramp (1: none), written out as [`blender_density`] is.
+fn cube_density(noise: &nimbus::shader::noise::NoiseTexture, squash: f32, p: DVec3) -> f64 {
     let g = (p.as_vec3() * 0.5 - glam::Vec3::splat(-0.5)).to_array();
-    let fac = noise.fac(g, 0.0).clamp(0.0, 1.0) as f64;
+    let fac = (noise.fac(g, 0.0) * squash).clamp(0.0, 1.0) as f64;
     let ramp = if fac < 0.5 {
         0.4 * fac
     } else {
@@ -1332,6 +1347,7 @@ const SINGULAR_POINT: [f64; 3] = [0.1, 0.2, -0.15];
 /// huge ones beside it; capped, every cell has a finite bound.
 fn singular_stage(dir: &Path, name: &str, k: f64, cap: Option<f64>, scattering: &str) -> PathBuf {
     let [qx, qy, qz] = SINGULAR_POINT;
+    let header = vdf_material("(0.3, 0.3, 0.3)", scattering);
     let (out, capped) = match cap {
         None => ("over", String::new()),
         Some(c) => (
@@ -1349,31 +1365,7 @@ fn singular_stage(dir: &Path, name: &str, k: f64, cap: Option<f64>, scattering: 
         ),
     };
     let body = format!(
-        r#"def Material "Mat"
-{{
-    token outputs:mtlx:volume.connect = </Mat/vdf.outputs:out>
-    def Shader "vdf"
-    {{
-        uniform token info:id = "ND_anisotropic_vdf"
-        color3f inputs:absorption.connect = </Mat/absorb.outputs:out>
-        color3f inputs:scattering.connect = </Mat/scatter.outputs:out>
-        float inputs:anisotropy = 0.2
-        token outputs:out
-    }}
-    def Shader "absorb"
-    {{
-        uniform token info:id = "ND_multiply_color3FA"
-        color3f inputs:in1 = (0.3, 0.3, 0.3)
-        float inputs:in2.connect = </Mat/graph.outputs:density>
-        color3f outputs:out
-    }}
-    def Shader "scatter"
-    {{
-        uniform token info:id = "ND_multiply_color3FA"
-        color3f inputs:in1 = {scattering}
-        float inputs:in2.connect = </Mat/graph.outputs:density>
-        color3f outputs:out
-    }}
+        r#"{header}
     def NodeGraph "graph"
     {{
         float outputs:density.connect = </Mat/graph/{out}.outputs:out>
@@ -1562,16 +1554,7 @@ fn every_noise_type_is_read_and_bounded_by_its_majorants() {
             gain,
             ..NoiseTexture::default()
         };
-        let written_out = |p: DVec3| {
-            let g = (p.as_vec3() * 0.5 - glam::Vec3::splat(-0.5)).to_array();
-            let fac = (noise.fac(g, 0.0) * squash).clamp(0.0, 1.0) as f64;
-            let ramp = if fac < 0.5 {
-                0.4 * fac
-            } else {
-                0.2 + 1.6 * (fac - 0.5)
-            };
-            ramp * 2.0 * 1.5
-        };
+        let written_out = |p: DVec3| cube_density(&noise, squash, p);
         let scene = load_stage(&path, &LoadOptions::default()).unwrap();
         let media = media_for_scene_with(&scene, MajorantSpec::Octree { depth: 6 }).unwrap();
         let m = &media[0];

@@ -74,6 +74,19 @@ impl EstimatedMajorants {
             of: media.iter().map(|m| m.majorants.cell_count()).sum(),
         })
     }
+
+    /// What `auto`'s reason says of the estimates (and `info` with it).
+    pub fn reason(&self) -> String {
+        format!(
+            "the density graph of {} ({}) has no usable bound in {} of {} majorant cells (a division by a range holding 0, a negative power of a range reaching 0, an Exponent past float range): their majorants are estimates ({}x the largest of {} lookups in the cell), not bounds, so only trackers with signed weights stay unbiased where the density exceeds them (majorant_violations counts those collisions); grey media run on the general path",
+            self.prim_path,
+            self.source,
+            self.cells,
+            self.of,
+            crate::volume::graph_density::ESTIMATE_MARGIN,
+            crate::volume::graph_density::ESTIMATE_POINTS.pow(3) + 8,
+        )
+    }
 }
 
 /// What a density shader graph costs the trackers: measured time per lookup (reported
@@ -318,21 +331,6 @@ impl Analysis {
     /// (`docs/trackers.md`, "Scene analysis and `--tracker auto`").
     pub fn majorants(&self, given: Given) -> Option<MajorantSpec> {
         (self.homogeneous && !given.majorants).then_some(MajorantSpec::Uniform { cell_voxels: 0 })
-    }
-}
-
-impl EstimatedMajorants {
-    /// What `auto`'s reason says of the estimates (and `info` with it).
-    pub fn reason(&self) -> String {
-        format!(
-            "the density graph of {} ({}) has no usable bound in {} of {} majorant cells (a division by a range holding 0, a negative power of a range reaching 0, an Exponent past float range): their majorants are estimates ({}x the largest of {} lookups in the cell), not bounds, so only trackers with signed weights stay unbiased where the density exceeds them (majorant_violations counts those collisions); grey media run on the general path",
-            self.prim_path,
-            self.source,
-            self.cells,
-            self.of,
-            crate::volume::graph_density::ESTIMATE_MARGIN,
-            crate::volume::graph_density::ESTIMATE_POINTS.pow(3) + 8,
-        )
     }
 }
 
