@@ -19,7 +19,7 @@ mod common;
 
 use std::process::Command;
 
-use nimbus::scene::blender_graph::math;
+use nimbus::scene::blender_graph::{math, vector_math};
 use nimbus::shader::graph::{Builder, Program};
 use nimbus::shader::interval::Interval;
 
@@ -174,4 +174,165 @@ fn math_operation_bounds_hold() {
         }
         println!("{op:<15} {checked} points inside their boxes' bounds");
     }
+}
+
+/// Vector Math's operations, and their tolerance against Geometry Nodes: equal to the
+/// bit where Cycles and blenlib compute the same float operations in the same order;
+/// the C library's functions within `LIBM` relative; and the operations that sum
+/// products (Cross Product, Project, Normalize, Length, Distance, Dot Product) within
+/// `SUMS` of the sum of the terms' magnitudes (module docs of `vector_math_match_blender`).
+const VECTOR_OPERATIONS: [(&str, f64); 23] = [
+    ("ADD", EXACT),
+    ("SUBTRACT", EXACT),
+    ("MULTIPLY", EXACT),
+    ("DIVIDE", EXACT),
+    ("MULTIPLY_ADD", EXACT),
+    ("CROSS_PRODUCT", SUMS),
+    ("PROJECT", SUMS),
+    ("FACEFORWARD", EXACT),
+    ("DOT_PRODUCT", SUMS),
+    ("DISTANCE", SUMS),
+    ("LENGTH", SUMS),
+    ("SCALE", EXACT),
+    ("NORMALIZE", SUMS),
+    ("ABSOLUTE", EXACT),
+    ("POWER", LIBM),
+    ("SIGN", EXACT),
+    ("MINIMUM", EXACT),
+    ("MAXIMUM", EXACT),
+    ("FLOOR", EXACT),
+    ("CEIL", EXACT),
+    ("FRACTION", EXACT),
+    ("MODULO", EXACT),
+    ("WRAP", EXACT),
+];
+
+/// Vector Math's remaining operations are compiled as well: Snap, Sine, Cosine and
+/// Tangent reuse the Math node's definitions checked above, so they are listed here
+/// only to be evaluated against Geometry Nodes too.
+const VECTOR_LIBM: [(&str, f64); 4] = [
+    ("SNAP", EXACT),
+    ("SINE", LIBM),
+    ("COSINE", LIBM),
+    ("TANGENT", LIBM),
+];
+
+/// Where the reference sums products in another order or fused (Cycles' AVX2 kernel
+/// contracts `a b − c d` into one rounding), each result may differ by a few roundings
+/// of the largest term: 4 ulps of the sum of the terms' magnitudes.
+const SUMS: f64 = 4.0 * f32::EPSILON as f64;
+
+fn read_vector_rows(path: &std::path::Path) -> Vec<[f32; 13]> {
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    assert_eq!(bytes.len(), N * 52, "{}: size", path.display());
+    bytes
+        .chunks_exact(52)
+        .map(|row| {
+            std::array::from_fn(|i| f32::from_le_bytes(row[4 * i..4 * i + 4].try_into().unwrap()))
+        })
+        .collect()
+}
+
+/// Vector Math `op` at A (the position) with B, C and Scale as constants: the graph
+/// the add-on writes for a node whose other sockets are unlinked.
+fn vector_program(op: &str, b: [f32; 3], c: [f32; 3], s: f32) -> Program {
+    let mut bl = Builder::default();
+    let a = bl.position();
+    let (b, c, s) = (
+        bl.vector3(b).unwrap(),
+        bl.vector3(c).unwrap(),
+        bl.constant(s).unwrap(),
+    );
+    let v = vector_math(&mut bl, op, a, b, c, s)
+        .unwrap()
+        .expect("compiled");
+    match v.width() {
+        1 => bl.finish(v).unwrap(),
+        _ => bl.finish_rgb(v).unwrap(),
+    }
+}
+
+/// Geometry Nodes evaluates Vector Math at 20,000 rows of A, B, C and Scale
+/// (`tests/fixtures/blender_vector_math_values.py`: special cases drawn as for Math),
+/// and every operation Nimbus compiles must give the same vector. Measured: see the
+/// printed lines (docs/shaders.md quotes them). The error of the sums is taken against
+/// the magnitude of their terms, |A|·|B| + |A| + |B| + |C| (a result that cancels is
+/// only as exact as its terms), and relative to the value for the others.
+#[test]
+fn vector_math_operations_match_blender() {
+    let Some(python) = common::data::bpy_python("bpy, numpy") else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let all: Vec<(&str, f64)> = VECTOR_OPERATIONS.into_iter().chain(VECTOR_LIBM).collect();
+    let ops: Vec<&str> = all.iter().map(|(o, _)| *o).collect();
+    let out = Command::new(python)
+        .arg(common::repo().join("tests/fixtures/blender_vector_math_values.py"))
+        .arg(ops.join(","))
+        .arg(dir.path())
+        .output()
+        .expect("run the fixture");
+    assert!(
+        out.status.success(),
+        "blender_vector_math_values.py failed:\n{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let norm = |v: &[f32]| v.iter().map(|x| (*x as f64).powi(2)).sum::<f64>().sqrt();
+    let mut failed = Vec::new();
+    let mut modulo_by_zero = 0;
+    for (op, allowed) in all {
+        let rows = read_vector_rows(&dir.path().join(format!("{op}.f32")));
+        let (mut equal, mut worst) = (0, 0f64);
+        for r in &rows {
+            let (a, b, c, s) = (
+                [r[0], r[1], r[2]],
+                [r[3], r[4], r[5]],
+                [r[6], r[7], r[8]],
+                r[9],
+            );
+            let prog = vector_program(op, b, c, s);
+            let ours = match prog.outputs_rgb() {
+                true => prog.eval_rgb(a, 0.0),
+                false => [prog.eval(a, 0.0), 0.0, 0.0],
+            };
+            let mut reference = [r[10], r[11], r[12]];
+            if op == "MODULO" {
+                // Geometry Nodes' fmod is NaN where B is 0; Cycles' svm_vector_math takes
+                // `safe_modulo`, 0 there, as Nimbus does.
+                for k in 0..3 {
+                    if b[k] == 0.0 {
+                        assert!(reference[k].is_nan(), "MODULO by 0 in Geometry Nodes");
+                        reference[k] = 0.0;
+                        modulo_by_zero += 1;
+                    }
+                }
+            }
+            if (0..3)
+                .all(|k| ours[k].to_bits() == reference[k].to_bits() || ours[k] == reference[k])
+            {
+                equal += 1;
+                continue;
+            }
+            let terms = norm(&a) * norm(&b) + norm(&a) + norm(&b) + norm(&c);
+            for k in 0..3 {
+                let d = (ours[k] as f64 - reference[k] as f64).abs();
+                let scale = match allowed == SUMS {
+                    true => terms,
+                    false => (reference[k].abs() as f64).max(1e-30),
+                };
+                let e = d / scale;
+                worst = worst.max(if e.is_nan() { f64::INFINITY } else { e });
+            }
+        }
+        println!("{op:<15} {equal}/{N} equal to the bit; worst error {worst:.2e} (allowed {allowed:.1e})");
+        if worst > allowed {
+            failed.push(op);
+        }
+    }
+    println!(
+        "MODULO: {modulo_by_zero} components by 0, NaN in Geometry Nodes, 0 in Cycles and Nimbus"
+    );
+    assert!(modulo_by_zero > 1000, "the inputs must divide by 0 often");
+    assert!(failed.is_empty(), "{failed:?}");
 }

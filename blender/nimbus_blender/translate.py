@@ -206,7 +206,10 @@ _OPERATIONS = {
         "COSINE", "TANGENT", "ARCSINE", "ARCCOSINE", "ARCTANGENT", "ARCTAN2", "SINH",
         "COSH", "TANH", "RADIANS", "DEGREES", "WRAP"},
     "ShaderNodeVectorMath": {
-        "ADD", "SUBTRACT", "MULTIPLY", "SCALE", "LENGTH", "DOT_PRODUCT", "DISTANCE"},
+        "ADD", "SUBTRACT", "MULTIPLY", "DIVIDE", "MULTIPLY_ADD", "CROSS_PRODUCT", "PROJECT",
+        "FACEFORWARD", "DOT_PRODUCT", "DISTANCE", "LENGTH", "SCALE", "NORMALIZE", "SNAP",
+        "FLOOR", "CEIL", "MODULO", "WRAP", "FRACTION", "ABSOLUTE", "POWER", "SIGN",
+        "MINIMUM", "MAXIMUM", "SINE", "COSINE", "TANGENT"},
 }
 # Texture nodes whose unlinked Vector is Blender's Generated coordinates.
 _TEXTURES = ("ShaderNodeTexNoise", "ShaderNodeTexVoronoi", "ShaderNodeTexGradient")

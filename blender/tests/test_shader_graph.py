@@ -6,6 +6,7 @@ Cycles through conftest.against_cycles (image and 8 x 8 block means)."""
 
 import math
 import re
+import subprocess
 
 import bpy
 import pytest
@@ -366,7 +367,7 @@ def _power_scene(operation="POWER"):
 
 
 def test_an_operation_nimbus_does_not_compile_is_a_warning(addon, tmp_path):
-    """A Vector Math node whose operation Nimbus does not compile (Cross Product) drives
+    """A Vector Math node whose operation Nimbus does not compile (Reflect) drives
     the Density: the add-on warns naming the node and the operation and writes no graph
     (the socket's value), instead of a stage Nimbus would refuse. (Every Math operation
     compiles since stop 60, Wrap the last.)"""
@@ -375,16 +376,42 @@ def test_an_operation_nimbus_does_not_compile_is_a_warning(addon, tmp_path):
     noise = nt.nodes.new("ShaderNodeTexNoise")
     cross = nt.nodes.new("ShaderNodeVectorMath")
     cross.name = "shape"
-    cross.operation = "CROSS_PRODUCT"
+    cross.operation = "REFLECT"
     cross.inputs[1].default_value = (1.0, 0.0, 0.0)
     nt.links.new(noise.outputs["Color"], cross.inputs[0])
     nt.links.new(cross.outputs["Vector"], pv.inputs["Density"])
     nt.links.new(pv.outputs["Volume"], out.inputs["Volume"])
     _cube_scene("crossed cube", m)
     t, _ = translated(tmp_path)
-    warned = [w for w in t.warnings if "'shape'" in w and "CROSS_PRODUCT" in w]
+    warned = [w for w in t.warnings if "'shape'" in w and "REFLECT" in w]
     assert warned and "drives" in warned[0], t.warnings
     assert "nimbus:densityScale.connect" not in open(t.stage).read()
+
+
+def test_a_cross_product_of_noise_is_translated_as_a_graph(addon, nimbus_bin, tmp_path):
+    """Vector Math Cross Product (stop 61: every Vector Math operation but Reflect and
+    Refract compiles) of the Noise Texture's Color with (1, 0, 0), its Y into the
+    Density: the add-on writes the graph, no warning, and Nimbus reads it."""
+    m, nt, out = _node_material("crossed")
+    pv = nt.nodes.new("ShaderNodeVolumePrincipled")
+    noise = nt.nodes.new("ShaderNodeTexNoise")
+    cross = nt.nodes.new("ShaderNodeVectorMath")
+    cross.operation = "CROSS_PRODUCT"
+    cross.inputs[1].default_value = (1.0, 0.0, 0.0)
+    sep = nt.nodes.new("ShaderNodeSeparateXYZ")
+    nt.links.new(noise.outputs["Color"], cross.inputs[0])
+    nt.links.new(cross.outputs["Vector"], sep.inputs["Vector"])
+    nt.links.new(sep.outputs["Y"], pv.inputs["Density"])
+    nt.links.new(pv.outputs["Volume"], out.inputs["Volume"])
+    _cube_scene("crossed cube", m)
+    t, _ = translated(tmp_path)
+    assert not [w for w in t.warnings if "drives" in w], t.warnings
+    text = open(t.stage).read()
+    assert 'inputs:operation = "CROSS_PRODUCT"' in text
+    assert "nimbus:densityScale.connect" in text
+    info = subprocess.run([str(nimbus_bin), "info", t.stage], capture_output=True, text=True)
+    assert info.returncode == 0, info.stderr
+    assert "graph" in info.stdout, info.stdout
 
 
 def test_a_wrap_of_noise_is_translated_as_a_graph(addon, tmp_path):

@@ -215,6 +215,91 @@ pub fn math(bl: &mut Builder, op: &str, a: Reg, b: Reg, c: Reg) -> Result<Option
     })
 }
 
+/// Whether Vector Math's operation `op` reads its second and third vectors.
+pub fn vector_math_operands(op: &str) -> (bool, bool) {
+    match op {
+        "MULTIPLY_ADD" | "WRAP" | "FACEFORWARD" => (true, true),
+        "ABSOLUTE" | "FLOOR" | "CEIL" | "FRACTION" | "SINE" | "COSINE" | "TANGENT" | "SIGN"
+        | "LENGTH" | "NORMALIZE" | "SCALE" => (false, false),
+        _ => (true, false),
+    }
+}
+
+/// Blender's Vector Math node, operation `op` (its identifier) of the vectors `a`, `b`,
+/// `c` (sockets Vector, Vector_001, Vector_002) and the float `scale`, as Cycles'
+/// `svm_vector_math` computes it; `None` for an operation not compiled (Reflect and
+/// Refract). The entry-wise operations are the Math node's ([`math`]) on each
+/// component, as Cycles defines them (Fraction is Math's Fract). Cross Product, Project,
+/// Normalize and Faceforward are written out with Cycles' definitions (`util/math_float3.h`):
+/// `project(a, b)` = (a·b / b·b) b, 0 where b·b = 0; `safe_normalize(a)` = a / |a|, 0 at
+/// |a| = 0 (a itself there, which is 0 but for vectors whose squared length
+/// underflows); faceforward = a where b·c < 0, else −a. tests/blender_math.rs checks
+/// every operation against bpy 5.0.1.
+pub fn vector_math(
+    bl: &mut Builder,
+    op: &str,
+    a: Reg,
+    b: Reg,
+    c: Reg,
+    scale: Reg,
+) -> Result<Option<Reg>, GraphError> {
+    let entrywise = match op {
+        "ADD" | "SUBTRACT" | "MULTIPLY" | "DIVIDE" | "MULTIPLY_ADD" | "MINIMUM" | "MAXIMUM"
+        | "ABSOLUTE" | "FLOOR" | "CEIL" | "MODULO" | "WRAP" | "SNAP" | "SINE" | "COSINE"
+        | "TANGENT" | "POWER" | "SIGN" => Some(op),
+        "FRACTION" => Some("FRACT"),
+        _ => None,
+    };
+    if let Some(m) = entrywise {
+        return math(bl, m, a, b, c);
+    }
+    Ok(match op {
+        "SCALE" => Some(bl.binary(Binary::Mul, a, scale)?),
+        "LENGTH" => Some(bl.magnitude(a)?),
+        "DOT_PRODUCT" => Some(bl.dot(a, b)?),
+        "DISTANCE" => {
+            let d = bl.binary(Binary::Sub, a, b)?;
+            Some(bl.magnitude(d)?)
+        }
+        "CROSS_PRODUCT" => {
+            // (a.y b.z − a.z b.y, a.z b.x − a.x b.z, a.x b.y − a.y b.x)
+            let mut out = [a; 3];
+            for (k, out) in out.iter_mut().enumerate() {
+                let (i, j) = (((k + 1) % 3) as u16, ((k + 2) % 3) as u16);
+                let (ai, aj) = (bl.component(a, i)?, bl.component(a, j)?);
+                let (bi, bj) = (bl.component(b, i)?, bl.component(b, j)?);
+                let p = bl.binary(Binary::Mul, ai, bj)?;
+                let q = bl.binary(Binary::Mul, aj, bi)?;
+                *out = bl.binary(Binary::Sub, p, q)?;
+            }
+            Some(bl.combine3(out[0], out[1], out[2])?)
+        }
+        "PROJECT" => {
+            let ab = bl.dot(a, b)?;
+            let bb = bl.dot(b, b)?;
+            let f = bl.binary(Binary::SafeDiv, ab, bb)?;
+            Some(bl.binary(Binary::Mul, f, b)?)
+        }
+        "NORMALIZE" => {
+            let length = bl.magnitude(a)?;
+            Some(bl.binary(Binary::SafeDiv, a, length)?)
+        }
+        "FACEFORWARD" => {
+            // s = 1 − 2 (b·c < 0 ? 0 : 1): ±1, then s·a.
+            let d = bl.dot(b, c)?;
+            let zero = bl.constant(0.0)?;
+            let front = bl.binary(Binary::Less, d, zero)?;
+            let one = bl.constant(1.0)?;
+            let back = bl.binary(Binary::Sub, one, front)?;
+            let two = bl.constant(2.0)?;
+            let flip = bl.binary(Binary::Mul, back, two)?;
+            let sign = bl.binary(Binary::Sub, one, flip)?;
+            Some(bl.binary(Binary::Mul, a, sign)?)
+        }
+        _ => None,
+    })
+}
+
 /// The Blender graph whose output `output` of the shader prim `shader` is connected
 /// to a medium's density scale.
 /// `times_field`: the program multiplies the graph by the density field's value (a
@@ -765,31 +850,25 @@ impl<'a> Reader<'a> {
             "ShaderNodeVectorMath" => {
                 let op = Self::text(node, "operation", "ADD")?;
                 let a = self.vector(node, "Vector", None)?;
-                let v = match op.as_str() {
-                    "ADD" | "SUBTRACT" | "MULTIPLY" | "DOT_PRODUCT" | "DISTANCE" => {
-                        let b = self.vector(node, "Vector_001", Some([0.0; 3]))?;
-                        self.builder.node(&at);
-                        let bl = &mut self.builder;
-                        match op.as_str() {
-                            "ADD" => bl.binary(Binary::Add, a, b),
-                            "SUBTRACT" => bl.binary(Binary::Sub, a, b),
-                            "MULTIPLY" => bl.binary(Binary::Mul, a, b),
-                            "DOT_PRODUCT" => bl.dot(a, b),
-                            _ => bl.binary(Binary::Sub, a, b).and_then(|d| bl.magnitude(d)),
-                        }
-                        .map_err(&err)?
-                    }
-                    "SCALE" => {
-                        let s = self.float(node, "Scale", 1.0)?;
-                        self.builder.node(&at);
-                        self.builder.binary(Binary::Mul, a, s).map_err(&err)?
-                    }
-                    "LENGTH" => {
-                        self.builder.node(&at);
-                        self.builder.magnitude(a).map_err(&err)?
-                    }
-                    o => return Err(Self::refuse(node, "operation", o)),
+                // Only the sockets the operation reads are compiled (an unused one may be
+                // linked to anything, and its registers would be wasted).
+                let (uses_b, uses_c) = vector_math_operands(&op);
+                let b = match uses_b {
+                    true => self.vector(node, "Vector_001", Some([0.0; 3]))?,
+                    false => a,
                 };
+                let c = match uses_c {
+                    true => self.vector(node, "Vector_002", Some([0.0; 3]))?,
+                    false => a,
+                };
+                let scale = match op.as_str() {
+                    "SCALE" => self.float(node, "Scale", 1.0)?,
+                    _ => a,
+                };
+                self.builder.node(&at);
+                let v = vector_math(&mut self.builder, &op, a, b, c, scale)
+                    .map_err(&err)?
+                    .ok_or_else(|| Self::refuse(node, "operation", &op))?;
                 match (output, v) {
                     ("Vector", Reg::Vector3(_)) | ("Value", Reg::Float(_)) => v,
                     _ => return Err(wrong_output()),

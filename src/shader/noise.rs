@@ -421,19 +421,231 @@ fn grad4(hash: u32, x: f32, y: f32, z: f32, w: f32) -> f32 {
     negate_if(u, h & 1) + negate_if(v, (h >> 1) & 1) + negate_if(s, (h >> 2) & 1)
 }
 
-/// Gradients of the four corners (y, z) ∈ {(0,0), (0,1), (1,0), (1,1)} of the x = `xi`
-/// face of a cell, in that order (Cycles' SSE lanes), `fx` being x's offset from that face.
+/// Corner `i` of a cell (0..8 for 3D, 0..16 for 4D) as its offsets along (x, y, z, w):
+/// bit 2 is x, bit 1 y, bit 0 z and bit 3 w, so corners 0-3 are the x = 0 face's (y, z)
+/// = (0,0), (0,1), (1,0), (1,1) in Cycles' SSE lane order and 4-7 the x = 1 face's.
+const fn corner_offset(i: usize) -> [u32; 4] {
+    [
+        (i >> 2) as u32 & 1,
+        (i >> 1) as u32 & 1,
+        i as u32 & 1,
+        (i >> 3) as u32 & 1,
+    ]
+}
+
+/// The corners' offsets per axis, as lanes: `CORNERS[axis][i]`.
+const CORNERS: [[u32; 16]; 4] = {
+    let mut c = [[0u32; 16]; 4];
+    let mut i = 0;
+    while i < 16 {
+        let o = corner_offset(i);
+        let mut axis = 0;
+        while axis < 4 {
+            c[axis][i] = o[axis];
+            axis += 1;
+        }
+        i += 1;
+    }
+    c
+};
+
+/// The gradients of a 3D cell's 8 corners dotted with the offsets from them, in corner
+/// order ([`corner_offset`]). The 8 hashes are most of the noise's work, so on a CPU
+/// with AVX2 they are computed at once, one corner per vector lane
+/// ([`wide::gradients3`]); lane for lane the same integer and float operations as one
+/// corner at a time, so the same values (the tests compare the two).
 #[inline(always)]
-fn face3(xi: i32, yi: i32, zi: i32, fx: f32, fy: f32, fz: f32) -> [f32; 4] {
-    let corner = |dy: i32, dz: i32| {
+fn gradients3(lattice: [i32; 3], f: [f32; 3]) -> [f32; 8] {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2.
+        return unsafe { wide::gradients3(lattice, f) };
+    }
+    gradients3_scalar(lattice, f)
+}
+
+/// [`gradients3`] one corner at a time.
+#[inline(always)]
+fn gradients3_scalar(lattice: [i32; 3], f: [f32; 3]) -> [f32; 8] {
+    let mut g = [0.0f32; 8];
+    for (i, g) in g.iter_mut().enumerate() {
+        let (dx, dy, dz) = (CORNERS[0][i], CORNERS[1][i], CORNERS[2][i]);
         let h = hash_uint3(
-            xi as u32,
-            yi.wrapping_add(dy) as u32,
-            zi.wrapping_add(dz) as u32,
+            (lattice[0] as u32).wrapping_add(dx),
+            (lattice[1] as u32).wrapping_add(dy),
+            (lattice[2] as u32).wrapping_add(dz),
         );
-        grad3(h, fx, fy - dy as f32, fz - dz as f32)
-    };
-    [corner(0, 0), corner(0, 1), corner(1, 0), corner(1, 1)]
+        *g = grad3(h, f[0] - dx as f32, f[1] - dy as f32, f[2] - dz as f32);
+    }
+    g
+}
+
+/// The corner hashes and gradients in AVX2's 8 lanes.
+#[cfg(target_arch = "x86_64")]
+mod wide {
+    use super::{lookup3_init, CORNERS};
+    use std::arch::x86_64::*;
+
+    /// `x` rotated left by `K` bits in every lane (`R` = 32 − `K`; AVX2 has no rotate).
+    #[inline(always)]
+    unsafe fn rotl<const K: i32, const R: i32>(x: __m256i) -> __m256i {
+        _mm256_or_si256(_mm256_slli_epi32::<K>(x), _mm256_srli_epi32::<R>(x))
+    }
+
+    /// lookup3's `final` ([`super::lookup3_final`]) in every lane.
+    #[inline(always)]
+    unsafe fn lookup3_final(mut a: __m256i, mut b: __m256i, mut c: __m256i) -> __m256i {
+        c = _mm256_xor_si256(c, b);
+        c = _mm256_sub_epi32(c, rotl::<14, 18>(b));
+        a = _mm256_xor_si256(a, c);
+        a = _mm256_sub_epi32(a, rotl::<11, 21>(c));
+        b = _mm256_xor_si256(b, a);
+        b = _mm256_sub_epi32(b, rotl::<25, 7>(a));
+        c = _mm256_xor_si256(c, b);
+        c = _mm256_sub_epi32(c, rotl::<16, 16>(b));
+        a = _mm256_xor_si256(a, c);
+        a = _mm256_sub_epi32(a, rotl::<4, 28>(c));
+        b = _mm256_xor_si256(b, a);
+        b = _mm256_sub_epi32(b, rotl::<14, 18>(a));
+        c = _mm256_xor_si256(c, b);
+        _mm256_sub_epi32(c, rotl::<24, 8>(b))
+    }
+
+    /// `v` with its sign flipped where `bit` (0 or 1 per lane) is 1.
+    #[inline(always)]
+    unsafe fn negate_if(v: __m256, bit: __m256i) -> __m256 {
+        _mm256_xor_ps(v, _mm256_castsi256_ps(_mm256_slli_epi32::<31>(bit)))
+    }
+
+    /// [`super::grad3`] in every lane: the same selections, by blends.
+    #[inline(always)]
+    unsafe fn grad3(hash: __m256i, x: __m256, y: __m256, z: __m256) -> __m256 {
+        let h = _mm256_and_si256(hash, _mm256_set1_epi32(15));
+        let mask = |m: __m256i| _mm256_castsi256_ps(m);
+        let below8 = mask(_mm256_cmpgt_epi32(_mm256_set1_epi32(8), h));
+        let below4 = mask(_mm256_cmpgt_epi32(_mm256_set1_epi32(4), h));
+        let twelve_or_fourteen = mask(_mm256_or_si256(
+            _mm256_cmpeq_epi32(h, _mm256_set1_epi32(12)),
+            _mm256_cmpeq_epi32(h, _mm256_set1_epi32(14)),
+        ));
+        // blendv(a, b, m): b where m is set.
+        let u = _mm256_blendv_ps(y, x, below8);
+        let vt = _mm256_blendv_ps(z, x, twelve_or_fourteen);
+        let v = _mm256_blendv_ps(vt, y, below4);
+        let one = _mm256_set1_epi32(1);
+        _mm256_add_ps(
+            negate_if(u, _mm256_and_si256(h, one)),
+            negate_if(v, _mm256_and_si256(_mm256_srli_epi32::<1>(h), one)),
+        )
+    }
+
+    /// lookup3's `mix` ([`super::lookup3_mix`]) in every lane.
+    #[inline(always)]
+    unsafe fn lookup3_mix(
+        mut a: __m256i,
+        mut b: __m256i,
+        mut c: __m256i,
+    ) -> (__m256i, __m256i, __m256i) {
+        let (add, sub, xor) = (_mm256_add_epi32, _mm256_sub_epi32, _mm256_xor_si256);
+        a = sub(a, c);
+        a = xor(a, rotl::<4, 28>(c));
+        c = add(c, b);
+        b = sub(b, a);
+        b = xor(b, rotl::<6, 26>(a));
+        a = add(a, c);
+        c = sub(c, b);
+        c = xor(c, rotl::<8, 24>(b));
+        b = add(b, a);
+        a = sub(a, c);
+        a = xor(a, rotl::<16, 16>(c));
+        c = add(c, b);
+        b = sub(b, a);
+        b = xor(b, rotl::<19, 13>(a));
+        a = add(a, c);
+        c = sub(c, b);
+        c = xor(c, rotl::<4, 28>(b));
+        b = add(b, a);
+        (a, b, c)
+    }
+
+    /// [`super::grad4`] in every lane.
+    #[inline(always)]
+    unsafe fn grad4(hash: __m256i, x: __m256, y: __m256, z: __m256, w: __m256) -> __m256 {
+        let h = _mm256_and_si256(hash, _mm256_set1_epi32(31));
+        let below = |n: i32| _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(n), h));
+        let u = _mm256_blendv_ps(y, x, below(24));
+        let v = _mm256_blendv_ps(z, y, below(16));
+        let s = _mm256_blendv_ps(w, z, below(8));
+        let one = _mm256_set1_epi32(1);
+        let bit = |k: __m256i| _mm256_and_si256(k, one);
+        _mm256_add_ps(
+            _mm256_add_ps(
+                negate_if(u, bit(h)),
+                negate_if(v, bit(_mm256_srli_epi32::<1>(h))),
+            ),
+            negate_if(s, bit(_mm256_srli_epi32::<2>(h))),
+        )
+    }
+
+    /// The offsets along axis `k` of the 8 corners from corner `first` on, as integer
+    /// and float lanes.
+    #[inline(always)]
+    unsafe fn axis(k: usize, first: usize) -> (__m256i, __m256) {
+        let d = _mm256_loadu_si256(CORNERS[k][first..first + 8].as_ptr() as *const __m256i);
+        (d, _mm256_cvtepi32_ps(d))
+    }
+
+    /// [`super::gradients4`]: corners 0-7 (w = 0) in one vector, 8-15 (w = 1) in the next.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(super) unsafe fn gradients4(lattice: [i32; 4], f: [f32; 4]) -> [f32; 16] {
+        let init = _mm256_set1_epi32(lookup3_init(4) as i32);
+        let mut out = [0.0f32; 16];
+        for half in 0..2 {
+            let mut word = [init; 4];
+            let mut offset = [_mm256_setzero_ps(); 4];
+            for k in 0..4 {
+                let (d, df) = axis(k, 8 * half);
+                word[k] = _mm256_add_epi32(_mm256_set1_epi32(lattice[k]), d);
+                offset[k] = _mm256_sub_ps(_mm256_set1_ps(f[k]), df);
+            }
+            let (a, b, c) = lookup3_mix(
+                _mm256_add_epi32(init, word[0]),
+                _mm256_add_epi32(init, word[1]),
+                _mm256_add_epi32(init, word[2]),
+            );
+            let h = lookup3_final(_mm256_add_epi32(a, word[3]), b, c);
+            let g = grad4(h, offset[0], offset[1], offset[2], offset[3]);
+            _mm256_storeu_ps(out[8 * half..].as_mut_ptr(), g);
+        }
+        out
+    }
+
+    /// [`super::gradients3`] with the 8 corners in the 8 lanes.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(super) unsafe fn gradients3(lattice: [i32; 3], f: [f32; 3]) -> [f32; 8] {
+        let init = _mm256_set1_epi32(lookup3_init(3) as i32);
+        let mut word = [init; 3];
+        let mut offset = [_mm256_setzero_ps(); 3];
+        for k in 0..3 {
+            let (d, df) = axis(k, 0);
+            let corner = _mm256_add_epi32(_mm256_set1_epi32(lattice[k]), d);
+            word[k] = _mm256_add_epi32(init, corner);
+            offset[k] = _mm256_sub_ps(_mm256_set1_ps(f[k]), df);
+        }
+        let h = lookup3_final(word[0], word[1], word[2]);
+        let g = grad3(h, offset[0], offset[1], offset[2]);
+        let mut out = [0.0f32; 8];
+        _mm256_storeu_ps(out.as_mut_ptr(), g);
+        out
+    }
 }
 
 /// Unscaled 3D Perlin noise (0 at every lattice point).
@@ -442,24 +654,44 @@ pub fn perlin_3d<A: Arithmetic>(x: f32, y: f32, z: f32) -> f32 {
     let (xi, fx) = floor_frac(x);
     let (yi, fy) = floor_frac(y);
     let (zi, fz) = floor_frac(z);
-    let lo = face3(xi, yi, zi, fx, fy, fz);
-    let hi = face3(xi.wrapping_add(1), yi, zi, fx - 1.0, fy, fz);
+    let g = gradients3([xi, yi, zi], [fx, fy, fz]);
+    let lo = [g[0], g[1], g[2], g[3]];
+    let hi = [g[4], g[5], g[6], g[7]];
     A::trilerp(lo, hi, A::fade(fx), A::fade(fy), A::fade(fz))
 }
 
-/// Gradients of the four (y, z) corners of the x = `xi`, w = `wi` square of a 4D cell.
+/// The 4D analogue of [`gradients3`]: 16 corners, bit 3 of the index the w offset.
 #[inline(always)]
-fn face4(xi: i32, yi: i32, zi: i32, wi: i32, f: [f32; 4]) -> [f32; 4] {
-    let corner = |dy: i32, dz: i32| {
+fn gradients4(lattice: [i32; 4], f: [f32; 4]) -> [f32; 16] {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2.
+        return unsafe { wide::gradients4(lattice, f) };
+    }
+    gradients4_scalar(lattice, f)
+}
+
+/// [`gradients4`] one corner at a time.
+#[inline(always)]
+fn gradients4_scalar(lattice: [i32; 4], f: [f32; 4]) -> [f32; 16] {
+    let mut g = [0.0f32; 16];
+    for (i, g) in g.iter_mut().enumerate() {
+        let d = [CORNERS[0][i], CORNERS[1][i], CORNERS[2][i], CORNERS[3][i]];
         let h = hash_uint4(
-            xi as u32,
-            yi.wrapping_add(dy) as u32,
-            zi.wrapping_add(dz) as u32,
-            wi as u32,
+            (lattice[0] as u32).wrapping_add(d[0]),
+            (lattice[1] as u32).wrapping_add(d[1]),
+            (lattice[2] as u32).wrapping_add(d[2]),
+            (lattice[3] as u32).wrapping_add(d[3]),
         );
-        grad4(h, f[0], f[1] - dy as f32, f[2] - dz as f32, f[3])
-    };
-    [corner(0, 0), corner(0, 1), corner(1, 0), corner(1, 1)]
+        *g = grad4(
+            h,
+            f[0] - d[0] as f32,
+            f[1] - d[1] as f32,
+            f[2] - d[2] as f32,
+            f[3] - d[3] as f32,
+        );
+    }
+    g
 }
 
 /// Unscaled 4D Perlin noise: the 16 corner gradients interpolated by
@@ -471,15 +703,11 @@ pub fn perlin_4d<A: Arithmetic>(x: f32, y: f32, z: f32, w: f32) -> f32 {
     let (zi, fz) = floor_frac(z);
     let (wi, fw) = floor_frac(w);
     let (u, v, t, s) = (A::fade(fx), A::fade(fy), A::fade(fz), A::fade(fw));
-    let (xi1, wi1) = (xi.wrapping_add(1), wi.wrapping_add(1));
-    let near = (
-        face4(xi, yi, zi, wi, [fx, fy, fz, fw]),
-        face4(xi1, yi, zi, wi, [fx - 1.0, fy, fz, fw]),
-    );
-    let far = (
-        face4(xi, yi, zi, wi1, [fx, fy, fz, fw - 1.0]),
-        face4(xi1, yi, zi, wi1, [fx - 1.0, fy, fz, fw - 1.0]),
-    );
+    let g = gradients4([xi, yi, zi, wi], [fx, fy, fz, fw]);
+    let face = |k: usize| [g[k], g[k + 1], g[k + 2], g[k + 3]];
+    // Faces: (x, w) = (0, 0), (1, 0), (0, 1), (1, 1) start at corners 0, 4, 8, 12.
+    let near = (face(0), face(4));
+    let far = (face(8), face(12));
     A::quadlerp(near, far, [u, v, t], s)
 }
 
@@ -892,16 +1120,31 @@ impl NoiseTexture {
 
     /// [`CyclesAvx2`] fuses multiply-adds; with the CPU's FMA instructions that is one
     /// instruction, without them (Nimbus is built for baseline x86-64) a call to `fmaf`
-    /// per operation. So the whole evaluation is compiled a second time with FMA enabled
-    /// and picked at run time: the same values either way (the test checks), the FMA
-    /// build 1.2x (4D) to 2.3x (3D) faster (docs/shaders.md).
+    /// per operation. And the corners' hashes are written to become vector instructions,
+    /// 8 lanes wide with AVX2 against 4 with baseline SSE2. So the whole evaluation is
+    /// compiled again with AVX2 and FMA (and with FMA alone) and picked at run time: the
+    /// same values either way (the tests check), measured in docs/shaders.md.
     #[inline(always)]
     fn dispatch<const COLOR: bool>(&self, p: [f32; 3], w: f32) -> (f32, [f32; 3]) {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("fma") {
-            // SAFETY: the CPU has the instructions `eval_fma` is compiled for.
-            return unsafe { self.eval_fma::<COLOR>(p, w) };
+        {
+            if std::arch::is_x86_feature_detected!("avx2")
+                && std::arch::is_x86_feature_detected!("fma")
+            {
+                // SAFETY: the CPU has the instructions `eval_avx2` is compiled for.
+                return unsafe { self.eval_avx2::<COLOR>(p, w) };
+            }
+            if std::arch::is_x86_feature_detected!("fma") {
+                // SAFETY: the CPU has the instructions `eval_fma` is compiled for.
+                return unsafe { self.eval_fma::<COLOR>(p, w) };
+            }
         }
+        self.eval_impl::<CyclesAvx2, COLOR>(p, w)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn eval_avx2<const COLOR: bool>(&self, p: [f32; 3], w: f32) -> (f32, [f32; 3]) {
         self.eval_impl::<CyclesAvx2, COLOR>(p, w)
     }
 
@@ -981,6 +1224,45 @@ mod tests {
             lo + (hi - lo) * (state as f32 / u32::MAX as f32)
         };
         (0..n).map(move |_| [next(), next(), next(), next()])
+    }
+
+    /// The AVX2 lanes give every corner's gradient equal to the bit to one corner at a
+    /// time, over lattice cells on both sides of 0 and out to the folded range's ends
+    /// (where the lattice coordinates' sums wrap the hash's words).
+    #[test]
+    #[cfg(target_arch = "x86_64")]
+    fn wide_gradients_equal_one_corner_at_a_time() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            eprintln!("SKIPPED: this CPU has no AVX2, the wide gradients are never used");
+            return;
+        }
+        let mut cells = 0;
+        for (lo, hi) in [(-3.0, 3.0), (-1e5, 1e5), (-1.9e9, 1.9e9)] {
+            for q in points(20_000, 17, lo, hi) {
+                let split = q.map(floor_frac);
+                let lattice = split.map(|s| s.0);
+                let frac = split.map(|s| s.1);
+                let (l3, f3) = (
+                    [lattice[0], lattice[1], lattice[2]],
+                    [frac[0], frac[1], frac[2]],
+                );
+                // SAFETY: checked above that the CPU has AVX2.
+                let (w3, w4) =
+                    unsafe { (wide::gradients3(l3, f3), wide::gradients4(lattice, frac)) };
+                assert_eq!(
+                    w3.map(f32::to_bits),
+                    gradients3_scalar(l3, f3).map(f32::to_bits),
+                    "{q:?}"
+                );
+                assert_eq!(
+                    w4.map(f32::to_bits),
+                    gradients4_scalar(lattice, frac).map(f32::to_bits),
+                    "{q:?}"
+                );
+                cells += 1;
+            }
+        }
+        assert_eq!(cells, 60_000);
     }
 
     #[test]
