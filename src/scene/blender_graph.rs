@@ -595,7 +595,7 @@ impl<'a> Reader<'a> {
                 _ => return Err(wrong_output()),
             },
             "ShaderNodeTexNoise" => {
-                if output != "Fac" {
+                if output != "Fac" && output != "Color" {
                     return Err(wrong_output());
                 }
                 let dims = Self::text(node, "noise_dimensions", "3D")?;
@@ -628,7 +628,11 @@ impl<'a> Reader<'a> {
                 let p = self.vector(node, "Vector", None)?;
                 let w = self.float(node, "W", 0.0)?;
                 self.builder.node(&at);
-                self.builder.blender_noise(p, w, texture).map_err(&err)?
+                match output {
+                    "Color" => self.builder.blender_noise_color(p, w, texture),
+                    _ => self.builder.blender_noise(p, w, texture),
+                }
+                .map_err(&err)?
             }
             "ShaderNodeTexVoronoi" => {
                 let out = match output {

@@ -14,7 +14,10 @@
 //! attribute (register 3: the value of the volume's own density field at the point,
 //! MaterialX's `geompropvalue`). The output is one register.
 
-use super::interval::{blender_noise_bound, cell_noise_3d_bound, perlin_3d_bound, Interval};
+use super::interval::{
+    blender_noise_bound, blender_noise_bound_shifted, cell_noise_3d_bound, perlin_3d_bound,
+    Interval,
+};
 use super::materialx_noise::{cell_noise_3d, perlin_noise_3d};
 use super::math;
 use super::noise::NoiseTexture;
@@ -150,6 +153,14 @@ pub enum Instr {
     /// Blender's Noise Texture (Fac) at the Vector `p` and `w` (4D), its properties and
     /// unconnected inputs in the program's table (`noise`: the index there).
     BlenderNoise {
+        dst: Reg,
+        p: Reg,
+        w: Reg,
+        noise: u16,
+    },
+    /// The Noise Texture's Color (three registers from `dst`): Fac, and the fractal at
+    /// two fixed offsets for green and blue.
+    BlenderNoiseColor {
         dst: Reg,
         p: Reg,
         w: Reg,
@@ -548,6 +559,34 @@ impl Builder {
         w: Value,
         node: NoiseTexture,
     ) -> Result<Value, GraphError> {
+        let (p, w, noise) = self.noise_inputs(p, w, node)?;
+        let dst = self.alloc(1)?;
+        self.push(Instr::BlenderNoise { dst, p, w, noise });
+        Ok(Value::Float(dst))
+    }
+
+    /// The Noise Texture's Color output (a vector3: Fac, and the fractal at two fixed
+    /// offsets for green and blue), as [`blender_noise`](Self::blender_noise) its Fac.
+    pub fn blender_noise_color(
+        &mut self,
+        p: Value,
+        w: Value,
+        node: NoiseTexture,
+    ) -> Result<Value, GraphError> {
+        let (p, w, noise) = self.noise_inputs(p, w, node)?;
+        let dst = self.alloc(3)?;
+        self.push(Instr::BlenderNoiseColor { dst, p, w, noise });
+        Ok(Value::Vector3(dst))
+    }
+
+    /// A Noise Texture's position and W registers, and its index in the node table
+    /// (the node checked and added there).
+    fn noise_inputs(
+        &mut self,
+        p: Value,
+        w: Value,
+        node: NoiseTexture,
+    ) -> Result<(Reg, Reg, u16), GraphError> {
         let p = self.position3(p)?;
         let w = self.float(w, "W")?;
         let finite = [
@@ -562,14 +601,7 @@ impl Builder {
         }
         let index = u16::try_from(self.noises.len()).map_err(|_| GraphError::TooLarge)?;
         self.noises.push(node);
-        let dst = self.alloc(1)?;
-        self.push(Instr::BlenderNoise {
-            dst,
-            p,
-            w,
-            noise: index,
-        });
-        Ok(Value::Float(dst))
+        Ok((p, w, index))
     }
 
     /// Blender's Voronoi Texture node (3D, F1, Euclidean, one octave) at the Vector `p`:
@@ -861,6 +893,12 @@ impl Program {
                     let node = &self.noises[noise as usize];
                     r[dst as usize] = node.fac([r[p], r[p + 1], r[p + 2]], r[w as usize]);
                 }
+                Instr::BlenderNoiseColor { dst, p, w, noise } => {
+                    let (p, dst) = (p as usize, dst as usize);
+                    let node = &self.noises[noise as usize];
+                    let (_, c) = node.eval([r[p], r[p + 1], r[p + 2]], r[w as usize]);
+                    r[dst..dst + 3].copy_from_slice(&c);
+                }
                 Instr::BlenderVoronoi {
                     dst,
                     p,
@@ -1031,6 +1069,15 @@ impl Program {
                     let node = &self.noises[noise as usize];
                     r[dst as usize] =
                         blender_noise_bound(node, [r[p], r[p + 1], r[p + 2], r[w as usize]]);
+                }
+                Instr::BlenderNoiseColor { dst, p, w, noise } => {
+                    let (p, dst) = (p as usize, dst as usize);
+                    let node = &self.noises[noise as usize];
+                    let at = [r[p], r[p + 1], r[p + 2], r[w as usize]];
+                    let [g, b] = node.color_offsets();
+                    r[dst] = blender_noise_bound(node, at);
+                    r[dst + 1] = blender_noise_bound_shifted(node, at, g);
+                    r[dst + 2] = blender_noise_bound_shifted(node, at, b);
                 }
                 Instr::BlenderVoronoi {
                     dst,
@@ -1219,12 +1266,27 @@ mod tests {
             let w = b.constant(0.37).unwrap();
             let f = b.blender_noise(p, w, node).unwrap();
             let prog = b.finish(f).unwrap();
+            // The Color output: three channels, each bounded per channel. The program
+            // bounds its output's first register; a Separate-XYZ-like component of the
+            // colour picks green or blue.
+            let channel = |k: u16| {
+                let mut b = Builder::default();
+                let p = b.position();
+                let w = b.constant(0.37).unwrap();
+                let c = b.blender_noise_color(p, w, node).unwrap();
+                let v = b.component(c, k).unwrap();
+                b.finish(v).unwrap()
+            };
+            let colour = [channel(0), channel(1), channel(2)];
             for _ in 0..300 {
                 let lo: [f32; 3] = std::array::from_fn(|_| (next() - 0.5) * 6.0);
                 let size = 0.3 * next();
                 let hi = lo.map(|c| c + size);
                 let bound = prog.bounds(lo, hi, Interval::point(0.0));
                 assert!(bound.is_bounded(), "{node:?}: {bound:?}");
+                let colour_bounds = colour
+                    .each_ref()
+                    .map(|c| c.bounds(lo, hi, Interval::point(0.0)));
                 for _ in 0..50 {
                     let q: [f32; 3] = std::array::from_fn(|a| lo[a] + (hi[a] - lo[a]) * next());
                     let v = prog.eval(q, 0.0);
@@ -1233,6 +1295,16 @@ mod tests {
                         v >= bound.lo && v <= bound.hi,
                         "{node:?}: {v} outside {bound:?}"
                     );
+                    let (_, rgb) = node.eval(q, 0.37);
+                    for k in 0..3 {
+                        let c = colour[k].eval(q, 0.0);
+                        let cb = colour_bounds[k];
+                        assert_eq!(c, rgb[k]);
+                        assert!(
+                            cb.is_bounded() && c >= cb.lo && c <= cb.hi,
+                            "{node:?}: channel {k} {c} outside {cb:?}"
+                        );
+                    }
                 }
             }
         }

@@ -205,6 +205,18 @@ const BLENDER_FOLD_FROM: f32 = 90000.0;
 /// The other types take the same octave bounds through their products, sums and clamps
 /// ([`musgrave_bound`]).
 pub fn blender_noise_bound(node: &NoiseTexture, p: [Interval; 4]) -> Interval {
+    blender_noise_bound_shifted(node, p, [0.0; 4])
+}
+
+/// [`blender_noise_bound`] of the fractal at the scaled, distorted position plus
+/// `shift`: the Color output's green and blue ([`NoiseTexture::color_offsets`]). The
+/// evaluation adds the shift in float after the distortion, and rounding is monotone,
+/// so the shifted box's rounded ends still hold every shifted point.
+pub fn blender_noise_bound_shifted(
+    node: &NoiseTexture,
+    p: [Interval; 4],
+    shift: [f32; 4],
+) -> Interval {
     let detail = node.detail.clamp(0.0, 15.0);
     let roughness = node.roughness.max(0.0);
     let s = node.scale;
@@ -221,8 +233,8 @@ pub fn blender_noise_bound(node: &NoiseTexture, p: [Interval; 4]) -> Interval {
     let mut hi = [0f32; 4];
     for a in 0..axes {
         let b = p[a].mul(Interval::point(s));
-        lo[a] = b.lo - spread;
-        hi[a] = b.hi + spread;
+        lo[a] = (b.lo - spread) + shift[a];
+        hi[a] = (b.hi + spread) + shift[a];
     }
     let octave = |f: f32| -> Interval {
         let far = (0..axes).any(|a| (lo[a] * f).abs().max((hi[a] * f).abs()) >= BLENDER_FOLD_FROM);

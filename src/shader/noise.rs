@@ -1113,6 +1113,15 @@ impl NoiseTexture {
         self.dispatch::<true>(p, w)
     }
 
+    /// Where Color's green and blue fractals are evaluated: the position (scaled and
+    /// distorted) plus these offsets (the fourth component is W's, used in 4D only).
+    pub fn color_offsets(&self) -> [[f32; 4]; 2] {
+        match self.dimensions {
+            Dimensions::D3 => [OFFSETS_3D[3], OFFSETS_3D[4]].map(|o| [o[0], o[1], o[2], 0.0]),
+            Dimensions::D4 => [OFFSETS_4D[4], OFFSETS_4D[5]],
+        }
+    }
+
     /// Fac alone: Cycles skips Color's two extra fractals when Color is not connected.
     pub fn fac(&self, p: [f32; 3], w: f32) -> f32 {
         self.dispatch::<false>(p, w).0
