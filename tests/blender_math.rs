@@ -1,4 +1,5 @@
-//! Blender's Math node against Blender 5.0.1: `tests/fixtures/blender_math_values.py`
+//! Blender's Math node (and below, Vector Math and the Gradient Texture) against
+//! Blender 5.0.1: `tests/fixtures/blender_math_values.py`
 //! has Geometry Nodes evaluate each operation at 20,000 inputs (A, B, C the points'
 //! coordinates, drawn so that every special case occurs: negative bases, integer and
 //! zero B, B near A), and the program `nimbus::scene::blender_graph::math` compiles
@@ -17,9 +18,7 @@
 
 mod common;
 
-use std::process::Command;
-
-use nimbus::scene::blender_graph::{math, vector_math};
+use nimbus::scene::blender_graph::{gradient, math, vector_math};
 use nimbus::shader::graph::{Builder, Program};
 use nimbus::shader::interval::Interval;
 
@@ -77,11 +76,26 @@ fn program(op: &str) -> Program {
     bl.finish(v).unwrap()
 }
 
-fn read_rows(path: &std::path::Path) -> Vec<[f32; 4]> {
-    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    assert_eq!(bytes.len(), N * 16, "{}: size", path.display());
+/// Runs the bpy fixture `script` for the operations `ops`; it writes one `<op>.f32`
+/// file each into the returned directory.
+fn run_fixture(python: std::path::PathBuf, script: &str, ops: &[&str]) -> tempfile::TempDir {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let ops = ops.join(",");
+    common::data::run_fixture(
+        python,
+        script,
+        [ops.as_str().as_ref(), dir.path().as_os_str()],
+    );
+    dir
+}
+
+/// The fixture's `N` rows of `W` little-endian floats from `<op>.f32` in `dir`.
+fn read_rows<const W: usize>(dir: &std::path::Path, op: &str) -> Vec<[f32; W]> {
+    let path = dir.join(format!("{op}.f32"));
+    let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    assert_eq!(bytes.len(), N * 4 * W, "{}: size", path.display());
     bytes
-        .chunks_exact(16)
+        .chunks_exact(4 * W)
         .map(|row| {
             std::array::from_fn(|i| f32::from_le_bytes(row[4 * i..4 * i + 4].try_into().unwrap()))
         })
@@ -93,24 +107,12 @@ fn math_operations_match_blender() {
     let Some(python) = common::data::bpy_python("bpy, numpy") else {
         return;
     };
-    let dir = tempfile::tempdir().expect("temp dir");
     let ops: Vec<&str> = OPERATIONS.iter().map(|(o, _)| *o).collect();
-    let out = Command::new(python)
-        .arg(common::repo().join("tests/fixtures/blender_math_values.py"))
-        .arg(ops.join(","))
-        .arg(dir.path())
-        .output()
-        .expect("run the fixture");
-    assert!(
-        out.status.success(),
-        "blender_math_values.py failed:\n{}\n{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let dir = run_fixture(python, "blender_math_values.py", &ops);
     let mut failed = Vec::new();
     for (op, allowed) in OPERATIONS {
         let prog = program(op);
-        let rows = read_rows(&dir.path().join(format!("{op}.f32")));
+        let rows = read_rows::<4>(dir.path(), op);
         let (mut equal, mut worst) = (0, 0f64);
         for r in &rows {
             let ours = prog.eval([r[0], r[1], r[2]], 0.0);
@@ -181,7 +183,7 @@ fn math_operation_bounds_hold() {
 /// the C library's functions within `LIBM` relative; and the operations that sum
 /// products (Cross Product, Project, Normalize, Length, Distance, Dot Product) within
 /// `SUMS` of the sum of the terms' magnitudes (module docs of `vector_math_match_blender`).
-const VECTOR_OPERATIONS: [(&str, f64); 23] = [
+const VECTOR_OPERATIONS: [(&str, f64); 25] = [
     ("ADD", EXACT),
     ("SUBTRACT", EXACT),
     ("MULTIPLY", EXACT),
@@ -205,6 +207,8 @@ const VECTOR_OPERATIONS: [(&str, f64); 23] = [
     ("FRACTION", EXACT),
     ("MODULO", EXACT),
     ("WRAP", EXACT),
+    ("REFLECT", SUMS),
+    ("REFRACT", SUMS),
 ];
 
 /// Vector Math's remaining operations are compiled as well: Snap, Sine, Cosine and
@@ -221,17 +225,6 @@ const VECTOR_LIBM: [(&str, f64); 4] = [
 /// contracts `a b − c d` into one rounding), each result may differ by a few roundings
 /// of the largest term: 4 ulps of the sum of the terms' magnitudes.
 const SUMS: f64 = 4.0 * f32::EPSILON as f64;
-
-fn read_vector_rows(path: &std::path::Path) -> Vec<[f32; 13]> {
-    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    assert_eq!(bytes.len(), N * 52, "{}: size", path.display());
-    bytes
-        .chunks_exact(52)
-        .map(|row| {
-            std::array::from_fn(|i| f32::from_le_bytes(row[4 * i..4 * i + 4].try_into().unwrap()))
-        })
-        .collect()
-}
 
 /// Vector Math `op` at A (the position) with B, C and Scale as constants: the graph
 /// the add-on writes for a node whose other sockets are unlinked.
@@ -263,26 +256,14 @@ fn vector_math_operations_match_blender() {
     let Some(python) = common::data::bpy_python("bpy, numpy") else {
         return;
     };
-    let dir = tempfile::tempdir().expect("temp dir");
     let all: Vec<(&str, f64)> = VECTOR_OPERATIONS.into_iter().chain(VECTOR_LIBM).collect();
     let ops: Vec<&str> = all.iter().map(|(o, _)| *o).collect();
-    let out = Command::new(python)
-        .arg(common::repo().join("tests/fixtures/blender_vector_math_values.py"))
-        .arg(ops.join(","))
-        .arg(dir.path())
-        .output()
-        .expect("run the fixture");
-    assert!(
-        out.status.success(),
-        "blender_vector_math_values.py failed:\n{}\n{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let dir = run_fixture(python, "blender_vector_math_values.py", &ops);
     let norm = |v: &[f32]| v.iter().map(|x| (*x as f64).powi(2)).sum::<f64>().sqrt();
     let mut failed = Vec::new();
     let mut modulo_by_zero = 0;
     for (op, allowed) in all {
-        let rows = read_vector_rows(&dir.path().join(format!("{op}.f32")));
+        let rows = read_rows::<13>(dir.path(), op);
         let (mut equal, mut worst) = (0, 0f64);
         for r in &rows {
             let (a, b, c, s) = (
@@ -334,5 +315,58 @@ fn vector_math_operations_match_blender() {
         "MODULO: {modulo_by_zero} components by 0, NaN in Geometry Nodes, 0 in Cycles and Nimbus"
     );
     assert!(modulo_by_zero > 1000, "the inputs must divide by 0 often");
+    assert!(failed.is_empty(), "{failed:?}");
+}
+
+/// Every Gradient Texture type, as `blender_graph::gradient` compiles it on Vector the
+/// position, against Geometry Nodes at 20,000 points
+/// (`tests/fixtures/blender_gradient_values.py`: uniform, on and near the unit sphere,
+/// on the axes where atan2 turns, and across the saturation's ends). Equal to the bit,
+/// but the spherical types, whose length sums squares (`SUMS` of the radius), and
+/// Radial: Geometry Nodes divides atan2f(y, x) by `M_PI * 2.0f`, a double, so in
+/// double, where Cycles' SVM (and Nimbus) divides by `M_2PI_F` in float; the two are
+/// within an ulp of the sum's 1/2 (6e-8), so Radial is held to `LIBM` of 1, absolute.
+#[test]
+fn gradient_types_match_blender() {
+    let Some(python) = common::data::bpy_python("bpy, numpy") else {
+        return;
+    };
+    const TYPES: [(&str, f64); 7] = [
+        ("LINEAR", EXACT),
+        ("QUADRATIC", EXACT),
+        ("EASING", EXACT),
+        ("DIAGONAL", EXACT),
+        ("RADIAL", LIBM),
+        ("SPHERICAL", SUMS),
+        ("QUADRATIC_SPHERE", SUMS),
+    ];
+    let kinds: Vec<&str> = TYPES.iter().map(|(k, _)| *k).collect();
+    let dir = run_fixture(python, "blender_gradient_values.py", &kinds);
+    let mut failed = Vec::new();
+    for (kind, allowed) in TYPES {
+        let mut bl = Builder::default();
+        let p = bl.position();
+        let fac = gradient(&mut bl, kind, p).unwrap().expect("compiled");
+        let prog = bl.finish(fac).unwrap();
+        let (mut equal, mut worst) = (0, 0f64);
+        for r in read_rows::<4>(dir.path(), kind) {
+            let ours = prog.eval([r[0], r[1], r[2]], 0.0);
+            if ours.to_bits() == r[3].to_bits() || ours == r[3] {
+                equal += 1;
+                continue;
+            }
+            let scale = match (kind, allowed == SUMS) {
+                ("RADIAL", _) => 1.0,
+                (_, true) => 1.0 + (r[0] as f64).hypot(r[1] as f64).hypot(r[2] as f64),
+                _ => (r[3].abs() as f64).max(1e-30),
+            };
+            let e = (ours as f64 - r[3] as f64).abs() / scale;
+            worst = worst.max(if e.is_nan() { f64::INFINITY } else { e });
+        }
+        println!("{kind:<17} {equal}/{N} equal to the bit; worst error {worst:.2e} (allowed {allowed:.1e})");
+        if worst > allowed {
+            failed.push(kind);
+        }
+    }
     assert!(failed.is_empty(), "{failed:?}");
 }

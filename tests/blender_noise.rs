@@ -43,7 +43,6 @@
 mod common;
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::time::Instant;
 
 use nimbus::shader::noise::{Blenlib, CyclesAvx2, Dimensions, NoiseTexture, NoiseType};
@@ -335,18 +334,15 @@ fn distortion_slack(tex: &NoiseTexture, row: &[f32; 8]) -> [f32; 4] {
 /// Runs the fixture for one engine ("geometry" or "cycles") into `out`; its seconds.
 fn run_fixture(python: &Path, spec: &Path, out: &Path, engine: &str) -> f64 {
     let t0 = Instant::now();
-    let o = Command::new(python)
-        .arg(common::repo().join("tests/fixtures/blender_noise_values.py"))
-        .arg(spec)
-        .arg(out)
-        .args(["--engine", engine])
-        .output()
-        .expect("run the fixture");
-    assert!(
-        o.status.success(),
-        "blender_noise_values.py --engine {engine} failed:\n{}\n{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
+    common::data::run_fixture(
+        python,
+        "blender_noise_values.py",
+        [
+            spec.as_os_str(),
+            out.as_os_str(),
+            "--engine".as_ref(),
+            engine.as_ref(),
+        ],
     );
     t0.elapsed().as_secs_f64()
 }

@@ -16,7 +16,6 @@
 mod common;
 
 use std::path::Path;
-use std::process::Command;
 
 use nimbus::shader::voronoi::VoronoiTexture;
 
@@ -92,17 +91,10 @@ fn voronoi_f1_matches_blender() {
     let dir = tempfile::tempdir().expect("temp dir");
     let spec = dir.path().join("cases.json");
     std::fs::write(&spec, cases_json(&cases)).unwrap();
-    let out = Command::new(python)
-        .arg(common::repo().join("tests/fixtures/blender_voronoi_values.py"))
-        .arg(&spec)
-        .arg(dir.path())
-        .output()
-        .expect("run the fixture");
-    assert!(
-        out.status.success(),
-        "blender_voronoi_values.py failed:\n{}\n{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
+    common::data::run_fixture(
+        python,
+        "blender_voronoi_values.py",
+        [spec.as_os_str(), dir.path().as_os_str()],
     );
     let mut failed = Vec::new();
     for case in &cases {

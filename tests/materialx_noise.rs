@@ -17,7 +17,6 @@
 mod common;
 
 use std::path::Path;
-use std::process::Command;
 
 use nimbus::shader::materialx_noise::{cell_noise_3d, Fractal3d, Noise3d};
 
@@ -120,17 +119,10 @@ fn noise3d_fractal3d_and_cellnoise3d_match_the_published_formulas() {
     let dir = tempfile::tempdir().expect("temp dir");
     let spec = dir.path().join("cases.json");
     std::fs::write(&spec, cases_json(&cases)).unwrap();
-    let out = Command::new("python3")
-        .arg(common::repo().join("tests/fixtures/materialx_noise_values.py"))
-        .arg(&spec)
-        .arg(dir.path())
-        .output()
-        .expect("run the fixture");
-    assert!(
-        out.status.success(),
-        "materialx_noise_values.py failed:\n{}\n{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
+    common::data::run_fixture(
+        "python3",
+        "materialx_noise_values.py",
+        [spec.as_os_str(), dir.path().as_os_str()],
     );
     let mut failed = Vec::new();
     for case in &cases {

@@ -194,22 +194,35 @@ _GRAPH_NODES = {
     "ShaderNodeAttribute": ("attribute_name",),
     "ShaderNodeValue": (),
 }
-# The operations Nimbus compiles of the nodes that have one (src/scene/blender_graph.rs'
-# `math` and Vector Math): another is untranslatable here, so the add-on warns and keeps
-# the socket's value instead of writing a stage Nimbus refuses.
-_OPERATIONS = {
-    "ShaderNodeMath": {
+# The values of node properties Nimbus compiles where it compiles fewer than Blender
+# offers (src/scene/blender_graph.rs refuses the others): another value is
+# untranslatable here, so the add-on warns and keeps the socket's value instead of
+# writing a stage Nimbus refuses. Every Math and Vector Math operation compiles; they
+# are listed so that one a later Blender adds is caught. blender/tests checks every
+# value Blender offers against the reader.
+_COMPILED = {
+    ("ShaderNodeMath", "operation"): {
         "ADD", "SUBTRACT", "MULTIPLY", "DIVIDE", "MULTIPLY_ADD", "POWER", "LOGARITHM",
         "SQRT", "INVERSE_SQRT", "ABSOLUTE", "EXPONENT", "MINIMUM", "MAXIMUM", "LESS_THAN",
         "GREATER_THAN", "SIGN", "COMPARE", "SMOOTH_MIN", "SMOOTH_MAX", "ROUND", "FLOOR",
         "CEIL", "TRUNC", "FRACT", "MODULO", "FLOORED_MODULO", "SNAP", "PINGPONG", "SINE",
         "COSINE", "TANGENT", "ARCSINE", "ARCCOSINE", "ARCTANGENT", "ARCTAN2", "SINH",
         "COSH", "TANH", "RADIANS", "DEGREES", "WRAP"},
-    "ShaderNodeVectorMath": {
+    ("ShaderNodeVectorMath", "operation"): {
         "ADD", "SUBTRACT", "MULTIPLY", "DIVIDE", "MULTIPLY_ADD", "CROSS_PRODUCT", "PROJECT",
-        "FACEFORWARD", "DOT_PRODUCT", "DISTANCE", "LENGTH", "SCALE", "NORMALIZE", "SNAP",
-        "FLOOR", "CEIL", "MODULO", "WRAP", "FRACTION", "ABSOLUTE", "POWER", "SIGN",
-        "MINIMUM", "MAXIMUM", "SINE", "COSINE", "TANGENT"},
+        "REFLECT", "REFRACT", "FACEFORWARD", "DOT_PRODUCT", "DISTANCE", "LENGTH", "SCALE",
+        "NORMALIZE", "SNAP", "FLOOR", "CEIL", "MODULO", "WRAP", "FRACTION", "ABSOLUTE",
+        "POWER", "SIGN", "MINIMUM", "MAXIMUM", "SINE", "COSINE", "TANGENT"},
+    ("ShaderNodeTexNoise", "noise_dimensions"): {"3D", "4D"},
+    ("ShaderNodeTexVoronoi", "voronoi_dimensions"): {"3D"},
+    ("ShaderNodeTexVoronoi", "feature"): {"F1"},
+    ("ShaderNodeTexVoronoi", "distance"): {"EUCLIDEAN"},
+    ("ShaderNodeTexGradient", "gradient_type"): {
+        "LINEAR", "QUADRATIC", "EASING", "DIAGONAL", "RADIAL", "SPHERICAL",
+        "QUADRATIC_SPHERE"},
+    ("ShaderNodeMapRange", "data_type"): {"FLOAT"},
+    ("ShaderNodeMapRange", "interpolation_type"): {"LINEAR", "SMOOTHSTEP"},
+    ("ShaderNodeMapping", "vector_type"): {"POINT"},
 }
 # Texture nodes whose unlinked Vector is Blender's Generated coordinates.
 _TEXTURES = ("ShaderNodeTexNoise", "ShaderNodeTexVoronoi", "ShaderNodeTexGradient")
@@ -246,6 +259,40 @@ def _texture_space(obj):
     return scale, offset
 
 
+# Inputs the reader needs constant (a texture's parameters: its range analysis and
+# its octave count are fixed when the graph is compiled).
+_CONSTANT_INPUTS = {
+    "ShaderNodeTexNoise": ("Scale", "Detail", "Roughness", "Lacunarity", "Distortion",
+                           "Offset", "Gain"),
+    "ShaderNodeTexVoronoi": ("Scale", "Detail", "Roughness", "Randomness"),
+}
+
+
+def _check_inputs(node):
+    """Raises _Untranslatable for the input values the reader refuses: a linked input
+    it needs constant (_CONSTANT_INPUTS), a Voronoi Texture's octaves (Detail and
+    Roughness both above 0; Cycles runs one octave when either is 0) and a Mapping's
+    rotation (only 0 is compiled)."""
+    def unlinked_value(name):
+        # By identifier: a name finds only the sockets the node's type shows.
+        sock = next(s for s in node.inputs if s.identifier == name)
+        if sock.enabled and sock.is_linked:
+            raise _Untranslatable(
+                f"node '{node.name}': {name} is linked (Nimbus needs it constant)")
+        return sock.default_value
+    for name in _CONSTANT_INPUTS.get(node.bl_idname, ()):
+        unlinked_value(name)
+    if node.bl_idname == "ShaderNodeTexVoronoi":
+        detail, roughness = unlinked_value("Detail"), unlinked_value("Roughness")
+        if detail > 0 and roughness > 0:
+            raise _Untranslatable(
+                f"node '{node.name}': Detail {detail:g} (Nimbus compiles one octave: "
+                "Detail 0)")
+    if node.bl_idname == "ShaderNodeMapping" and "Rotation" in node.inputs:
+        if node.inputs["Rotation"].enabled and any(unlinked_value("Rotation")):
+            raise _Untranslatable(f"node '{node.name}': a Rotation other than 0")
+
+
 def _graph(socket, obj, owner, folder_prim):
     """The node tree feeding `socket` (a linked input) as overlay prims under
     `folder_prim`: (prims, "path.outputs:name"). Raises _Untranslatable."""
@@ -258,9 +305,13 @@ def _graph(socket, obj, owner, folder_prim):
         kind = node.bl_idname
         if kind not in _GRAPH_NODES:
             raise _Untranslatable(f"node '{node.name}' ({kind}) is not one Nimbus compiles")
-        if kind in _OPERATIONS and node.operation not in _OPERATIONS[kind]:
-            raise _Untranslatable(
-                f"node '{node.name}': operation {node.operation} is not one Nimbus compiles")
+        for prop in _GRAPH_NODES[kind]:
+            allowed = _COMPILED.get((kind, prop))
+            if allowed is not None and getattr(node, prop) not in allowed:
+                raise _Untranslatable(
+                    f"node '{node.name}': {prop} {getattr(node, prop)} is not one Nimbus "
+                    "compiles")
+        _check_inputs(node)
         prims[path] = None  # a cycle stops here
         lines = [f'uniform token info:id = "{kind}"']
         for prop in _GRAPH_NODES[kind]:

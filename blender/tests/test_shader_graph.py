@@ -366,31 +366,96 @@ def _power_scene(operation="POWER"):
     return _cube_scene("cubed cube", _power_material(operation=operation))
 
 
-def test_an_operation_nimbus_does_not_compile_is_a_warning(addon, tmp_path):
-    """A Vector Math node whose operation Nimbus does not compile (Reflect) drives
-    the Density: the add-on warns naming the node and the operation and writes no graph
-    (the socket's value), instead of a stage Nimbus would refuse. (Every Math operation
-    compiles since stop 60, Wrap the last.)"""
-    m, nt, out = _node_material("crossed")
+def test_a_property_value_nimbus_does_not_compile_is_a_warning(addon, tmp_path):
+    """A Voronoi Texture whose feature Nimbus does not compile (F2) drives the Density:
+    the add-on warns naming the node and the value and writes no graph (the socket's
+    value), instead of a stage Nimbus would refuse. (Every Math and Vector Math
+    operation compiles since stop 62, Reflect and Refract the last.)"""
+    m, nt, out = _node_material("second")
     pv = nt.nodes.new("ShaderNodeVolumePrincipled")
-    noise = nt.nodes.new("ShaderNodeTexNoise")
-    cross = nt.nodes.new("ShaderNodeVectorMath")
-    cross.name = "shape"
-    cross.operation = "REFLECT"
-    cross.inputs[1].default_value = (1.0, 0.0, 0.0)
-    nt.links.new(noise.outputs["Color"], cross.inputs[0])
-    nt.links.new(cross.outputs["Vector"], pv.inputs["Density"])
+    vor = nt.nodes.new("ShaderNodeTexVoronoi")
+    vor.name = "cells"
+    vor.feature = "F2"
+    nt.links.new(vor.outputs["Distance"], pv.inputs["Density"])
     nt.links.new(pv.outputs["Volume"], out.inputs["Volume"])
-    _cube_scene("crossed cube", m)
+    _cube_scene("second cube", m)
     t, _ = translated(tmp_path)
-    warned = [w for w in t.warnings if "'shape'" in w and "REFLECT" in w]
+    warned = [w for w in t.warnings if "'cells'" in w and "F2" in w]
     assert warned and "drives" in warned[0], t.warnings
     assert "nimbus:densityScale.connect" not in open(t.stage).read()
 
 
+def _first_output(node):
+    return next(o for o in node.outputs
+                if o.enabled and o.type in ("VALUE", "VECTOR", "RGBA"))
+
+
+def test_every_property_value_either_compiles_or_warns(addon, nimbus_bin, tmp_path):
+    """The add-on and the reader agree on what compiles. For every value Blender 5.0.1
+    offers of every enum property the add-on writes (each Math and Vector Math
+    operation, Noise and Voronoi dimensions, Voronoi feature and distance, Gradient
+    type, Map Range data and interpolation types, Mapping type), one cube whose Density
+    that node drives: the value is in translate._COMPILED (or the property is not
+    listed there) and translates with no warning, or it is not and the add-on warns
+    naming the node. Then `nimbus info` reads the whole stage: a value the add-on
+    writes but the reader refuses fails here, not at a user's F12. So do linked
+    constant inputs (a Value node into a Noise Texture's Scale), a Voronoi with Detail
+    2 and a Mapping with a Rotation, which must warn."""
+    from nimbus_blender import translate
+
+    _render_settings((32, 32), True)
+    _world()
+    _sun(3.0)
+    _camera((0.0, -5.5, 0.5), (1.5, 0.0, 0.0))
+    expect = {}  # node name -> whether it should translate
+
+    def cube(name, node_kind, configure, translates):
+        m, nt, out = _node_material(name)
+        pv = nt.nodes.new("ShaderNodeVolumePrincipled")
+        node = nt.nodes.new(node_kind)
+        node.name = name
+        configure(node, nt)
+        nt.links.new(_first_output(node), pv.inputs["Density"])
+        nt.links.new(pv.outputs["Volume"], out.inputs["Volume"])
+        _mesh_object(name, "cube", m, size=0.1, location=(3.0 * len(expect), 9.0, 0.0))
+        expect[name] = translates
+
+    for kind, props in translate._GRAPH_NODES.items():
+        for prop in props:
+            rna = getattr(bpy.types, kind).bl_rna.properties[prop]
+            if rna.type != "ENUM":
+                continue
+            allowed = translate._COMPILED.get((kind, prop))
+            for item in rna.enum_items:
+                name = f"{kind[len('ShaderNode'):]}_{prop}_{item.identifier}"
+                cube(name, kind, lambda n, _nt, p=prop, v=item.identifier: setattr(n, p, v),
+                     allowed is None or item.identifier in allowed)
+
+    def linked_scale(node, nt):
+        value = nt.nodes.new("ShaderNodeValue")
+        value.outputs[0].default_value = 3.0
+        nt.links.new(value.outputs[0], node.inputs["Scale"])
+
+    cube("noise_linked_scale", "ShaderNodeTexNoise", linked_scale, False)
+    cube("voronoi_detail_2", "ShaderNodeTexVoronoi",
+         lambda n, _nt: setattr(n.inputs["Detail"], "default_value", 2.0), False)
+    cube("mapping_rotated", "ShaderNodeMapping",
+         lambda n, _nt: setattr(n.inputs["Rotation"], "default_value", (0.0, 0.0, 0.3)), False)
+    assert len(expect) > 100, len(expect)
+
+    t, _ = translated(tmp_path)
+    wrong = []
+    for name, translates in expect.items():
+        warned = [w for w in t.warnings if f"node '{name}'" in w]
+        if translates == bool(warned):
+            wrong.append((name, translates, warned))
+    assert not wrong, wrong
+    info = subprocess.run([str(nimbus_bin), "info", t.stage], capture_output=True, text=True)
+    assert info.returncode == 0, info.stderr[-3000:]
+
+
 def test_a_cross_product_of_noise_is_translated_as_a_graph(addon, nimbus_bin, tmp_path):
-    """Vector Math Cross Product (stop 61: every Vector Math operation but Reflect and
-    Refract compiles) of the Noise Texture's Color with (1, 0, 0), its Y into the
+    """Vector Math Cross Product (stop 61) of the Noise Texture's Color with (1, 0, 0), its Y into the
     Density: the add-on writes the graph, no warning, and Nimbus reads it."""
     m, nt, out = _node_material("crossed")
     pv = nt.nodes.new("ShaderNodeVolumePrincipled")

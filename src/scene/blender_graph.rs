@@ -227,10 +227,11 @@ pub fn vector_math_operands(op: &str) -> (bool, bool) {
 
 /// Blender's Vector Math node, operation `op` (its identifier) of the vectors `a`, `b`,
 /// `c` (sockets Vector, Vector_001, Vector_002) and the float `scale`, as Cycles'
-/// `svm_vector_math` computes it; `None` for an operation not compiled (Reflect and
-/// Refract). The entry-wise operations are the Math node's ([`math`]) on each
+/// `svm_vector_math` computes it (every operation of Blender 5.0; `None` for an
+/// identifier it does not have). The entry-wise operations are the Math node's ([`math`]) on each
 /// component, as Cycles defines them (Fraction is Math's Fract). Cross Product, Project,
-/// Normalize and Faceforward are written out with Cycles' definitions (`util/math_float3.h`):
+/// Normalize, Faceforward, Reflect and Refract are written out with Cycles' definitions
+/// (`util/math_float3.h`):
 /// `project(a, b)` = (a·b / b·b) b, 0 where b·b = 0; `safe_normalize(a)` = a / |a|, 0 at
 /// |a| = 0 (a itself there, which is 0 but for vectors whose squared length
 /// underflows); faceforward = a where b·c < 0, else −a. tests/blender_math.rs checks
@@ -280,9 +281,39 @@ pub fn vector_math(
             let f = bl.binary(Binary::SafeDiv, ab, bb)?;
             Some(bl.binary(Binary::Mul, f, b)?)
         }
-        "NORMALIZE" => {
-            let length = bl.magnitude(a)?;
-            Some(bl.binary(Binary::SafeDiv, a, length)?)
+        "NORMALIZE" => Some(safe_normalize(bl, a)?),
+        "REFLECT" => {
+            // a − 2 (a·n) n with n = safe_normalize(b).
+            let n = safe_normalize(bl, b)?;
+            let d = bl.dot(a, n)?;
+            let two = bl.constant(2.0)?;
+            let d2 = bl.binary(Binary::Mul, d, two)?;
+            let t = bl.binary(Binary::Mul, d2, n)?;
+            Some(bl.binary(Binary::Sub, a, t)?)
+        }
+        "REFRACT" => {
+            // With n = safe_normalize(b), d = n·a and η = Scale (the IOR socket):
+            // k = 1 − η² (1 − d²); 0 where k < 0 (total internal reflection), else
+            // η a − (η d + √k) n. The zero is a product with the keep mask (the
+            // graph's √ is of max(k, 0), so no NaN reaches it).
+            let n = safe_normalize(bl, b)?;
+            let d = bl.dot(n, a)?;
+            let one = bl.constant(1.0)?;
+            let zero = bl.constant(0.0)?;
+            let eta2 = bl.binary(Binary::Mul, scale, scale)?;
+            let dd = bl.binary(Binary::Mul, d, d)?;
+            let sin2 = bl.binary(Binary::Sub, one, dd)?;
+            let e = bl.binary(Binary::Mul, eta2, sin2)?;
+            let k = bl.binary(Binary::Sub, one, e)?;
+            let total = bl.binary(Binary::Less, k, zero)?;
+            let keep = bl.binary(Binary::Sub, one, total)?;
+            let root = bl.unary(Unary::Sqrt, k)?;
+            let ea = bl.binary(Binary::Mul, scale, a)?;
+            let ed = bl.binary(Binary::Mul, scale, d)?;
+            let f = bl.binary(Binary::Add, ed, root)?;
+            let fn_ = bl.binary(Binary::Mul, f, n)?;
+            let v = bl.binary(Binary::Sub, ea, fn_)?;
+            Some(bl.binary(Binary::Mul, v, keep)?)
         }
         "FACEFORWARD" => {
             // s = 1 − 2 (b·c < 0 ? 0 : 1): ±1, then s·a.
@@ -298,6 +329,67 @@ pub fn vector_math(
         }
         _ => None,
     })
+}
+
+/// Blender's Gradient Texture of type `kind` (its identifier) at the vector `p`: its Fac,
+/// as Cycles' `svm_gradient` computes it then saturated; `None` for a type Blender does
+/// not have. tests/blender_math.rs checks every type against bpy 5.0.1.
+pub fn gradient(bl: &mut Builder, kind: &str, p: Reg) -> Result<Option<Reg>, GraphError> {
+    let x = bl.component(p, 0)?;
+    let zero = bl.constant(0.0)?;
+    let one = bl.constant(1.0)?;
+    let g = match kind {
+        "LINEAR" => x,
+        "QUADRATIC" => {
+            let r = bl.binary(Binary::Max, x, zero)?;
+            bl.binary(Binary::Mul, r, r)?
+        }
+        "EASING" => {
+            // r = saturate(x), t = r²: 3t − 2t r.
+            let r = bl.clamp(x, zero, one)?;
+            let t = bl.binary(Binary::Mul, r, r)?;
+            let three = bl.constant(3.0)?;
+            let two = bl.constant(2.0)?;
+            let a = bl.binary(Binary::Mul, three, t)?;
+            let b = bl.binary(Binary::Mul, two, t)?;
+            let b = bl.binary(Binary::Mul, b, r)?;
+            bl.binary(Binary::Sub, a, b)?
+        }
+        "DIAGONAL" => {
+            let y = bl.component(p, 1)?;
+            let s = bl.binary(Binary::Add, x, y)?;
+            let half = bl.constant(0.5)?;
+            bl.binary(Binary::Mul, s, half)?
+        }
+        "RADIAL" => {
+            // atan2(y, x) / 2π + 1/2: the angle about z in turns, 0 and 1 along −x.
+            let y = bl.component(p, 1)?;
+            let a = bl.binary(Binary::Atan2, y, x)?;
+            let turn = bl.constant(std::f32::consts::TAU)?;
+            let a = bl.binary(Binary::Div, a, turn)?;
+            let half = bl.constant(0.5)?;
+            bl.binary(Binary::Add, a, half)?
+        }
+        "SPHERICAL" | "QUADRATIC_SPHERE" => {
+            // Cycles biases the radius by 1e-6, so a unit vector gives exactly 0.
+            let len = bl.magnitude(p)?;
+            let edge = bl.constant(0.999_999)?;
+            let d = bl.binary(Binary::Sub, edge, len)?;
+            let r = bl.binary(Binary::Max, d, zero)?;
+            match kind {
+                "SPHERICAL" => r,
+                _ => bl.binary(Binary::Mul, r, r)?,
+            }
+        }
+        _ => return Ok(None),
+    };
+    Ok(Some(bl.clamp(g, zero, one)?))
+}
+
+/// Cycles' `safe_normalize`: a / |a|, 0 where |a| = 0.
+fn safe_normalize(bl: &mut Builder, a: Reg) -> Result<Reg, GraphError> {
+    let length = bl.magnitude(a)?;
+    bl.binary(Binary::SafeDiv, a, length)
 }
 
 /// The Blender graph whose output `output` of the shader prim `shader` is connected
@@ -682,52 +774,12 @@ impl<'a> Reader<'a> {
                 let p = self.vector(node, "Vector", None)?;
                 let kind = Self::text(node, "gradient_type", "LINEAR")?;
                 self.builder.node(&at);
-                let b = &mut self.builder;
-                let x = b.component(p, 0).map_err(&err)?;
-                // svm_gradient, then saturated.
-                let g = match kind.as_str() {
-                    "LINEAR" => x,
-                    "QUADRATIC" => {
-                        let zero = b.constant(0.0).map_err(&err)?;
-                        let r = b.binary(Binary::Max, x, zero).map_err(&err)?;
-                        b.binary(Binary::Mul, r, r).map_err(&err)?
-                    }
-                    "EASING" => {
-                        let (zero, one) = (
-                            b.constant(0.0).map_err(&err)?,
-                            b.constant(1.0).map_err(&err)?,
-                        );
-                        b.smoothstep(x, zero, one).map_err(&err)?
-                    }
-                    "DIAGONAL" => {
-                        let y = b.component(p, 1).map_err(&err)?;
-                        let s = b.binary(Binary::Add, x, y).map_err(&err)?;
-                        let half = b.constant(0.5).map_err(&err)?;
-                        b.binary(Binary::Mul, s, half).map_err(&err)?
-                    }
-                    "SPHERICAL" | "QUADRATIC_SPHERE" => {
-                        let len = b.magnitude(p).map_err(&err)?;
-                        let edge = b.constant(0.999_999).map_err(&err)?;
-                        let zero = b.constant(0.0).map_err(&err)?;
-                        let d = b.binary(Binary::Sub, edge, len).map_err(&err)?;
-                        let r = b.binary(Binary::Max, d, zero).map_err(&err)?;
-                        if kind == "SPHERICAL" {
-                            r
-                        } else {
-                            b.binary(Binary::Mul, r, r).map_err(&err)?
-                        }
-                    }
-                    k => return Err(Self::refuse(node, "gradient_type", k)),
-                };
-                let (zero, one) = (
-                    b.constant(0.0).map_err(&err)?,
-                    b.constant(1.0).map_err(&err)?,
-                );
-                let fac = b.clamp(g, zero, one).map_err(&err)?;
-                if output == "Color" {
-                    b.splat3(fac).map_err(&err)?
-                } else {
-                    fac
+                let fac = gradient(&mut self.builder, &kind, p)
+                    .map_err(&err)?
+                    .ok_or_else(|| Self::refuse(node, "gradient_type", &kind))?;
+                match output {
+                    "Color" => self.builder.splat3(fac).map_err(&err)?,
+                    _ => fac,
                 }
             }
             "ShaderNodeValToRGB" => {
@@ -866,7 +918,8 @@ impl<'a> Reader<'a> {
                     false => a,
                 };
                 let scale = match op.as_str() {
-                    "SCALE" => self.float(node, "Scale", 1.0)?,
+                    // Refract's IOR is the Scale socket.
+                    "SCALE" | "REFRACT" => self.float(node, "Scale", 1.0)?,
                     _ => a,
                 };
                 self.builder.node(&at);

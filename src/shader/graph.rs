@@ -26,9 +26,14 @@ use super::voronoi::{VoronoiF1, VoronoiOutput, VoronoiTexture};
 /// A register index.
 pub type Reg = u16;
 
-/// Registers a program may use: the register file is a stack array of this size
-/// (256 bytes: it is zeroed per lookup).
-pub const MAX_REGISTERS: usize = 64;
+/// Registers a program may use. Registers are not reused (each value has its own), so
+/// a Blender tree of a few dozen nodes on vectors can pass 64.
+pub const MAX_REGISTERS: usize = 256;
+
+/// The register file is a stack array, zeroed per lookup: programs that fit in this many
+/// registers (most) run with the small one (256 bytes), the others with
+/// [`MAX_REGISTERS`].
+const SMALL_REGISTERS: usize = 64;
 
 /// The position's registers (x, y, z).
 pub const POSITION: Reg = 0;
@@ -761,21 +766,33 @@ impl Program {
     /// The graph's value at `position` with the attribute `attribute`.
     #[inline]
     pub fn eval(&self, position: [f32; 3], attribute: f32) -> f32 {
-        self.run(position, attribute)[self.output as usize]
+        let o = self.output as usize;
+        match self.registers <= SMALL_REGISTERS {
+            true => self.run::<SMALL_REGISTERS>(position, attribute)[o],
+            false => self.run::<MAX_REGISTERS>(position, attribute)[o],
+        }
     }
 
     /// A colour graph's value ([`Builder::finish_rgb`]) at `position`.
     #[inline]
     pub fn eval_rgb(&self, position: [f32; 3], attribute: f32) -> [f32; 3] {
-        let r = self.run(position, attribute);
         let o = self.output as usize;
-        [r[o], r[o + 1], r[o + 2]]
+        match self.registers <= SMALL_REGISTERS {
+            true => {
+                let r = self.run::<SMALL_REGISTERS>(position, attribute);
+                [r[o], r[o + 1], r[o + 2]]
+            }
+            false => {
+                let r = self.run::<MAX_REGISTERS>(position, attribute);
+                [r[o], r[o + 1], r[o + 2]]
+            }
+        }
     }
 
     /// The registers after the program ran.
     #[inline(always)]
-    fn run(&self, position: [f32; 3], attribute: f32) -> [f32; MAX_REGISTERS] {
-        let mut r = [0.0f32; MAX_REGISTERS];
+    fn run<const N: usize>(&self, position: [f32; 3], attribute: f32) -> [f32; N] {
+        let mut r = [0.0f32; N];
         r[0] = position[0];
         r[1] = position[1];
         r[2] = position[2];
@@ -1126,6 +1143,34 @@ fn noise_bound(r: &[Interval], p: Reg, freq: f32) -> Interval {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// x + 1 + 1 … (`n` additions, each a constant and a sum: 2n + 4 registers).
+    fn chain(n: usize) -> Result<Program, GraphError> {
+        let mut b = Builder::default();
+        let mut v = b.component(b.position(), 0)?;
+        for _ in 0..n {
+            let one = b.constant(1.0)?;
+            v = b.binary(Binary::Add, v, one)?;
+        }
+        b.finish(v)
+    }
+
+    /// A program past the small register file runs with the large one, to the same
+    /// values; past [`MAX_REGISTERS`] it is refused.
+    #[test]
+    fn programs_of_every_register_count_up_to_the_limit_run() {
+        for n in [10, 29, 30, 31, 100, 125] {
+            let program = chain(n).unwrap();
+            for x in [-3.0f32, 0.25, 7.0] {
+                assert_eq!(
+                    program.eval([x, 0.0, 0.0], 0.0),
+                    x + n as f32,
+                    "{n} additions"
+                );
+            }
+        }
+        assert!(matches!(chain(127), Err(GraphError::TooLarge)));
+    }
 
     fn fbm_graph() -> Program {
         let mut b = Builder::default();

@@ -11,7 +11,7 @@
 //! bit for bit against a numpy transcription of the published GLSL
 //! (`tests/fixtures/materialx_noise_values.py`, `tests/materialx_noise.rs`).
 
-use super::noise::{hash_uint3, perlin_3d, Arithmetic, Blenlib};
+use super::noise::{hash_uint3, perlin_3d, Arithmetic, Blenlib, Wide};
 
 /// The float grouping of MaterialX's GLSL: `t t t (t (6t - 15) + 10)` in single
 /// precision, and the trilinear interpolation `mx_trilerp`, which is written as
@@ -62,21 +62,21 @@ pub fn fractal_noise_3d(p: [f32; 3], octaves: i32, lacunarity: f32, diminish: f3
         // SAFETY: the CPU has the instructions `fractal_avx2` is compiled for.
         return unsafe { fractal_avx2(p, octaves, lacunarity, diminish) };
     }
-    fractal(p, octaves, lacunarity, diminish)
+    fractal::<MaterialX>(p, octaves, lacunarity, diminish)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 fn fractal_avx2(p: [f32; 3], octaves: i32, lacunarity: f32, diminish: f32) -> f32 {
-    fractal(p, octaves, lacunarity, diminish)
+    fractal::<Wide<MaterialX>>(p, octaves, lacunarity, diminish)
 }
 
 #[inline(always)]
-fn fractal(mut p: [f32; 3], octaves: i32, lacunarity: f32, diminish: f32) -> f32 {
+fn fractal<A: Arithmetic>(mut p: [f32; 3], octaves: i32, lacunarity: f32, diminish: f32) -> f32 {
     let mut result = 0.0f32;
     let mut amplitude = 1.0f32;
     for _ in 0..octaves {
-        result += amplitude * (0.9820 * perlin_3d::<MaterialX>(p[0], p[1], p[2]));
+        result += amplitude * (0.9820 * perlin_3d::<A>(p[0], p[1], p[2]));
         amplitude *= diminish;
         p = [p[0] * lacunarity, p[1] * lacunarity, p[2] * lacunarity];
     }

@@ -204,6 +204,17 @@ pub trait Arithmetic: Copy {
     fn madd(a: f32, b: f32, c: f32) -> f32 {
         a * b + c
     }
+    /// The gradients of a 3D cell's 8 corners dotted with the offsets from them
+    /// ([`gradients3_scalar`]); [`Wide`] computes them in vector lanes.
+    #[inline(always)]
+    fn gradients3(lattice: [i32; 3], f: [f32; 3]) -> [f32; 8] {
+        gradients3_scalar(lattice, f)
+    }
+    /// The 4D analogue of [`gradients3`](Self::gradients3).
+    #[inline(always)]
+    fn gradients4(lattice: [i32; 4], f: [f32; 4]) -> [f32; 16] {
+        gradients4_scalar(lattice, f)
+    }
     /// 4D: the corners of the w = 0 cell face (`near`, as [`trilerp`](Self::trilerp)
     /// takes them) and of the w = 1 face (`far`), interpolated at (u, v, t, s). By
     /// default trilinearly on each face, then along w.
@@ -450,21 +461,7 @@ const CORNERS: [[u32; 16]; 4] = {
 };
 
 /// The gradients of a 3D cell's 8 corners dotted with the offsets from them, in corner
-/// order ([`corner_offset`]). The 8 hashes are most of the noise's work, so on a CPU
-/// with AVX2 they are computed at once, one corner per vector lane
-/// ([`wide::gradients3`]); lane for lane the same integer and float operations as one
-/// corner at a time, so the same values (the tests compare the two).
-#[inline(always)]
-fn gradients3(lattice: [i32; 3], f: [f32; 3]) -> [f32; 8] {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU has AVX2.
-        return unsafe { wide::gradients3(lattice, f) };
-    }
-    gradients3_scalar(lattice, f)
-}
-
-/// [`gradients3`] one corner at a time.
+/// order ([`corner_offset`]), one corner at a time.
 #[inline(always)]
 fn gradients3_scalar(lattice: [i32; 3], f: [f32; 3]) -> [f32; 8] {
     let mut g = [0.0f32; 8];
@@ -595,7 +592,7 @@ mod wide {
         (d, _mm256_cvtepi32_ps(d))
     }
 
-    /// [`super::gradients4`]: corners 0-7 (w = 0) in one vector, 8-15 (w = 1) in the next.
+    /// [`super::gradients4_scalar`]: corners 0-7 (w = 0) in one vector, 8-15 (w = 1) in the next.
     ///
     /// # Safety
     /// The CPU must have AVX2.
@@ -624,7 +621,7 @@ mod wide {
         out
     }
 
-    /// [`super::gradients3`] with the 8 corners in the 8 lanes.
+    /// [`super::gradients3_scalar`] with the 8 corners in the 8 lanes.
     ///
     /// # Safety
     /// The CPU must have AVX2.
@@ -648,30 +645,81 @@ mod wide {
     }
 }
 
+/// The grouping `A` with the corners' hashes and gradients computed in AVX2's 8 lanes
+/// ([`wide`]): lane for lane the same integer and float operations as one corner at a
+/// time, so the same values (`wide_gradients_equal_one_corner_at_a_time`). The hashes
+/// are most of a noise evaluation's work.
+///
+/// It is chosen once, where the CPU has been checked: only functions compiled with
+/// `#[target_feature(enable = "avx2")]` and called after `is_x86_feature_detected!`
+/// name it ([`NoiseTexture::eval`]'s AVX2 build, MaterialX's fractal). Naming it
+/// elsewhere would run AVX2 instructions on a CPU that may lack them, hence private to
+/// the shader module.
+#[derive(Clone, Copy, Debug)]
+pub(in crate::shader) struct Wide<A>(std::marker::PhantomData<A>);
+
+impl<A: Arithmetic> Arithmetic for Wide<A> {
+    #[inline(always)]
+    fn fade(t: f32) -> f32 {
+        A::fade(t)
+    }
+    #[inline(always)]
+    fn lerp(a: f32, b: f32, t: f32) -> f32 {
+        A::lerp(a, b, t)
+    }
+    #[inline(always)]
+    fn trilerp(lo: [f32; 4], hi: [f32; 4], u: f32, v: f32, w: f32) -> f32 {
+        A::trilerp(lo, hi, u, v, w)
+    }
+    #[inline(always)]
+    fn remainder(a: f32) -> f32 {
+        A::remainder(a)
+    }
+    #[inline(always)]
+    fn madd(a: f32, b: f32, c: f32) -> f32 {
+        A::madd(a, b, c)
+    }
+    #[inline(always)]
+    fn quadlerp(
+        near: ([f32; 4], [f32; 4]),
+        far: ([f32; 4], [f32; 4]),
+        uvt: [f32; 3],
+        s: f32,
+    ) -> f32 {
+        A::quadlerp(near, far, uvt, s)
+    }
+    #[inline(always)]
+    fn gradients3(lattice: [i32; 3], f: [f32; 3]) -> [f32; 8] {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `Wide` is only named where the CPU has AVX2 (see the type).
+        return unsafe { wide::gradients3(lattice, f) };
+        #[cfg(not(target_arch = "x86_64"))]
+        gradients3_scalar(lattice, f)
+    }
+    #[inline(always)]
+    fn gradients4(lattice: [i32; 4], f: [f32; 4]) -> [f32; 16] {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: as for `gradients3`.
+        return unsafe { wide::gradients4(lattice, f) };
+        #[cfg(not(target_arch = "x86_64"))]
+        gradients4_scalar(lattice, f)
+    }
+}
+
 /// Unscaled 3D Perlin noise (0 at every lattice point).
 #[inline(always)]
 pub fn perlin_3d<A: Arithmetic>(x: f32, y: f32, z: f32) -> f32 {
     let (xi, fx) = floor_frac(x);
     let (yi, fy) = floor_frac(y);
     let (zi, fz) = floor_frac(z);
-    let g = gradients3([xi, yi, zi], [fx, fy, fz]);
+    let g = A::gradients3([xi, yi, zi], [fx, fy, fz]);
     let lo = [g[0], g[1], g[2], g[3]];
     let hi = [g[4], g[5], g[6], g[7]];
     A::trilerp(lo, hi, A::fade(fx), A::fade(fy), A::fade(fz))
 }
 
-/// The 4D analogue of [`gradients3`]: 16 corners, bit 3 of the index the w offset.
-#[inline(always)]
-fn gradients4(lattice: [i32; 4], f: [f32; 4]) -> [f32; 16] {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU has AVX2.
-        return unsafe { wide::gradients4(lattice, f) };
-    }
-    gradients4_scalar(lattice, f)
-}
-
-/// [`gradients4`] one corner at a time.
+/// The 4D analogue of [`gradients3_scalar`]: 16 corners, bit 3 of the index the w
+/// offset.
 #[inline(always)]
 fn gradients4_scalar(lattice: [i32; 4], f: [f32; 4]) -> [f32; 16] {
     let mut g = [0.0f32; 16];
@@ -703,7 +751,7 @@ pub fn perlin_4d<A: Arithmetic>(x: f32, y: f32, z: f32, w: f32) -> f32 {
     let (zi, fz) = floor_frac(z);
     let (wi, fw) = floor_frac(w);
     let (u, v, t, s) = (A::fade(fx), A::fade(fy), A::fade(fz), A::fade(fw));
-    let g = gradients4([xi, yi, zi, wi], [fx, fy, fz, fw]);
+    let g = A::gradients4([xi, yi, zi, wi], [fx, fy, fz, fw]);
     let face = |k: usize| [g[k], g[k + 1], g[k + 2], g[k + 3]];
     // Faces: (x, w) = (0, 0), (1, 0), (0, 1), (1, 1) start at corners 0, 4, 8, 12.
     let near = (face(0), face(4));
@@ -1129,10 +1177,10 @@ impl NoiseTexture {
 
     /// [`CyclesAvx2`] fuses multiply-adds; with the CPU's FMA instructions that is one
     /// instruction, without them (Nimbus is built for baseline x86-64) a call to `fmaf`
-    /// per operation. And the corners' hashes are written to become vector instructions,
-    /// 8 lanes wide with AVX2 against 4 with baseline SSE2. So the whole evaluation is
-    /// compiled again with AVX2 and FMA (and with FMA alone) and picked at run time: the
-    /// same values either way (the tests check), measured in docs/shaders.md.
+    /// per operation. And with AVX2 the corners' hashes take one vector pass ([`Wide`]).
+    /// So the whole evaluation is compiled again with AVX2 and FMA (and with FMA alone)
+    /// and picked here, once per evaluation: the same values either way (the tests
+    /// check), measured in docs/shaders.md.
     #[inline(always)]
     fn dispatch<const COLOR: bool>(&self, p: [f32; 3], w: f32) -> (f32, [f32; 3]) {
         #[cfg(target_arch = "x86_64")]
@@ -1154,7 +1202,7 @@ impl NoiseTexture {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
     fn eval_avx2<const COLOR: bool>(&self, p: [f32; 3], w: f32) -> (f32, [f32; 3]) {
-        self.eval_impl::<CyclesAvx2, COLOR>(p, w)
+        self.eval_impl::<Wide<CyclesAvx2>, COLOR>(p, w)
     }
 
     #[cfg(target_arch = "x86_64")]

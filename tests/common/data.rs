@@ -258,3 +258,28 @@ pub fn oidn(part: &str) -> bool {
         }
     }
 }
+
+/// Runs the fixture script `script` (under tests/fixtures) with `python` and `args`;
+/// panics with its output if it fails. Returns its output.
+pub fn run_fixture<I, S>(
+    python: impl AsRef<std::ffi::OsStr>,
+    script: &str,
+    args: I,
+) -> std::process::Output
+where
+    I: IntoIterator<Item = S>,
+    S: AsRef<std::ffi::OsStr>,
+{
+    let out = std::process::Command::new(python)
+        .arg(repo().join("tests/fixtures").join(script))
+        .args(args)
+        .output()
+        .unwrap_or_else(|e| panic!("run {script}: {e}"));
+    assert!(
+        out.status.success(),
+        "{script} failed:\n{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
