@@ -10,12 +10,13 @@ use crate::render::integrator::{Extras, Integrator, SelectSegments};
 use crate::render::lights::Lights;
 use crate::render::sampler::SamplerKind;
 use crate::scene::schema::tokens;
-use crate::scene::{Field, Scene, Volume, VolumeShape};
+use crate::scene::{Field, FogMesh, Scene, Volume, VolumeShape};
 use crate::track::free_path::{FreePathSampler, TransmittanceEstimator};
 use crate::track::select::{Dispatch, LightSampling, TrackerKind, TrackerSettings};
 use crate::volume::albedo::Albedo;
-use crate::volume::boundary::{InsideRule, MediumRegion};
+use crate::volume::boundary::{Boundary, InsideRule, MediumRegion};
 use crate::volume::color_graph::ColorGraph;
+use crate::volume::convex::ConvexHull;
 use crate::volume::emission::{Emission, EmissionGrid};
 use crate::volume::graph_density::DensityShader;
 use crate::volume::grid::Grid;
@@ -315,23 +316,34 @@ fn fog_medium(
     Ok(medium)
 }
 
-/// Loads one volume's grids and builds its medium (a fog box's: its surface's BVH).
+/// A fog box's surface for clipping rays: its face planes when it is closed, convex and
+/// has few ([`ConvexHull`]: most boxes users make), else a BVH over its triangles.
+fn fog_surface(fog: &FogMesh) -> Arc<dyn Boundary> {
+    if fog.closed {
+        if let Some(hull) = ConvexHull::from_triangles(&fog.mesh.points, &fog.mesh.triangles) {
+            return Arc::new(hull);
+        }
+    }
+    let rule = match fog.closed {
+        true => InsideRule::Orientation,
+        false => InsideRule::Parity,
+    };
+    Arc::new(Holdouts::build(std::slice::from_ref(&fog.mesh)).with_rule(rule))
+}
+
+/// Loads one volume's grids and builds its medium (a fog box's: its surface, [`fog_surface`]).
 fn medium_for_volume(volume: &Volume, spec: MajorantSpec) -> anyhow::Result<Medium> {
     let field = match &volume.shape {
         VolumeShape::Field(field) => field,
         VolumeShape::Mesh(fog) => {
-            let rule = match fog.closed {
-                true => InsideRule::Orientation,
-                false => InsideRule::Parity,
-            };
-            let surface = Holdouts::build(std::slice::from_ref(&fog.mesh)).with_rule(rule);
+            let surface = fog_surface(fog);
             let Some(bounds) = mesh_bounds(&fog.mesh) else {
                 bail!(
                     "volume {}: the fog box's surface has no triangle to bound it",
                     volume.prim_path
                 );
             };
-            let region = MediumRegion::Inside(Arc::new(surface));
+            let region = MediumRegion::Inside(surface);
             return match &volume.density_graph {
                 None => fog_medium(volume, region, bounds),
                 Some(graph) => graph_fog_medium(volume, graph, region, bounds, spec),

@@ -5,6 +5,7 @@ pub mod albedo;
 pub mod asset;
 pub mod boundary;
 pub mod color_graph;
+pub mod convex;
 pub mod counters;
 pub mod emission;
 pub mod graph_density;
