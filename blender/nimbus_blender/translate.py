@@ -273,23 +273,26 @@ def _check_inputs(node):
     it needs constant (_CONSTANT_INPUTS), a Voronoi Texture's octaves (Detail and
     Roughness both above 0; Cycles runs one octave when either is 0) and a Mapping's
     rotation (only 0 is compiled)."""
-    def unlinked_value(name):
-        # By identifier: a name finds only the sockets the node's type shows.
-        sock = next(s for s in node.inputs if s.identifier == name)
-        if sock.enabled and sock.is_linked:
+    def unlinked_value(name, default):
+        # By identifier: a name finds only the sockets the node's type shows. A socket
+        # this Blender does not have, or hides, is not written: its default.
+        sock = next((s for s in node.inputs if s.identifier == name), None)
+        if sock is None or not sock.enabled:
+            return default
+        if sock.is_linked:
             raise _Untranslatable(
                 f"node '{node.name}': {name} is linked (Nimbus needs it constant)")
         return sock.default_value
     for name in _CONSTANT_INPUTS.get(node.bl_idname, ()):
-        unlinked_value(name)
+        unlinked_value(name, None)
     if node.bl_idname == "ShaderNodeTexVoronoi":
-        detail, roughness = unlinked_value("Detail"), unlinked_value("Roughness")
+        detail, roughness = unlinked_value("Detail", 0.0), unlinked_value("Roughness", 0.5)
         if detail > 0 and roughness > 0:
             raise _Untranslatable(
                 f"node '{node.name}': Detail {detail:g} (Nimbus compiles one octave: "
                 "Detail 0)")
-    if node.bl_idname == "ShaderNodeMapping" and "Rotation" in node.inputs:
-        if node.inputs["Rotation"].enabled and any(unlinked_value("Rotation")):
+    if node.bl_idname == "ShaderNodeMapping":
+        if any(unlinked_value("Rotation", (0.0, 0.0, 0.0))):
             raise _Untranslatable(f"node '{node.name}': a Rotation other than 0")
 
 
