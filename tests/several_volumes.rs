@@ -11,9 +11,11 @@ mod common;
 
 use common::{all_settings, label, mean_se};
 use glam::{DMat4, DVec3};
+use nimbus::render::analysis::CodePaths;
 use nimbus::render::camera::CameraRays;
-use nimbus::render::integrator::{Integrator, SelectSegments};
+use nimbus::render::job::RenderJob;
 use nimbus::render::lights::Lights;
+use nimbus::render::sampler::SamplerKind;
 use nimbus::track::free_path::{FreePath, FreePathSampler, Query, TransmittanceEstimator};
 use nimbus::track::select::{Dispatch, TrackerKind, TrackerSettings};
 use nimbus::volume::counters::Counters;
@@ -372,7 +374,8 @@ fn camera() -> CameraRays {
     common::camera_on_z(3.0, 50.0, 24.0, 8, 6)
 }
 
-/// Per channel, every sample's radiance (8×6 pixels × 64 spp).
+/// Per channel, every sample's radiance (8×6 pixels × 64 spp, through the pixel
+/// centres, row by row).
 fn render(
     media: &[Medium],
     lights: &Lights,
@@ -380,68 +383,28 @@ fn render(
     settings: &TrackerSettings,
     seed: u64,
 ) -> [Vec<f64>; 3] {
-    struct R<'a> {
-        media: &'a [Medium],
-        lights: &'a Lights,
-        cam: &'a CameraRays,
-        seed: u64,
-    }
-    impl Dispatch<[Vec<f64>; 3]> for R<'_> {
-        fn run<F: FreePathSampler, E: TransmittanceEstimator>(
-            self,
-            free_path: F,
-            transmittance: E,
-        ) -> [Vec<f64>; 3] {
-            let it = Integrator {
-                free_path,
-                transmittance,
-                channel_per_path: false,
-                majorant_scale: 1.0,
-                count: false,
-                profile: false,
-                media: self.media,
-                lights: self.lights,
-                camera: self.cam,
-                width: 8,
-                height: 6,
-                spp: 64,
-                max_depth: 16,
-                seed: self.seed,
-                qmc_dims: 0,
-                extras: Default::default(),
-                select_segments: SelectSegments::Off,
-                locals: Vec::new(),
-                shutter: None,
-            };
-            let mut rng = nimbus::render::sampler::pixel_sampler(self.seed, 0);
-            let mut out: [Vec<f64>; 3] = Default::default();
-            for y in 0..6 {
-                for x in 0..8 {
-                    for _ in 0..64 {
-                        let r = it.sample(
-                            x as f64 + 0.5,
-                            y as f64 + 0.5,
-                            &mut rng,
-                            &mut nimbus::volume::counters::NoCounts,
-                        );
-                        for ch in 0..3 {
-                            out[ch].push(r.rgb[ch]);
-                        }
-                    }
-                }
-            }
-            out
-        }
-    }
-    nimbus::track::select::dispatch(
-        settings,
-        R {
-            media,
-            lights,
-            cam,
-            seed,
+    let job = RenderJob {
+        media,
+        lights,
+        camera: cam,
+        width: 8,
+        height: 6,
+        spp: 64,
+        max_depth: 16,
+        seed,
+        sampler: SamplerKind::Independent,
+        tracking: *settings,
+        paths: CodePaths {
+            count: false,
+            specialise: false,
         },
-    )
+        extras: Default::default(),
+    };
+    let centres: Vec<(f64, f64)> = (0..6)
+        .flat_map(|y| (0..8).map(move |x| (x as f64 + 0.5, y as f64 + 0.5)))
+        .collect();
+    let paths = job.paths(&centres, 64);
+    [0, 1, 2].map(|ch| paths.iter().map(|(rgb, _)| rgb[ch]).collect())
 }
 
 /// Culling is conservative and culls: over 20,000 random rays (seed 31) against a

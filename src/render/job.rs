@@ -8,7 +8,7 @@ use crate::render::film::{Film, Region};
 use crate::render::holdouts::Holdouts;
 use crate::render::integrator::{Extras, Integrator, SelectSegments};
 use crate::render::lights::Lights;
-use crate::render::sampler::SamplerKind;
+use crate::render::sampler::{pixel_sampler, SamplerKind};
 use crate::scene::schema::tokens;
 use crate::scene::{Field, FogMesh, Scene, Volume, VolumeShape};
 use crate::track::free_path::{FreePathSampler, TransmittanceEstimator};
@@ -17,6 +17,7 @@ use crate::volume::albedo::Albedo;
 use crate::volume::boundary::{Boundary, InsideRule, MediumRegion};
 use crate::volume::color_graph::ColorGraph;
 use crate::volume::convex::ConvexHull;
+use crate::volume::counters::Counters;
 use crate::volume::emission::{Emission, EmissionGrid};
 use crate::volume::graph_density::DensityShader;
 use crate::volume::grid::Grid;
@@ -144,58 +145,113 @@ impl RenderJob<'_> {
     /// Adds `n` samples per pixel to `film` (progressive rendering: any split of N
     /// samples into passes gives the same film as one pass of N).
     pub fn render_pass(&self, film: &mut Film, n: u32, progress: &(dyn Fn() + Sync)) {
-        struct Pass<'j, 'p, 'f> {
+        self.dispatch(Work::Pass { film, n, progress });
+    }
+
+    /// `n` paths through each film position of `at` (in pixels), in that order, each
+    /// with its own counters: per-path statistics (variance, cost per path) that a
+    /// film's sums hide. All draw from one random stream, pixel 0's of the job's seed.
+    pub fn paths(&self, at: &[(f64, f64)], n: usize) -> Vec<([f64; 3], Counters)> {
+        let mut out = Vec::with_capacity(at.len() * n);
+        self.dispatch(Work::Paths {
+            at,
+            n,
+            out: &mut out,
+        });
+        out
+    }
+
+    /// Runs `work` with the integrator instantiated for the job's estimators. Every
+    /// caller goes through this one [`Dispatch`] impl, so each estimator pair is
+    /// compiled once, here, and not again in each crate that renders (a test crate
+    /// instantiating its own took minutes of build).
+    fn dispatch(&self, work: Work) {
+        struct Run<'j, 'w> {
             job: &'j RenderJob<'j>,
-            film: &'f mut Film,
-            n: u32,
-            progress: &'p (dyn Fn() + Sync),
+            work: Work<'w>,
         }
-        impl Dispatch<()> for Pass<'_, '_, '_> {
+        impl Dispatch<()> for Run<'_, '_> {
             fn run<F: FreePathSampler, E: TransmittanceEstimator>(
                 self,
                 free_path: F,
                 transmittance: E,
             ) {
                 let j = self.job;
-                Integrator {
-                    free_path,
-                    transmittance,
-                    channel_per_path: j.tracking.tracker == TrackerKind::NaiveDelta,
-                    majorant_scale: j.tracking.majorant_scale,
-                    count: j.paths.count,
-                    profile: j.tracking.profile,
-                    media: j.media,
-                    lights: j.lights,
-                    camera: j.camera,
-                    width: j.width,
-                    height: j.height,
-                    spp: self.n,
-                    max_depth: j.max_depth,
-                    seed: j.seed,
-                    qmc_dims: j.sampler.qmc_dims(),
-                    extras: j.extras,
-                    select_segments: match j.tracking.tracker {
-                        TrackerKind::RatioSelect if j.grey_tracking() => SelectSegments::Grey,
-                        TrackerKind::RatioSelect => SelectSegments::Rgb,
-                        _ => SelectSegments::Off,
-                    },
-                    locals: j.local_lights(),
-                    shutter: j.shutter(),
+                let spp = match &self.work {
+                    Work::Pass { n, .. } => *n,
+                    Work::Paths { .. } => j.spp,
+                };
+                let it = j.integrator(free_path, transmittance, spp);
+                match self.work {
+                    Work::Pass { film, n, progress } => it.render_pass(film, n, progress),
+                    Work::Paths { at, n, out } => {
+                        let mut rng = pixel_sampler(j.seed, 0);
+                        for &(fx, fy) in at {
+                            for _ in 0..n {
+                                let mut c = Counters::default();
+                                let rgb = it.sample(fx, fy, &mut rng, &mut c).rgb;
+                                out.push((rgb, c));
+                            }
+                        }
+                    }
                 }
-                .render_pass(self.film, self.n, self.progress)
             }
         }
         crate::track::select::dispatch_specialised(
             &self.tracking,
             self.grey(),
-            Pass {
-                job: self,
-                film,
-                n,
-                progress,
-            },
+            Run { job: self, work },
         )
     }
+
+    /// The integrator of this job with the estimators `free_path` and
+    /// `transmittance`, taking `spp` samples per pixel.
+    fn integrator<F: FreePathSampler, E: TransmittanceEstimator>(
+        &self,
+        free_path: F,
+        transmittance: E,
+        spp: u32,
+    ) -> Integrator<'_, F, E> {
+        Integrator {
+            free_path,
+            transmittance,
+            channel_per_path: self.tracking.tracker == TrackerKind::NaiveDelta,
+            majorant_scale: self.tracking.majorant_scale,
+            count: self.paths.count,
+            profile: self.tracking.profile,
+            media: self.media,
+            lights: self.lights,
+            camera: self.camera,
+            width: self.width,
+            height: self.height,
+            spp,
+            max_depth: self.max_depth,
+            seed: self.seed,
+            qmc_dims: self.sampler.qmc_dims(),
+            extras: self.extras,
+            select_segments: match self.tracking.tracker {
+                TrackerKind::RatioSelect if self.grey_tracking() => SelectSegments::Grey,
+                TrackerKind::RatioSelect => SelectSegments::Rgb,
+                _ => SelectSegments::Off,
+            },
+            locals: self.local_lights(),
+            shutter: self.shutter(),
+        }
+    }
+}
+
+/// What [`RenderJob::dispatch`] runs: a pass over a film, or paths through points.
+enum Work<'w> {
+    Pass {
+        film: &'w mut Film,
+        n: u32,
+        progress: &'w (dyn Fn() + Sync),
+    },
+    Paths {
+        at: &'w [(f64, f64)],
+        n: usize,
+        out: &'w mut Vec<([f64; 3], Counters)>,
+    },
 }
 
 /// Loads the density grid (and emission grids) of every volume of the scene and

@@ -11,15 +11,15 @@ pub mod data;
 pub use data::{missing, pxr_fixtures, pxr_python, python_imports, repo, shared_data, shared_file};
 
 use glam::{DMat4, DVec3};
+use nimbus::render::analysis::CodePaths;
 use nimbus::render::camera::CameraRays;
 use nimbus::render::film::{Aov, Film};
-use nimbus::render::integrator::{Integrator, SelectSegments};
+use nimbus::render::job::RenderJob;
 use nimbus::render::lights::Lights;
-use nimbus::render::sampler::pixel_sampler;
+use nimbus::render::sampler::SamplerKind;
 use nimbus::scene::Camera;
-use nimbus::track::free_path::{FreePathSampler, TransmittanceEstimator};
 use nimbus::track::select::{
-    Dispatch, LightSampling, SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind,
+    LightSampling, SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind,
 };
 use nimbus::volume::counters::Counters;
 use nimbus::volume::grid::Grid;
@@ -144,92 +144,39 @@ pub struct Setup<'a> {
     pub seed: u64,
 }
 
-enum Mode {
-    Film,
-    /// Paths through one image position, each with its own counters.
-    Samples {
-        fx: f64,
-        fy: f64,
-        n: usize,
-    },
-}
-
-pub enum Output {
-    Film(Film),
-    Samples(Vec<([f64; 3], Counters)>),
-}
-
-struct Run<'a, 'b> {
-    setup: &'b Setup<'a>,
-    settings: TrackerSettings,
-    mode: Mode,
-}
-
-impl Dispatch<Output> for Run<'_, '_> {
-    fn run<F: FreePathSampler, E: TransmittanceEstimator>(
-        self,
-        free_path: F,
-        transmittance: E,
-    ) -> Output {
-        let s = self.setup;
-        let it = Integrator {
-            free_path,
-            transmittance,
-            channel_per_path: self.settings.tracker == TrackerKind::NaiveDelta,
-            majorant_scale: self.settings.majorant_scale,
+/// The render job of `setup` with `settings`, as the tests have always run it: every
+/// tracker as selected (no single-channel specialisation), counting on, independent
+/// samples, and equiangular points only when `settings` asks for them by name. The
+/// library instantiates the estimators (a test crate that did took minutes to build).
+fn job<'a>(setup: &'a Setup<'a>, settings: &TrackerSettings) -> RenderJob<'a> {
+    let light_sampling = match settings.light_sampling {
+        LightSampling::Auto => LightSampling::Collisions,
+        l => l,
+    };
+    RenderJob {
+        media: std::slice::from_ref(setup.medium),
+        lights: setup.lights,
+        camera: setup.camera,
+        width: setup.width,
+        height: setup.height,
+        spp: setup.spp,
+        max_depth: setup.max_depth,
+        seed: setup.seed,
+        sampler: SamplerKind::Independent,
+        tracking: TrackerSettings {
+            light_sampling,
+            ..*settings
+        },
+        paths: CodePaths {
             count: true,
-            profile: false,
-            media: std::slice::from_ref(s.medium),
-            lights: s.lights,
-            camera: s.camera,
-            width: s.width,
-            height: s.height,
-            spp: s.spp,
-            max_depth: s.max_depth,
-            seed: s.seed,
-            qmc_dims: 0,
-            extras: Default::default(),
-            select_segments: if self.settings.tracker == TrackerKind::RatioSelect {
-                SelectSegments::Rgb
-            } else {
-                SelectSegments::Off
-            },
-            locals: match self.settings.light_sampling {
-                LightSampling::EquiangularMis => s.lights.locals(),
-                LightSampling::Collisions | LightSampling::Auto => Vec::new(),
-            },
-            shutter: None,
-        };
-        match self.mode {
-            Mode::Film => Output::Film(it.render(&|| {})),
-            Mode::Samples { fx, fy, n } => {
-                let mut rng = pixel_sampler(s.seed, 0);
-                Output::Samples(
-                    (0..n)
-                        .map(|_| {
-                            let mut c = Counters::default();
-                            let r = it.sample(fx, fy, &mut rng, &mut c).rgb;
-                            (r, c)
-                        })
-                        .collect(),
-                )
-            }
-        }
+            specialise: false,
+        },
+        extras: Default::default(),
     }
 }
 
 pub fn render(setup: &Setup, settings: &TrackerSettings) -> Film {
-    match nimbus::track::select::dispatch(
-        settings,
-        Run {
-            setup,
-            settings: *settings,
-            mode: Mode::Film,
-        },
-    ) {
-        Output::Film(f) => f,
-        Output::Samples(_) => unreachable!(),
-    }
+    job(setup, settings).render(&|| {})
 }
 
 /// `n` independent paths through image position (`fx`, `fy`), with per-path counters.
@@ -240,17 +187,7 @@ pub fn paths(
     fy: f64,
     n: usize,
 ) -> Vec<([f64; 3], Counters)> {
-    match nimbus::track::select::dispatch(
-        settings,
-        Run {
-            setup,
-            settings: *settings,
-            mode: Mode::Samples { fx, fy, n },
-        },
-    ) {
-        Output::Samples(s) => s,
-        Output::Film(_) => unreachable!(),
-    }
+    job(setup, settings).paths(&[(fx, fy)], n)
 }
 
 /// Asserts that no pixel of any AOV is NaN or infinite and that no sample was dropped
