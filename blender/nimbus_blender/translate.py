@@ -221,7 +221,8 @@ _COMPILED = {
         "LINEAR", "QUADRATIC", "EASING", "DIAGONAL", "RADIAL", "SPHERICAL",
         "QUADRATIC_SPHERE"},
     ("ShaderNodeMapRange", "data_type"): {"FLOAT"},
-    ("ShaderNodeMapRange", "interpolation_type"): {"LINEAR", "SMOOTHSTEP"},
+    ("ShaderNodeMapRange", "interpolation_type"): {"LINEAR", "STEPPED", "SMOOTHSTEP",
+                                                   "SMOOTHERSTEP"},
     ("ShaderNodeMapping", "vector_type"): {"POINT"},
 }
 # Texture nodes whose unlinked Vector is Blender's Generated coordinates.
@@ -270,9 +271,9 @@ _CONSTANT_INPUTS = {
 
 def _check_inputs(node):
     """Raises _Untranslatable for the input values the reader refuses: a linked input
-    it needs constant (_CONSTANT_INPUTS), a Voronoi Texture's octaves (Detail and
-    Roughness both above 0; Cycles runs one octave when either is 0) and a Mapping's
-    rotation (only 0 is compiled)."""
+    it needs constant (_CONSTANT_INPUTS, and a Stepped Map Range's Steps), a Voronoi
+    Texture's octaves (Detail and Roughness both above 0; Cycles runs one octave when
+    either is 0) and a Mapping's rotation (only 0 is compiled)."""
     def unlinked_value(name, default):
         # By identifier: a name finds only the sockets the node's type shows. A socket
         # this Blender does not have, or hides, is not written: its default.
@@ -291,6 +292,8 @@ def _check_inputs(node):
             raise _Untranslatable(
                 f"node '{node.name}': Detail {detail:g} (Nimbus compiles one octave: "
                 "Detail 0)")
+    if node.bl_idname == "ShaderNodeMapRange" and node.interpolation_type == "STEPPED":
+        unlinked_value("Steps", 4.0)
     if node.bl_idname == "ShaderNodeMapping":
         if any(unlinked_value("Rotation", (0.0, 0.0, 0.0))):
             raise _Untranslatable(f"node '{node.name}': a Rotation other than 0")

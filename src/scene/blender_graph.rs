@@ -331,6 +331,54 @@ pub fn vector_math(
     })
 }
 
+/// Blender's Map Range on floats with interpolation `kind` (its identifier) of `x` from
+/// [from min, from max] to [to min, to max] (`v`, in that order): the factor
+/// safe_divide(x − from min, from max − from min) shaped by the interpolation, then to
+/// min + factor × (to max − to min), clamped between the two for Linear and Stepped
+/// when `clamp` (as Cycles and Geometry Nodes). Stepped: floor(factor (steps + 1)) /
+/// steps, 0 for steps ≤ 0 (Cycles' `svm_node_map_range`). `None` for another kind.
+/// tests/blender_math.rs checks each against bpy 5.0.1.
+pub fn map_range(
+    b: &mut Builder,
+    kind: &str,
+    v: [Reg; 5],
+    steps: f32,
+    clamp: bool,
+) -> Result<Option<Reg>, GraphError> {
+    let [x, fmin, fmax, tmin, tmax] = v;
+    let num = b.binary(Binary::Sub, x, fmin)?;
+    let den = b.binary(Binary::Sub, fmax, fmin)?;
+    let mut f = b.binary(Binary::SafeDiv, num, den)?;
+    match kind {
+        "LINEAR" => {}
+        "SMOOTHSTEP" => {
+            let (zero, one) = (b.constant(0.0)?, b.constant(1.0)?);
+            f = b.smoothstep(f, zero, one)?;
+        }
+        "SMOOTHERSTEP" => f = b.unary(Unary::Smootherstep, f)?,
+        "STEPPED" if steps > 0.0 => {
+            let k = b.constant(steps + 1.0)?;
+            let n = b.constant(steps)?;
+            let scaled = b.binary(Binary::Mul, f, k)?;
+            let floor = b.unary(Unary::Floor, scaled)?;
+            f = b.binary(Binary::Div, floor, n)?;
+        }
+        "STEPPED" => f = b.constant(0.0)?,
+        _ => return Ok(None),
+    }
+    let span = b.binary(Binary::Sub, tmax, tmin)?;
+    let scaled = b.binary(Binary::Mul, f, span)?;
+    let r = b.binary(Binary::Add, tmin, scaled)?;
+    if !(clamp && matches!(kind, "LINEAR" | "STEPPED")) {
+        return Ok(Some(r));
+    }
+    // Between to min and to max, whichever is larger (the smooth kinds stay there by
+    // construction and are not clamped).
+    let lo = b.binary(Binary::Min, tmin, tmax)?;
+    let hi = b.binary(Binary::Max, tmin, tmax)?;
+    Ok(Some(b.clamp(r, lo, hi)?))
+}
+
 /// Blender's Gradient Texture of type `kind` (its identifier) at the vector `p`: its Fac,
 /// as Cycles' `svm_gradient` computes it then saturated; `None` for a type Blender does
 /// not have. tests/blender_math.rs checks every type against bpy 5.0.1.
@@ -873,34 +921,22 @@ impl<'a> Reader<'a> {
                 let tmin = self.float(node, "To_Min", 0.0)?;
                 let tmax = self.float(node, "To_Max", 1.0)?;
                 let clamp = self.constant(node, "clamp", 1.0)? != 0.0;
+                let steps = match interpolation.as_str() {
+                    "STEPPED" => self.constant(node, "Steps", 4.0)? as f32,
+                    _ => 0.0,
+                };
                 self.builder.node(&at);
-                let b = &mut self.builder;
-                // svm_map_range: the factor (x − from min)/(from max − from min), 0 for an
-                // empty range; smoothstep shapes it; then to min + factor × (to max − to min).
-                let num = b.binary(Binary::Sub, x, fmin).map_err(&err)?;
-                let den = b.binary(Binary::Sub, fmax, fmin).map_err(&err)?;
-                let mut f = b.binary(Binary::SafeDiv, num, den).map_err(&err)?;
-                match interpolation.as_str() {
-                    "LINEAR" => {}
-                    "SMOOTHSTEP" => {
-                        let (zero, one) = (
-                            b.constant(0.0).map_err(&err)?,
-                            b.constant(1.0).map_err(&err)?,
-                        );
-                        f = b.smoothstep(f, zero, one).map_err(&err)?;
-                    }
-                    i => return Err(Self::refuse(node, "interpolation_type", i)),
-                }
-                let span = b.binary(Binary::Sub, tmax, tmin).map_err(&err)?;
-                let scaled = b.binary(Binary::Mul, f, span).map_err(&err)?;
-                let r = b.binary(Binary::Add, tmin, scaled).map_err(&err)?;
-                if clamp && interpolation == "LINEAR" {
-                    // Between to min and to max, whichever is larger.
-                    let lo = b.binary(Binary::Min, tmin, tmax).map_err(&err)?;
-                    let hi = b.binary(Binary::Max, tmin, tmax).map_err(&err)?;
-                    b.clamp(r, lo, hi).map_err(&err)?
-                } else {
-                    r
+                match map_range(
+                    &mut self.builder,
+                    &interpolation,
+                    [x, fmin, fmax, tmin, tmax],
+                    steps,
+                    clamp,
+                )
+                .map_err(&err)?
+                {
+                    Some(r) => r,
+                    None => return Err(Self::refuse(node, "interpolation_type", &interpolation)),
                 }
             }
             "ShaderNodeVectorMath" => {

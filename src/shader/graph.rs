@@ -65,6 +65,9 @@ pub enum Unary {
     Sinh,
     Cosh,
     Tanh,
+    /// Blender's Map Range Smoother Step of its factor: `x` clamped to [0, 1], then
+    /// x³ (x (6x − 15) + 10) ([`math::smootherstep`]).
+    Smootherstep,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -828,6 +831,7 @@ impl Program {
                         Unary::Sinh => a.sinh(),
                         Unary::Cosh => a.cosh(),
                         Unary::Tanh => a.tanh(),
+                        Unary::Smootherstep => math::smootherstep(a),
                     }
                 }
                 Instr::Binary { op, dst, a, b } => {
@@ -982,6 +986,8 @@ impl Program {
                         Unary::Sinh => a.monotone(f32::sinh).widened(1e-6, 0.0),
                         Unary::Cosh => math::cosh_bound(a),
                         Unary::Tanh => a.monotone(f32::tanh).widened(1e-6, 0.0),
+                        // Non-decreasing; the rounding of the polynomial is within 1e-6.
+                        Unary::Smootherstep => a.monotone(math::smootherstep).widened(1e-6, 0.0),
                     }
                 }
                 Instr::Binary { op, dst, a, b } => {

@@ -195,6 +195,14 @@ pub fn floored_modulo_bound(a: Interval, b: Interval) -> Interval {
 
 /// Arcsine of `a` clamped into [-1, 1] (`safe_asinf`).
 #[inline]
+/// Blender's Map Range Smoother Step of the factor `a` (Geometry Nodes'
+/// `map_smootherstep`, Cycles' `smootherstep` of the normalised value): `a` clamped to
+/// [0, 1], then x³ (x (6x − 15) + 10), in that order of operations.
+pub fn smootherstep(a: f32) -> f32 {
+    let x = a.clamp(0.0, 1.0);
+    x * x * x * (x * (x * 6.0 - 15.0) + 10.0)
+}
+
 pub fn asin(a: f32) -> f32 {
     a.clamp(-1.0, 1.0).asin()
 }
