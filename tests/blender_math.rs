@@ -432,6 +432,12 @@ fn map_range_kinds_match_blender() {
         }
     }
     assert!(failed.is_empty(), "{failed:?}");
+    // An empty From range: Cycles' SVM gives 0 (then the clamp, here into [-0.5, 2]),
+    // where Geometry Nodes gives To Min; Nimbus follows Cycles, the renderer.
+    for (kind, clamp, steps, _) in MAP_RANGES {
+        let v = map_range_program(kind, clamp, steps).eval([0.7, 0.3, 0.3], 0.0);
+        assert_eq!(v, 0.0, "{kind} with From Min = From Max");
+    }
 
     let mut state = 0x9e37_79b9_7f4a_7c15u64;
     let mut uniform = |lo: f32, hi: f32| {

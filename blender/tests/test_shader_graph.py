@@ -297,11 +297,11 @@ def test_a_colour_ramp_albedo_cube_against_cycles(addon, tmp_path):
     assert ok, "\n".join(report)
 
 
-def voronoi_material(name="cells"):
+def voronoi_material(name="cells", interpolation="LINEAR"):
     """A Voronoi density: Voronoi Texture (3D, F1, Euclidean, Scale 2.5, Randomness 1,
     its Vector the default Generated coordinates) -> Distance -> Map Range (From 0.1 ..
-    0.6, To 3 .. 0, clamped) -> Principled Volume Density; Color 0.8, Anisotropy 0.3:
-    dense cell centres fading towards the cell walls."""
+    0.6, To 3 .. 0, clamped; `interpolation`, Steps 3) -> Principled Volume Density;
+    Color 0.8, Anisotropy 0.3: dense cell centres fading towards the cell walls."""
     m, nt, out = _node_material(name)
     pv = nt.nodes.new("ShaderNodeVolumePrincipled")
     pv.inputs["Color"].default_value = (0.8, 0.8, 0.8, 1.0)
@@ -310,6 +310,9 @@ def voronoi_material(name="cells"):
     cells.inputs["Scale"].default_value = 2.5
     fade = nt.nodes.new("ShaderNodeMapRange")
     fade.clamp = True
+    fade.interpolation_type = interpolation
+    if interpolation == "STEPPED":  # the socket exists only then
+        fade.inputs["Steps"].default_value = 3.0
     fade.inputs["From Min"].default_value = 0.1
     fade.inputs["From Max"].default_value = 0.6
     fade.inputs["To Min"].default_value = 3.0
@@ -335,6 +338,28 @@ def test_a_voronoi_cube_against_cycles(addon, tmp_path):
     ok, report, n = against_cycles(scene, tmp_path, seeds=(0, 1, 2, 3), spp=32,
                                    bias=CYCLES_BIAS, block=8)
     print(f"\nvoronoi cube, sun, against Cycles ({n} pixels):\n" + "\n".join(report))
+    assert n > 100
+    assert ok, "\n".join(report)
+
+
+@pytest.mark.parametrize("interpolation", ["STEPPED", "SMOOTHERSTEP"])
+def test_a_voronoi_cube_mapped_stepped_or_smoother_against_cycles(addon, tmp_path,
+                                                                   interpolation):
+    """The Voronoi cube with its Map Range Stepped (3 steps: terraced cells) or Smoother
+    Step (stop 63; the node's values equal Geometry Nodes' to the bit,
+    tests/blender_math.rs), against Cycles 5.0.1 as the Linear one above: no warning
+    says a node drives the Density, the overlay has the interpolation, 4 seeds x 32
+    spp, image and 8 x 8 block means within 5 combined standard errors + 0.5 %."""
+    scene = _cube_scene(f"voronoi {interpolation}",
+                        voronoi_material(f"cells {interpolation}", interpolation))
+    (tmp_path / "overlay").mkdir()
+    t, _ = translated(tmp_path / "overlay")
+    assert not [w for w in t.warnings if "drives" in w], t.warnings
+    assert f'"{interpolation}"' in open(t.stage).read()
+    ok, report, n = against_cycles(scene, tmp_path, seeds=(0, 1, 2, 3), spp=32,
+                                   bias=CYCLES_BIAS, block=8)
+    print(f"\nvoronoi cube, Map Range {interpolation}, sun, against Cycles ({n} pixels):\n"
+          + "\n".join(report))
     assert n > 100
     assert ok, "\n".join(report)
 

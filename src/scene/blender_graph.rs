@@ -336,7 +336,8 @@ pub fn vector_math(
 /// safe_divide(x − from min, from max − from min) shaped by the interpolation, then to
 /// min + factor × (to max − to min), clamped between the two for Linear and Stepped
 /// when `clamp` (as Cycles and Geometry Nodes). Stepped: floor(factor (steps + 1)) /
-/// steps, 0 for steps ≤ 0 (Cycles' `svm_node_map_range`). `None` for another kind.
+/// steps, 0 for steps ≤ 0; 0 before the clamp where from min = from max (both as
+/// Cycles' `svm_node_map_range`). `None` for another kind.
 /// tests/blender_math.rs checks each against bpy 5.0.1.
 pub fn map_range(
     b: &mut Builder,
@@ -368,7 +369,14 @@ pub fn map_range(
     }
     let span = b.binary(Binary::Sub, tmax, tmin)?;
     let scaled = b.binary(Binary::Mul, f, span)?;
-    let r = b.binary(Binary::Add, tmin, scaled)?;
+    let mapped = b.binary(Binary::Add, tmin, scaled)?;
+    // Cycles' result is 0 where from min = from max (Geometry Nodes' is to min): the
+    // mapped value times (from min ≠ from max), 1 or 0. Constant edges (the common
+    // case) give a point interval, so the bound does not widen.
+    let below = b.binary(Binary::Less, fmin, fmax)?;
+    let above = b.binary(Binary::Greater, fmin, fmax)?;
+    let distinct = b.binary(Binary::Add, below, above)?;
+    let r = b.binary(Binary::Mul, mapped, distinct)?;
     if !(clamp && matches!(kind, "LINEAR" | "STEPPED")) {
         return Ok(Some(r));
     }
