@@ -112,17 +112,7 @@ fn math_operations_match_blender() {
     let mut failed = Vec::new();
     for (op, allowed) in OPERATIONS {
         let prog = program(op);
-        let rows = read_rows::<4>(dir.path(), op);
-        let (mut equal, mut worst) = (0, 0f64);
-        for r in &rows {
-            let ours = prog.eval([r[0], r[1], r[2]], 0.0);
-            if ours.to_bits() == r[3].to_bits() || (ours == 0.0 && r[3] == 0.0) {
-                equal += 1;
-                continue;
-            }
-            let e = (ours as f64 - r[3] as f64).abs() / (r[3].abs() as f64).max(1e-30);
-            worst = worst.max(if e.is_nan() { f64::INFINITY } else { e });
-        }
+        let (equal, worst) = against_rows(&prog, &read_rows::<4>(dir.path(), op));
         println!("{op:<15} {equal}/{N} equal to the bit; worst relative error {worst:.2e}");
         if worst > allowed {
             failed.push(op);
@@ -136,46 +126,80 @@ fn math_operations_match_blender() {
 /// need), 50 uniform points in each, every value inside the box's bounds.
 #[test]
 fn math_operation_bounds_hold() {
-    let mut state = 0x2545_f491_4f6c_dd1du64;
-    let mut uniform = |lo: f32, hi: f32| {
+    let mut uniform = xorshift(0x2545_f491_4f6c_dd1d);
+    for (op, _) in OPERATIONS {
+        let checked = assert_bounds_hold(op, &program(op), 4.0, true, &mut uniform);
+        println!("{op:<15} {checked} points inside their boxes' bounds");
+    }
+}
+
+/// Uniform floats in [lo, hi) from a xorshift stream seeded by `state`.
+fn xorshift(mut state: u64) -> impl FnMut(f32, f32) -> f32 {
+    move |lo, hi| {
         state ^= state << 13;
         state ^= state >> 7;
         state ^= state << 17;
         lo + (hi - lo) * ((state >> 40) as f32 / (1u64 << 24) as f32)
-    };
-    for (op, _) in OPERATIONS {
-        let prog = program(op);
-        let mut checked = 0;
-        for k in 0..2_000 {
-            let mut lo = [0f32; 3];
-            let mut hi = [0f32; 3];
-            for d in 0..3 {
-                let (x, y) = (uniform(-4.0, 4.0), uniform(-4.0, 4.0));
-                // Narrow boxes as well as wide ones.
-                let w = if k % 2 == 0 { 1.0 } else { 0.05 };
-                lo[d] = x.min(x + w * (y - x));
-                hi[d] = x.max(x + w * (y - x));
-            }
-            if k % 4 == 0 {
-                let n = uniform(-3.0, 4.0).floor();
-                (lo[1], hi[1]) = (n, n);
-            }
-            let b = prog.bounds(lo, hi, Interval::point(0.0));
-            for _ in 0..50 {
-                let p: [f32; 3] =
-                    std::array::from_fn(|d| uniform(lo[d], hi[d]).clamp(lo[d], hi[d]));
-                let v = prog.eval(p, 0.0);
-                assert!(
-                    v >= b.lo && v <= b.hi,
-                    "{op}: {v} at {p:?} outside [{}, {}] of the box {lo:?} .. {hi:?}",
-                    b.lo,
-                    b.hi
-                );
-                checked += 1;
-            }
-        }
-        println!("{op:<15} {checked} points inside their boxes' bounds");
     }
+}
+
+/// Asserts that `prog`'s range analysis bounds it: 2,000 boxes with corners drawn in
+/// [-r, r)^3, every other one narrow (5 % of the draw), and with `integer_b` every
+/// fourth with its y fixed at an integer (Power's negative bases need one); 50 uniform
+/// points in each inside the box's bounds. Returns the points checked.
+fn assert_bounds_hold(
+    name: &str,
+    prog: &Program,
+    r: f32,
+    integer_b: bool,
+    uniform: &mut impl FnMut(f32, f32) -> f32,
+) -> usize {
+    let mut checked = 0;
+    for k in 0..2_000 {
+        let mut lo = [0f32; 3];
+        let mut hi = [0f32; 3];
+        for d in 0..3 {
+            let (x, y) = (uniform(-r, r), uniform(-r, r));
+            // Narrow boxes as well as wide ones.
+            let w = if k % 2 == 0 { 1.0 } else { 0.05 };
+            lo[d] = x.min(x + w * (y - x));
+            hi[d] = x.max(x + w * (y - x));
+        }
+        if integer_b && k % 4 == 0 {
+            let n = uniform(-3.0, 4.0).floor();
+            (lo[1], hi[1]) = (n, n);
+        }
+        let b = prog.bounds(lo, hi, Interval::point(0.0));
+        for _ in 0..50 {
+            let p: [f32; 3] = std::array::from_fn(|d| uniform(lo[d], hi[d]).clamp(lo[d], hi[d]));
+            let v = prog.eval(p, 0.0);
+            assert!(
+                v >= b.lo && v <= b.hi,
+                "{name}: {v} at {p:?} outside [{}, {}] of the box {lo:?} .. {hi:?}",
+                b.lo,
+                b.hi
+            );
+            checked += 1;
+        }
+    }
+    checked
+}
+
+/// `prog` at each row's (x, y, z) against the row's value: how many are equal to the
+/// bit (or both zero), and the worst relative error of the others (NaN counts as
+/// infinite).
+fn against_rows(prog: &Program, rows: &[[f32; 4]]) -> (usize, f64) {
+    let (mut equal, mut worst) = (0, 0f64);
+    for r in rows {
+        let ours = prog.eval([r[0], r[1], r[2]], 0.0);
+        if ours.to_bits() == r[3].to_bits() || ours == r[3] {
+            equal += 1;
+            continue;
+        }
+        let e = (ours as f64 - r[3] as f64).abs() / (r[3].abs() as f64).max(1e-30);
+        worst = worst.max(if e.is_nan() { f64::INFINITY } else { e });
+    }
+    (equal, worst)
 }
 
 /// Vector Math's operations, and their tolerance against Geometry Nodes: equal to the
@@ -416,16 +440,7 @@ fn map_range_kinds_match_blender() {
     let mut failed = Vec::new();
     for (kind, clamp, steps, allowed) in MAP_RANGES {
         let prog = map_range_program(kind, clamp, steps);
-        let (mut equal, mut worst) = (0, 0f64);
-        for r in read_rows::<4>(dir.path(), kind) {
-            let ours = prog.eval([r[0], r[1], r[2]], 0.0);
-            if ours.to_bits() == r[3].to_bits() || ours == r[3] {
-                equal += 1;
-                continue;
-            }
-            let e = (ours as f64 - r[3] as f64).abs() / (r[3].abs() as f64).max(1e-30);
-            worst = worst.max(if e.is_nan() { f64::INFINITY } else { e });
-        }
+        let (equal, worst) = against_rows(&prog, &read_rows::<4>(dir.path(), kind));
         println!("{kind:<18} {equal}/{N} equal to the bit; worst error {worst:.2e} (allowed {allowed:.1e})");
         if worst > allowed {
             failed.push(kind);
@@ -439,36 +454,9 @@ fn map_range_kinds_match_blender() {
         assert_eq!(v, 0.0, "{kind} with From Min = From Max");
     }
 
-    let mut state = 0x9e37_79b9_7f4a_7c15u64;
-    let mut uniform = |lo: f32, hi: f32| {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        lo + (hi - lo) * ((state >> 40) as f32 / (1u64 << 24) as f32)
-    };
+    let mut uniform = xorshift(0x9e37_79b9_7f4a_7c15);
     for (kind, clamp, steps, _) in MAP_RANGES {
         let prog = map_range_program(kind, clamp, steps);
-        for k in 0..2_000 {
-            let mut lo = [0f32; 3];
-            let mut hi = [0f32; 3];
-            for d in 0..3 {
-                let (x, y) = (uniform(-2.0, 2.0), uniform(-2.0, 2.0));
-                let w = if k % 2 == 0 { 1.0 } else { 0.05 };
-                lo[d] = x.min(x + w * (y - x));
-                hi[d] = x.max(x + w * (y - x));
-            }
-            let b = prog.bounds(lo, hi, Interval::point(0.0));
-            for _ in 0..50 {
-                let p: [f32; 3] =
-                    std::array::from_fn(|d| uniform(lo[d], hi[d]).clamp(lo[d], hi[d]));
-                let v = prog.eval(p, 0.0);
-                assert!(
-                    v >= b.lo && v <= b.hi,
-                    "{kind}: {v} at {p:?} outside [{}, {}] of the box {lo:?} .. {hi:?}",
-                    b.lo,
-                    b.hi
-                );
-            }
-        }
+        assert_bounds_hold(kind, &prog, 2.0, false, &mut uniform);
     }
 }
