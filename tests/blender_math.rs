@@ -18,7 +18,7 @@
 
 mod common;
 
-use nimbus::scene::blender_graph::{gradient, map_range, math, vector_math};
+use nimbus::scene::blender_graph::{gradient, map_range, mapping, math, vector_math};
 use nimbus::shader::graph::{Builder, Program};
 use nimbus::shader::interval::Interval;
 
@@ -458,5 +458,108 @@ fn map_range_kinds_match_blender() {
     for (kind, clamp, steps, _) in MAP_RANGES {
         let prog = map_range_program(kind, clamp, steps);
         assert_bounds_hold(kind, &prog, 2.0, false, &mut uniform);
+    }
+}
+
+/// Mapping's constant parameter sets, as `SETS` in tests/fixtures/blender_mapping_values.py:
+/// (name, Location, Rotation (XYZ Euler, radians), Scale). A rotates about all three
+/// axes; B has a zero scale (the safe divisions) and a rotation about two; C none.
+const MAPPING_SETS: [(&str, [f32; 3], [f32; 3], [f32; 3]); 3] = [
+    ("A", [0.5, -0.25, 1.5], [0.3, -1.1, 2.5], [2.0, -0.5, 0.75]),
+    ("B", [-1.0, 2.0, 0.25], [1.2, 0.0, -0.7], [1.5, 0.0, 1.0]),
+    ("C", [0.125, 0.0, -3.0], [0.0, 0.0, 0.0], [0.5, 3.0, -2.0]),
+];
+const MAPPING_TYPES: [&str; 4] = ["POINT", "TEXTURE", "VECTOR", "NORMAL"];
+
+/// The Mapping of `ty` with parameter set `set` on the position: its vector, or with
+/// `component` one component (for the range analysis, which bounds floats).
+fn mapping_program(ty: &str, set: usize, component: Option<u16>) -> Program {
+    let (_, location, rotation, scale) = MAPPING_SETS[set];
+    let mut bl = Builder::default();
+    let p = bl.position();
+    let (l, s) = (bl.vector3(location).unwrap(), bl.vector3(scale).unwrap());
+    let v = mapping(&mut bl, ty, p, l, rotation, s)
+        .unwrap()
+        .expect("compiled");
+    match component {
+        None => bl.finish_rgb(v).unwrap(),
+        Some(k) => {
+            let c = bl.component(v, k).unwrap();
+            bl.finish(c).unwrap()
+        }
+    }
+}
+
+/// Every Mapping type (Point, Texture, Vector, Normal) with three parameter sets
+/// against bpy 5.0.1 (tests/fixtures/blender_mapping_values.py, which composes each
+/// type in Geometry Nodes from Vector Math and a Vector Rotate of type Euler XYZ) at
+/// 20,000 points of [-4, 4)^3 (every 50th the zero vector). The rotation sums products,
+/// so each component's error is taken against the magnitude of its terms, |p|·(|s| +
+/// |1/s|) + |l| (1 for Normal, a unit vector), within `SUMS`; the unrotated set C must
+/// be equal to the bit. Each component's range analysis bounds it: 2,000 boxes in
+/// [-4, 4)^3, wide and narrow, 50 points in each.
+#[test]
+fn mapping_types_match_blender() {
+    let Some(python) = common::data::bpy_python("bpy, numpy") else {
+        return;
+    };
+    let kinds: Vec<String> = MAPPING_TYPES
+        .iter()
+        .flat_map(|t| {
+            MAPPING_SETS
+                .iter()
+                .map(move |(set, ..)| format!("{t}_{set}"))
+        })
+        .collect();
+    let names: Vec<&str> = kinds.iter().map(String::as_str).collect();
+    let dir = run_fixture(python, "blender_mapping_values.py", &names);
+    let norm = |v: [f32; 3]| v.iter().map(|x| (*x as f64).powi(2)).sum::<f64>().sqrt();
+    let mut failed = Vec::new();
+    for ty in MAPPING_TYPES {
+        for (set, (name, location, rotation, scale)) in MAPPING_SETS.iter().enumerate() {
+            let kind = format!("{ty}_{name}");
+            let prog = mapping_program(ty, set, None);
+            let inverse = scale.map(|s| if s == 0.0 { 0.0 } else { 1.0 / s });
+            let allowed = match *rotation == [0.0; 3] {
+                true => EXACT,
+                false => SUMS,
+            };
+            let (mut equal, mut worst) = (0, 0f64);
+            for r in read_rows::<6>(dir.path(), &kind) {
+                let p = [r[0], r[1], r[2]];
+                let ours = prog.eval_rgb(p, 0.0);
+                let reference = [r[3], r[4], r[5]];
+                if (0..3)
+                    .all(|k| ours[k].to_bits() == reference[k].to_bits() || ours[k] == reference[k])
+                {
+                    equal += 1;
+                    continue;
+                }
+                let terms = match ty {
+                    "NORMAL" => 1.0,
+                    _ => norm(p) * (norm(*scale) + norm(inverse)) + norm(*location),
+                };
+                for k in 0..3 {
+                    let e = (ours[k] as f64 - reference[k] as f64).abs() / terms;
+                    worst = worst.max(if e.is_nan() { f64::INFINITY } else { e });
+                }
+            }
+            println!("{kind:<10} {equal}/{N} equal to the bit; worst error {worst:.2e} (allowed {allowed:.1e})");
+            if worst > allowed {
+                failed.push(kind);
+            }
+        }
+    }
+    assert!(failed.is_empty(), "{failed:?}");
+
+    let mut uniform = xorshift(0x2545_f491_4f6c_dd1d);
+    for ty in MAPPING_TYPES {
+        for set in 0..MAPPING_SETS.len() {
+            for k in 0..3 {
+                let prog = mapping_program(ty, set, Some(k));
+                let name = format!("{ty}_{} component {k}", MAPPING_SETS[set].0);
+                assert_bounds_hold(&name, &prog, 4.0, false, &mut uniform);
+            }
+        }
     }
 }

@@ -223,7 +223,7 @@ _COMPILED = {
     ("ShaderNodeMapRange", "data_type"): {"FLOAT"},
     ("ShaderNodeMapRange", "interpolation_type"): {"LINEAR", "STEPPED", "SMOOTHSTEP",
                                                    "SMOOTHERSTEP"},
-    ("ShaderNodeMapping", "vector_type"): {"POINT"},
+    ("ShaderNodeMapping", "vector_type"): {"POINT", "TEXTURE", "VECTOR", "NORMAL"},
 }
 # Texture nodes whose unlinked Vector is Blender's Generated coordinates.
 _TEXTURES = ("ShaderNodeTexNoise", "ShaderNodeTexVoronoi", "ShaderNodeTexGradient")
@@ -273,7 +273,7 @@ def _check_inputs(node):
     """Raises _Untranslatable for the input values the reader refuses: a linked input
     it needs constant (_CONSTANT_INPUTS, and a Stepped Map Range's Steps), a Voronoi
     Texture's octaves (Detail and Roughness both above 0; Cycles runs one octave when
-    either is 0) and a Mapping's rotation (only 0 is compiled)."""
+    either is 0) and a Mapping's linked Rotation (a constant one is compiled)."""
     def unlinked_value(name, default):
         # By identifier: a name finds only the sockets the node's type shows. A socket
         # this Blender does not have, or hides, is not written: its default.
@@ -295,8 +295,7 @@ def _check_inputs(node):
     if node.bl_idname == "ShaderNodeMapRange" and node.interpolation_type == "STEPPED":
         unlinked_value("Steps", 4.0)
     if node.bl_idname == "ShaderNodeMapping":
-        if any(unlinked_value("Rotation", (0.0, 0.0, 0.0))):
-            raise _Untranslatable(f"node '{node.name}': a Rotation other than 0")
+        unlinked_value("Rotation", (0.0, 0.0, 0.0))
 
 
 def _graph(socket, obj, owner, folder_prim):

@@ -364,6 +364,62 @@ def test_a_voronoi_cube_mapped_stepped_or_smoother_against_cycles(addon, tmp_pat
     assert ok, "\n".join(report)
 
 
+def _mapped_material(name, vector_type):
+    """Density = Map Range of a Noise Texture (Scale 2, Detail 2) from [0.42, 0.62] to
+    [0, 5], clamped, the noise's Vector the cube's Object coordinates through a Mapping
+    of `vector_type` with Location (0.2, 0, -0.3), Rotation (0.4, -0.9, 1.3) and Scale
+    (3, 1, 0.5): noise stretched and turned, so a rotation taken about the wrong axes
+    or in the wrong order moves its streaks; Color 0.8."""
+    m, nt, out = _node_material(name)
+    pv = nt.nodes.new("ShaderNodeVolumePrincipled")
+    pv.inputs["Color"].default_value = (0.8, 0.8, 0.8, 1.0)
+    coords = nt.nodes.new("ShaderNodeTexCoord")
+    mapping = nt.nodes.new("ShaderNodeMapping")
+    mapping.name = "turn"
+    mapping.vector_type = vector_type
+    if "Location" in mapping.inputs and mapping.inputs["Location"].enabled:
+        mapping.inputs["Location"].default_value = (0.2, 0.0, -0.3)
+    mapping.inputs["Rotation"].default_value = (0.4, -0.9, 1.3)
+    mapping.inputs["Scale"].default_value = (3.0, 1.0, 0.5)
+    noise = nt.nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 2.0
+    noise.inputs["Detail"].default_value = 2.0
+    shape = nt.nodes.new("ShaderNodeMapRange")
+    shape.inputs["From Min"].default_value = 0.42
+    shape.inputs["From Max"].default_value = 0.62
+    shape.inputs["To Min"].default_value = 0.0
+    shape.inputs["To Max"].default_value = 5.0
+    nt.links.new(coords.outputs["Object"], mapping.inputs["Vector"])
+    nt.links.new(mapping.outputs["Vector"], noise.inputs["Vector"])
+    nt.links.new(noise.outputs["Fac"], shape.inputs["Value"])
+    nt.links.new(shape.outputs["Result"], pv.inputs["Density"])
+    nt.links.new(pv.outputs["Volume"], out.inputs["Volume"])
+    return m
+
+
+@pytest.mark.parametrize("vector_type", ["POINT", "TEXTURE"])
+def test_a_rotated_mapping_noise_cube_against_cycles(addon, tmp_path, vector_type):
+    """A Mapping with a Rotation (stop 64; every type's values match Geometry Nodes',
+    tests/blender_math.rs) of type Point (scale, rotate, move) or Texture (the inverse)
+    feeding the noise of a cube (_mapped_material) through the add-on, against Cycles
+    5.0.1 as above: no warning says a node drives the Density, the overlay has the
+    rotation, 4 seeds x 32 spp, image and 8 x 8 block means within 5 combined standard
+    errors + 0.5 %."""
+    scene = _cube_scene(f"mapped {vector_type}", _mapped_material(f"turned {vector_type}",
+                                                                  vector_type))
+    (tmp_path / "overlay").mkdir()
+    t, _ = translated(tmp_path / "overlay")
+    assert not [w for w in t.warnings if "drives" in w], t.warnings
+    text = open(t.stage).read()
+    assert f'"{vector_type}"' in text and "float3 inputs:Rotation = (0.4" in text
+    ok, report, n = against_cycles(scene, tmp_path, seeds=(0, 1, 2, 3), spp=32,
+                                   bias=CYCLES_BIAS, block=8)
+    print(f"\nnoise cube through a rotated Mapping ({vector_type}), sun, against Cycles "
+          f"({n} pixels):\n" + "\n".join(report))
+    assert n > 100
+    assert ok, "\n".join(report)
+
+
 def _power_material(name="cubed", operation="POWER"):
     """Density = Math `operation` (Noise Texture (Scale 2, Detail 4) Fac, 3) x 8: with
     POWER the noise cubed, denser cores and thinner edges; Color 0.8."""
@@ -425,7 +481,8 @@ def test_every_property_value_either_compiles_or_warns(addon, nimbus_bin, tmp_pa
     naming the node. Then `nimbus info` reads the whole stage: a value the add-on
     writes but the reader refuses fails here, not at a user's F12. So do linked
     constant inputs (a Value node into a Noise Texture's Scale), a Voronoi with Detail
-    2 and a Mapping with a Rotation, which must warn."""
+    2 and a Mapping whose Rotation is linked, which must warn; a Mapping with a constant
+    Rotation translates."""
     from nimbus_blender import translate
 
     _render_settings((32, 32), True)
@@ -465,7 +522,13 @@ def test_every_property_value_either_compiles_or_warns(addon, nimbus_bin, tmp_pa
     cube("voronoi_detail_2", "ShaderNodeTexVoronoi",
          lambda n, _nt: setattr(n.inputs["Detail"], "default_value", 2.0), False)
     cube("mapping_rotated", "ShaderNodeMapping",
-         lambda n, _nt: setattr(n.inputs["Rotation"], "default_value", (0.0, 0.0, 0.3)), False)
+         lambda n, _nt: setattr(n.inputs["Rotation"], "default_value", (0.0, 0.0, 0.3)), True)
+
+    def linked_rotation(node, nt):
+        value = nt.nodes.new("ShaderNodeCombineXYZ")
+        nt.links.new(value.outputs[0], node.inputs["Rotation"])
+
+    cube("mapping_linked_rotation", "ShaderNodeMapping", linked_rotation, False)
     assert len(expect) > 100, len(expect)
 
     t, _ = translated(tmp_path)

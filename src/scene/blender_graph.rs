@@ -331,6 +331,79 @@ pub fn vector_math(
     })
 }
 
+/// Cycles' rotation matrix of the Euler angles `e` (radians, XYZ order: about X, then
+/// Y, then Z), computed in float as `euler_to_transform` does: row `i` gives component
+/// `i` of the rotated vector.
+pub fn euler_xyz(e: [f32; 3]) -> [[f32; 3]; 3] {
+    let (sx, cx) = e[0].sin_cos();
+    let (sy, cy) = e[1].sin_cos();
+    let (sz, cz) = e[2].sin_cos();
+    [
+        [cy * cz, sy * sx * cz - cx * sz, sy * cx * cz + sx * sz],
+        [cy * sz, sy * sx * sz + cx * cz, sy * cx * sz - sx * cz],
+        [-sy, cy * sx, cy * cx],
+    ]
+}
+
+/// `m` (or its transpose) times `v`, each component the dot product of a row (a
+/// column) with `v`, summed x + y, then + z as Cycles' `transform_direction`. The range
+/// analysis bounds each component exactly: a constant times an interval, summed.
+fn rotate(bl: &mut Builder, m: [[f32; 3]; 3], v: Reg, transposed: bool) -> Result<Reg, GraphError> {
+    let mut out = [v; 3];
+    for (i, o) in out.iter_mut().enumerate() {
+        let row = match transposed {
+            false => m[i],
+            true => [m[0][i], m[1][i], m[2][i]],
+        };
+        let row = bl.vector3(row)?;
+        *o = bl.dot(v, row)?;
+    }
+    bl.combine3(out[0], out[1], out[2])
+}
+
+/// Blender's Mapping node of type `ty` (its `vector_type`) on `v`, as Cycles'
+/// `svm_mapping`, with R the rotation of the Euler angles `rotation`:
+/// Point R(v × scale) + location; Texture R⁻¹(v − location) ÷ scale (0 where a scale is
+/// 0); Vector R(v × scale); Normal the unit vector of R(v ÷ scale) (0 stays 0). A zero
+/// rotation is left out (Cycles multiplies by the identity, which changes no finite
+/// value). `None` for another type. tests/blender_math.rs checks each against bpy 5.0.1.
+pub fn mapping(
+    bl: &mut Builder,
+    ty: &str,
+    v: Reg,
+    location: Reg,
+    rotation: [f32; 3],
+    scale: Reg,
+) -> Result<Option<Reg>, GraphError> {
+    let m = euler_xyz(rotation);
+    let turn = |bl: &mut Builder, v: Reg, transposed: bool| match rotation == [0.0; 3] {
+        true => Ok(v),
+        false => rotate(bl, m, v, transposed),
+    };
+    Ok(Some(match ty {
+        "POINT" => {
+            let vs = bl.binary(Binary::Mul, v, scale)?;
+            let r = turn(bl, vs, false)?;
+            bl.binary(Binary::Add, r, location)?
+        }
+        "TEXTURE" => {
+            let d = bl.binary(Binary::Sub, v, location)?;
+            let r = turn(bl, d, true)?;
+            bl.binary(Binary::SafeDiv, r, scale)?
+        }
+        "VECTOR" => {
+            let vs = bl.binary(Binary::Mul, v, scale)?;
+            turn(bl, vs, false)?
+        }
+        "NORMAL" => {
+            let vs = bl.binary(Binary::SafeDiv, v, scale)?;
+            let r = turn(bl, vs, false)?;
+            safe_normalize(bl, r)?
+        }
+        _ => return Ok(None),
+    }))
+}
+
 /// Blender's Map Range on floats with interpolation `kind` (its identifier) of `x` from
 /// [from min, from max] to [to min, to max] (`v`, in that order): the factor
 /// safe_divide(x − from min, from max − from min) shaped by the interpolation, then to
@@ -980,29 +1053,29 @@ impl<'a> Reader<'a> {
                     return Err(wrong_output());
                 }
                 let ty = Self::text(node, "vector_type", "POINT")?;
-                if ty != "POINT" {
-                    return Err(Self::refuse(node, "vector_type", &ty));
-                }
-                if let Some(Input::Value(v)) = node.input("Rotation") {
-                    if colour(node, "Rotation", v)? != [0.0; 3] {
+                // A constant rotation is a constant matrix; a linked one would be a
+                // rotation per lookup, which no volume graph seen so far needs.
+                let rotation = match node.input("Rotation") {
+                    None => [0.0; 3],
+                    Some(Input::Value(v)) => colour(node, "Rotation", v)?.map(|x| x as f32),
+                    Some(_) => {
                         return Err(prim_error_str(
                             &node.path,
-                            "ShaderNodeMapping: a Rotation other than 0 is not compiled",
-                        ));
+                            "ShaderNodeMapping: a linked Rotation is not compiled (only a constant one)",
+                        ))
                     }
-                } else if node.input("Rotation").is_some() {
-                    return Err(prim_error_str(
-                        &node.path,
-                        "ShaderNodeMapping: a linked Rotation is not compiled",
-                    ));
-                }
+                };
                 let p = self.vector(node, "Vector", None)?;
                 let s = self.vector(node, "Scale", Some([1.0; 3]))?;
-                let l = self.vector(node, "Location", Some([0.0; 3]))?;
+                // Vector and Normal have no Location (Blender hides the socket).
+                let l = match ty.as_str() {
+                    "POINT" | "TEXTURE" => self.vector(node, "Location", Some([0.0; 3]))?,
+                    _ => p,
+                };
                 self.builder.node(&at);
-                // svm_mapping, point: (v × scale) rotated, + location.
-                let ps = self.builder.binary(Binary::Mul, p, s).map_err(&err)?;
-                self.builder.binary(Binary::Add, ps, l).map_err(&err)?
+                mapping(&mut self.builder, &ty, p, l, rotation, s)
+                    .map_err(&err)?
+                    .ok_or_else(|| Self::refuse(node, "vector_type", &ty))?
             }
             "ShaderNodeSeparateXYZ" => {
                 let k = match output {
