@@ -1051,13 +1051,22 @@ def Cube "Box" (
     stage(dir, name, &body)
 }
 
-/// [`blender_voronoi_stage`]'s density written out.
-fn blender_voronoi_density(p: DVec3) -> f64 {
-    use nimbus::shader::voronoi::VoronoiTexture;
+/// [`blender_voronoi_stage`]'s density written out, for the node's `feature`.
+fn blender_voronoi_density(feature: &str, p: DVec3) -> f64 {
+    use nimbus::shader::voronoi::{VoronoiFeature, VoronoiTexture};
+    let feature = match feature {
+        "F1" => VoronoiFeature::F1,
+        "F2" => VoronoiFeature::F2,
+        "SMOOTH_F1" => VoronoiFeature::SmoothF1,
+        "DISTANCE_TO_EDGE" => VoronoiFeature::DistanceToEdge,
+        other => panic!("{other}"),
+    };
     let node = VoronoiTexture {
         scale: 3.0,
         randomness: 0.8,
         normalize: false,
+        feature,
+        ..Default::default()
     };
     let v = node.eval(p.as_vec3().to_array());
     (v.distance * 2.0 + (v.position[1] * 0.1 + v.color[0])) as f64
@@ -1065,17 +1074,25 @@ fn blender_voronoi_density(p: DVec3) -> f64 {
 
 /// Blender's Voronoi Texture (Distance, Color and Position) in a fog's density: at 10⁶
 /// points the density is the tree written out (to 1e-5, away from cell faces) and
-/// inside its majorant cell's bounds, flat grid and octree; another feature (F2) is
-/// refused naming the node and the feature.
+/// inside its majorant cell's bounds, flat grid and octree, for the features F1, F2,
+/// Smooth F1 and Distance to Edge (stop 64); another metric (Manhattan) is refused
+/// naming the node and the metric.
 #[test]
 fn a_blender_voronoi_density_is_bounded_by_its_majorants() {
     let dir = tempfile::tempdir().unwrap();
-    let stage = blender_voronoi_stage(dir.path(), "voronoi.usda", "F1");
-    let scene = load_stage(&stage, &LoadOptions::default()).unwrap();
-    for spec in [
-        MajorantSpec::Uniform { cell_voxels: 4 },
-        MajorantSpec::Octree { depth: 6 },
-    ] {
+    for (feature, spec) in ["F1", "F2", "SMOOTH_F1", "DISTANCE_TO_EDGE"]
+        .into_iter()
+        .flat_map(|f| {
+            [
+                (f, MajorantSpec::Uniform { cell_voxels: 4 }),
+                (f, MajorantSpec::Octree { depth: 6 }),
+            ]
+        })
+    {
+        let stage = blender_voronoi_stage(dir.path(), &format!("{feature}.usda"), feature);
+        let scene = load_stage(&stage, &LoadOptions::default()).unwrap();
+        let written = |p: DVec3| blender_voronoi_density(feature, p);
+        let continuous = matches!(feature, "SMOOTH_F1" | "DISTANCE_TO_EDGE");
         let media = media_for_scene_with(&scene, spec).unwrap();
         let m = &media[0];
         assert!(m.shader.is_some());
@@ -1102,28 +1119,33 @@ fn a_blender_voronoi_density_is_bounded_by_its_majorants() {
             // Through the index transform the point moves by rounding: where the
             // nearest point changes (Color, Position jump) the two may differ; compare
             // where a 1e-5 move changes nothing.
-            let steady = [-1e-5, 1e-5].iter().all(|&e| {
-                [DVec3::X, DVec3::Y, DVec3::Z].iter().all(|&a| {
-                    (blender_voronoi_density(p + a * e) - blender_voronoi_density(p)).abs() < 1e-3
-                })
-            });
+            // (Smooth F1 and Distance to Edge are continuous: compared everywhere.)
+            let steady = continuous
+                || [-1e-5, 1e-5].iter().all(|&e| {
+                    [DVec3::X, DVec3::Y, DVec3::Z]
+                        .iter()
+                        .all(|&a| (written(p + a * e) - written(p)).abs() < 1e-3)
+                });
             if steady {
                 compared += 1;
-                worst = worst.max((d - blender_voronoi_density(p)).abs());
+                worst = worst.max((d - written(p)).abs());
             }
         }
         eprintln!(
-            "voronoi {spec:?}: worst |density - written out| {worst:e} at {compared} points, largest {max_seen}, global bound {}",
+            "voronoi {feature} {spec:?}: worst |density - written out| {worst:e} at {compared} points, largest {max_seen}, global bound {}",
             m.majorants.max_density()
         );
         assert!(worst < 1e-5 && compared > 990_000, "{worst} {compared}");
     }
 
-    let f2 = blender_voronoi_stage(dir.path(), "f2.usda", "F2");
+    // Every feature compiles (stop 64); a metric other than Euclidean does not.
+    let manhattan = blender_voronoi_stage(dir.path(), "manhattan.usda", "F1");
+    let text = std::fs::read_to_string(&manhattan).unwrap();
+    std::fs::write(&manhattan, text.replace("\"EUCLIDEAN\"", "\"MANHATTAN\"")).unwrap();
     let out = dir.path().join("never.exr");
     let o = nimbus(&[
         "render",
-        f2.to_str().unwrap(),
+        manhattan.to_str().unwrap(),
         "-o",
         out.to_str().unwrap(),
         "--res",
@@ -1133,7 +1155,7 @@ fn a_blender_voronoi_density_is_bounded_by_its_majorants() {
     ]);
     assert_clean_error(&o, "/Graphs/cells");
     assert!(
-        stderr(&o).contains("ShaderNodeTexVoronoi") && stderr(&o).contains("F2"),
+        stderr(&o).contains("ShaderNodeTexVoronoi") && stderr(&o).contains("MANHATTAN"),
         "{}",
         stderr(&o)
     );

@@ -215,7 +215,8 @@ _COMPILED = {
         "POWER", "SIGN", "MINIMUM", "MAXIMUM", "SINE", "COSINE", "TANGENT"},
     ("ShaderNodeTexNoise", "noise_dimensions"): {"3D", "4D"},
     ("ShaderNodeTexVoronoi", "voronoi_dimensions"): {"3D"},
-    ("ShaderNodeTexVoronoi", "feature"): {"F1"},
+    ("ShaderNodeTexVoronoi", "feature"): {"F1", "F2", "SMOOTH_F1", "DISTANCE_TO_EDGE",
+                                          "N_SPHERE_RADIUS"},
     ("ShaderNodeTexVoronoi", "distance"): {"EUCLIDEAN"},
     ("ShaderNodeTexGradient", "gradient_type"): {
         "LINEAR", "QUADRATIC", "EASING", "DIAGONAL", "RADIAL", "SPHERICAL",
@@ -265,7 +266,7 @@ def _texture_space(obj):
 _CONSTANT_INPUTS = {
     "ShaderNodeTexNoise": ("Scale", "Detail", "Roughness", "Lacunarity", "Distortion",
                            "Offset", "Gain"),
-    "ShaderNodeTexVoronoi": ("Scale", "Detail", "Roughness", "Randomness"),
+    "ShaderNodeTexVoronoi": ("Scale", "Detail", "Roughness", "Randomness", "Smoothness"),
 }
 
 
@@ -286,7 +287,7 @@ def _check_inputs(node):
         return sock.default_value
     for name in _CONSTANT_INPUTS.get(node.bl_idname, ()):
         unlinked_value(name, None)
-    if node.bl_idname == "ShaderNodeTexVoronoi":
+    if node.bl_idname == "ShaderNodeTexVoronoi" and node.feature != "N_SPHERE_RADIUS":
         detail, roughness = unlinked_value("Detail", 0.0), unlinked_value("Roughness", 0.5)
         if detail > 0 and roughness > 0:
             raise _Untranslatable(

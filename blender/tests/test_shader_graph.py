@@ -297,27 +297,31 @@ def test_a_colour_ramp_albedo_cube_against_cycles(addon, tmp_path):
     assert ok, "\n".join(report)
 
 
-def voronoi_material(name="cells", interpolation="LINEAR"):
-    """A Voronoi density: Voronoi Texture (3D, F1, Euclidean, Scale 2.5, Randomness 1,
-    its Vector the default Generated coordinates) -> Distance -> Map Range (From 0.1 ..
-    0.6, To 3 .. 0, clamped; `interpolation`, Steps 3) -> Principled Volume Density;
-    Color 0.8, Anisotropy 0.3: dense cell centres fading towards the cell walls."""
+def voronoi_material(name="cells", interpolation="LINEAR", feature="F1",
+                     from_range=(0.1, 0.6)):
+    """A Voronoi density: Voronoi Texture (3D, `feature`, Euclidean, Scale 2.5,
+    Randomness 1, its Vector the default Generated coordinates) -> Distance (Radius for
+    N-Sphere Radius) -> Map Range (From `from_range`, To 3 .. 0, clamped;
+    `interpolation`, Steps 3) -> Principled Volume Density; Color 0.8, Anisotropy 0.3:
+    with F1 dense cell centres fading towards the cell walls."""
     m, nt, out = _node_material(name)
     pv = nt.nodes.new("ShaderNodeVolumePrincipled")
     pv.inputs["Color"].default_value = (0.8, 0.8, 0.8, 1.0)
     pv.inputs["Anisotropy"].default_value = 0.3
     cells = nt.nodes.new("ShaderNodeTexVoronoi")
+    cells.feature = feature
     cells.inputs["Scale"].default_value = 2.5
     fade = nt.nodes.new("ShaderNodeMapRange")
     fade.clamp = True
     fade.interpolation_type = interpolation
     if interpolation == "STEPPED":  # the socket exists only then
         fade.inputs["Steps"].default_value = 3.0
-    fade.inputs["From Min"].default_value = 0.1
-    fade.inputs["From Max"].default_value = 0.6
+    fade.inputs["From Min"].default_value = from_range[0]
+    fade.inputs["From Max"].default_value = from_range[1]
     fade.inputs["To Min"].default_value = 3.0
     fade.inputs["To Max"].default_value = 0.0
-    nt.links.new(cells.outputs["Distance"], fade.inputs["Value"])
+    output = "Radius" if feature == "N_SPHERE_RADIUS" else "Distance"
+    nt.links.new(cells.outputs[output], fade.inputs["Value"])
     nt.links.new(fade.outputs["Result"], pv.inputs["Density"])
     nt.links.new(pv.outputs["Volume"], out.inputs["Volume"])
     return m
@@ -338,6 +342,37 @@ def test_a_voronoi_cube_against_cycles(addon, tmp_path):
     ok, report, n = against_cycles(scene, tmp_path, seeds=(0, 1, 2, 3), spp=32,
                                    bias=CYCLES_BIAS, block=8)
     print(f"\nvoronoi cube, sun, against Cycles ({n} pixels):\n" + "\n".join(report))
+    assert n > 100
+    assert ok, "\n".join(report)
+
+
+# Each feature's Map Range From range: where its values fall at Scale 2.5.
+VORONOI_FEATURES = {
+    "F2": (0.4, 1.1),  # dense where the second point is near: between cells
+    "SMOOTH_F1": (0.0, 0.5),  # F1 rounded off (Smoothness 1)
+    "DISTANCE_TO_EDGE": (0.0, 0.2),  # 3 at the walls, 0 inside: a cellular shell
+    "N_SPHERE_RADIUS": (0.2, 0.45),  # constant per cell: blocks of density
+}
+
+
+@pytest.mark.parametrize("feature", sorted(VORONOI_FEATURES))
+def test_a_voronoi_cube_of_each_feature_against_cycles(addon, tmp_path, feature):
+    """The Voronoi cube with the features compiled since stop 64 (each equal to the bit
+    to Geometry Nodes, Smooth F1 within 1e-5 of it: tests/blender_voronoi.rs), against
+    Cycles 5.0.1 as the F1 one above: no warning says a node drives the Density, the
+    overlay has the feature, 4 seeds x 32 spp, image and 8 x 8 block means within 5
+    combined standard errors + 0.5 %."""
+    scene = _cube_scene(f"voronoi {feature}",
+                        voronoi_material(f"cells {feature}", feature=feature,
+                                         from_range=VORONOI_FEATURES[feature]))
+    (tmp_path / "overlay").mkdir()
+    t, _ = translated(tmp_path / "overlay")
+    assert not [w for w in t.warnings if "drives" in w], t.warnings
+    assert f'"{feature}"' in open(t.stage).read()
+    ok, report, n = against_cycles(scene, tmp_path, seeds=(0, 1, 2, 3), spp=32,
+                                   bias=CYCLES_BIAS, block=8)
+    print(f"\nvoronoi cube, {feature}, sun, against Cycles ({n} pixels):\n"
+          + "\n".join(report))
     assert n > 100
     assert ok, "\n".join(report)
 
@@ -448,20 +483,21 @@ def _power_scene(operation="POWER"):
 
 
 def test_a_property_value_nimbus_does_not_compile_is_a_warning(addon, tmp_path):
-    """A Voronoi Texture whose feature Nimbus does not compile (F2) drives the Density:
-    the add-on warns naming the node and the value and writes no graph (the socket's
-    value), instead of a stage Nimbus would refuse. (Every Math and Vector Math
-    operation compiles since stop 62, Reflect and Refract the last.)"""
+    """A Voronoi Texture whose distance metric Nimbus does not compile (Manhattan)
+    drives the Density: the add-on warns naming the node and the value and writes no
+    graph (the socket's value), instead of a stage Nimbus would refuse. (Every Math and
+    Vector Math operation compiles since stop 62, Reflect and Refract the last; every
+    Voronoi feature since stop 64.)"""
     m, nt, out = _node_material("second")
     pv = nt.nodes.new("ShaderNodeVolumePrincipled")
     vor = nt.nodes.new("ShaderNodeTexVoronoi")
     vor.name = "cells"
-    vor.feature = "F2"
+    vor.distance = "MANHATTAN"
     nt.links.new(vor.outputs["Distance"], pv.inputs["Density"])
     nt.links.new(pv.outputs["Volume"], out.inputs["Volume"])
     _cube_scene("second cube", m)
     t, _ = translated(tmp_path)
-    warned = [w for w in t.warnings if "'cells'" in w and "F2" in w]
+    warned = [w for w in t.warnings if "'cells'" in w and "MANHATTAN" in w]
     assert warned and "drives" in warned[0], t.warnings
     assert "nimbus:densityScale.connect" not in open(t.stage).read()
 

@@ -22,7 +22,7 @@ use super::materialx_graph::{colour, number, usd_network};
 use super::shader_network::{Input, ParamValue, ShaderNetwork, ShaderNode};
 use crate::shader::graph::{Binary, Builder, GraphError, Program, Unary, Value as Reg};
 use crate::shader::noise::{Dimensions, NoiseTexture, NoiseType};
-use crate::shader::voronoi::{VoronoiOutput, VoronoiTexture};
+use crate::shader::voronoi::{VoronoiFeature, VoronoiOutput, VoronoiTexture};
 use openusd::usd::{Prim, TimeCode};
 use std::collections::HashMap;
 
@@ -860,25 +860,34 @@ impl<'a> Reader<'a> {
                     "Distance" => VoronoiOutput::Distance,
                     "Color" => VoronoiOutput::Color,
                     "Position" => VoronoiOutput::Position,
+                    "Radius" => VoronoiOutput::Radius,
                     _ => return Err(wrong_output()),
                 };
                 let dims = Self::text(node, "voronoi_dimensions", "3D")?;
                 if dims != "3D" {
                     return Err(Self::refuse(node, "voronoi_dimensions (only 3D)", &dims));
                 }
-                let feature = Self::text(node, "feature", "F1")?;
-                if feature != "F1" {
-                    return Err(Self::refuse(node, "feature (only F1)", &feature));
-                }
+                let name = Self::text(node, "feature", "F1")?;
+                let feature = match name.as_str() {
+                    "F1" => VoronoiFeature::F1,
+                    "F2" => VoronoiFeature::F2,
+                    "SMOOTH_F1" => VoronoiFeature::SmoothF1,
+                    "DISTANCE_TO_EDGE" => VoronoiFeature::DistanceToEdge,
+                    "N_SPHERE_RADIUS" => VoronoiFeature::NSphereRadius,
+                    _ => return Err(Self::refuse(node, "feature", &name)),
+                };
                 let metric = Self::text(node, "distance", "EUCLIDEAN")?;
-                if metric != "EUCLIDEAN" {
+                if metric != "EUCLIDEAN"
+                    && feature != VoronoiFeature::DistanceToEdge
+                    && feature != VoronoiFeature::NSphereRadius
+                {
                     return Err(Self::refuse(node, "distance (only Euclidean)", &metric));
                 }
                 // Cycles runs one octave when Detail or Roughness is 0 (its clamps
-                // first): only that is compiled.
+                // first): only that is compiled. N-Sphere Radius has no octaves.
                 let detail = self.constant(node, "Detail", 0.0)?.clamp(0.0, 15.0);
                 let roughness = self.constant(node, "Roughness", 0.5)?.clamp(0.0, 1.0);
-                if detail != 0.0 && roughness != 0.0 {
+                if detail != 0.0 && roughness != 0.0 && feature != VoronoiFeature::NSphereRadius {
                     return Err(Self::refuse(
                         node,
                         "Detail (only 0: one octave)",
@@ -889,6 +898,11 @@ impl<'a> Reader<'a> {
                     scale: self.constant(node, "Scale", 5.0)? as f32,
                     randomness: self.constant(node, "Randomness", 1.0)? as f32,
                     normalize: self.constant(node, "normalize", 0.0)? != 0.0,
+                    feature,
+                    smoothness: match feature {
+                        VoronoiFeature::SmoothF1 => self.constant(node, "Smoothness", 1.0)? as f32,
+                        _ => 1.0,
+                    },
                 };
                 let p = self.vector(node, "Vector", None)?;
                 self.builder.node(&at);

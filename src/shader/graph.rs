@@ -21,7 +21,7 @@ use super::interval::{
 use super::materialx_noise::{cell_noise_3d, perlin_noise_3d};
 use super::math;
 use super::noise::NoiseTexture;
-use super::voronoi::{VoronoiF1, VoronoiOutput, VoronoiTexture};
+use super::voronoi::{VoronoiOutput, VoronoiTexture, VoronoiValues};
 
 /// A register index.
 pub type Reg = u16;
@@ -612,8 +612,8 @@ impl Builder {
         Ok((p, w, index))
     }
 
-    /// Blender's Voronoi Texture node (3D, F1, Euclidean, one octave) at the Vector `p`:
-    /// its `output` (Distance a float, Color and Position vector3s).
+    /// Blender's Voronoi Texture node (3D, Euclidean, one octave) at the Vector `p`:
+    /// its `output` (Distance and Radius floats, Color and Position vector3s).
     pub fn blender_voronoi(
         &mut self,
         p: Value,
@@ -627,7 +627,7 @@ impl Builder {
         let index = u16::try_from(self.voronois.len()).map_err(|_| GraphError::TooLarge)?;
         self.voronois.push(node);
         let (dst, v) = match output {
-            VoronoiOutput::Distance => {
+            VoronoiOutput::Distance | VoronoiOutput::Radius => {
                 let r = self.alloc(1)?;
                 (r, Value::Float(r))
             }
@@ -803,7 +803,7 @@ impl Program {
         // A Voronoi node whose Distance, Color and Position are all used is one
         // instruction per output: the last evaluation is kept, so the same node at the
         // same point is searched once per lookup.
-        let mut last_voronoi: Option<(u16, [f32; 3], VoronoiF1)> = None;
+        let mut last_voronoi: Option<(u16, [f32; 3], VoronoiValues)> = None;
         for i in &self.instrs {
             match *i {
                 Instr::Const { dst, value } => r[dst as usize] = value,
@@ -940,6 +940,7 @@ impl Program {
                         VoronoiOutput::Distance => r[dst] = v.distance,
                         VoronoiOutput::Color => r[dst..dst + 3].copy_from_slice(&v.color),
                         VoronoiOutput::Position => r[dst..dst + 3].copy_from_slice(&v.position),
+                        VoronoiOutput::Radius => r[dst] = v.radius,
                     }
                 }
             }
@@ -1109,14 +1110,15 @@ impl Program {
                     output,
                 } => {
                     let (p, dst) = (p as usize, dst as usize);
-                    let (d, c, q) = self.voronois[voronoi as usize].bounds(
+                    let b = self.voronois[voronoi as usize].bounds(
                         [r[p].lo, r[p + 1].lo, r[p + 2].lo],
                         [r[p].hi, r[p + 1].hi, r[p + 2].hi],
                     );
                     match output {
-                        VoronoiOutput::Distance => r[dst] = d,
-                        VoronoiOutput::Color => r[dst..dst + 3].copy_from_slice(&c),
-                        VoronoiOutput::Position => r[dst..dst + 3].copy_from_slice(&q),
+                        VoronoiOutput::Distance => r[dst] = b.distance,
+                        VoronoiOutput::Color => r[dst..dst + 3].copy_from_slice(&b.color),
+                        VoronoiOutput::Position => r[dst..dst + 3].copy_from_slice(&b.position),
+                        VoronoiOutput::Radius => r[dst] = b.radius,
                     }
                 }
             }
