@@ -328,10 +328,9 @@ def _graph(socket, obj, owner, folder_prim):
                 lines.append(f"float inputs:{prop} = {_f(v)}")
         if kind == "ShaderNodeValToRGB":
             ramp = node.color_ramp
-            if ramp.color_mode != "RGB" or ramp.interpolation not in ("LINEAR", "EASE", "CONSTANT"):
-                raise _Untranslatable(
-                    f"node '{node.name}': Color Ramp mode {ramp.color_mode}, interpolation "
-                    f"{ramp.interpolation} (Nimbus reads RGB with Linear, Ease or Constant)")
+            # Cycles bakes every mode (RGB, HSV, HSL; Linear, Ease, B-Spline, Cardinal,
+            # Constant) through the same ColorRamp.evaluate at i/256 and reads the table
+            # linearly unless Constant: so does Nimbus.
             rows = [ramp.evaluate(i / _RAMP_TABLE) for i in range(_RAMP_TABLE + 1)]
             for k, channel in enumerate(("red", "green", "blue", "alpha")):
                 lines.append("float[] inputs:{}_table = [{}]".format(

@@ -228,10 +228,12 @@ def test_a_glowing_gradient_noise_sphere_against_cycles(addon, tmp_path):
     assert ok, "\n".join(report)
 
 
-def noise_colour_material(name="tinted", absorption=(0.0, 0.0, 0.0, 1.0)):
+def noise_colour_material(name="tinted", absorption=(0.0, 0.0, 0.0, 1.0), mode=None):
     """Scene (a)'s material with its Color driven too: a Color Ramp of the same noise
     (a blue-grey 0.2, 0.35, 0.8 at 0.45, a warm white 1.0, 0.9, 0.7 at 0.6), so the
-    albedo varies through the cloud; Absorption Color `absorption`."""
+    albedo varies through the cloud; Absorption Color `absorption`. `mode`: None, or
+    the ramp's (color_mode, interpolation) with a third stop, red (0.9, 0.2, 0.3) at
+    0.52."""
     m = noise_ramp_material(name)
     nt = m.node_tree
     pv = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeVolumePrincipled")
@@ -243,6 +245,9 @@ def noise_colour_material(name="tinted", absorption=(0.0, 0.0, 0.0, 1.0)):
     tint.color_ramp.elements[0].color = (0.2, 0.35, 0.8, 1.0)
     tint.color_ramp.elements[1].position = 0.6
     tint.color_ramp.elements[1].color = (1.0, 0.9, 0.7, 1.0)
+    if mode is not None:
+        tint.color_ramp.color_mode, tint.color_ramp.interpolation = mode
+        tint.color_ramp.elements.new(0.52).color = (0.9, 0.2, 0.3, 1.0)
     nt.links.new(noise.outputs["Fac"], tint.inputs["Fac"])
     nt.links.new(tint.outputs["Color"], pv.inputs["Color"])
     return m
@@ -293,6 +298,25 @@ def test_a_colour_ramp_albedo_cube_against_cycles(addon, tmp_path):
     ok, report, n = against_cycles(bpy.context.scene, tmp_path, seeds=(0, 1, 2, 3), spp=32,
                                    bias=CYCLES_BIAS, block=8)
     print(f"\ntinted noise cube, sun, against Cycles ({n} pixels):\n" + "\n".join(report))
+    assert n > 100
+    assert ok, "\n".join(report)
+
+
+@pytest.mark.parametrize("mode", [("HSV", "B_SPLINE"), ("HSL", "CARDINAL"),
+                                  ("RGB", "EASE")])
+def test_a_colour_ramp_of_every_mode_against_cycles(addon, tmp_path, mode):
+    """The tinted cube with a three-stop Color Ramp in HSV with B-Spline, HSL with
+    Cardinal, or RGB with Ease (stop 64: the add-on writes every mode, the table
+    Blender's ColorRamp.evaluate gives, as Cycles bakes it), against Cycles 5.0.1 as
+    above; no warning names the ramp."""
+    _cube_scene("tinted cube", noise_colour_material(mode=mode))
+    (tmp_path / "overlay").mkdir()
+    t, _ = translated(tmp_path / "overlay")
+    assert not [w for w in t.warnings if "'tint'" in w], t.warnings
+    ok, report, n = against_cycles(bpy.context.scene, tmp_path, seeds=(0, 1, 2, 3), spp=32,
+                                   bias=CYCLES_BIAS, block=8)
+    print(f"\ntinted noise cube, ramp {mode}, sun, against Cycles ({n} pixels):\n"
+          + "\n".join(report))
     assert n > 100
     assert ok, "\n".join(report)
 
