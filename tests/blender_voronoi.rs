@@ -1,5 +1,5 @@
-//! Blender's Voronoi Texture (3D, Euclidean, Detail 0; F1, and since stop 64 F2, Smooth
-//! F1, Distance to Edge and N-Sphere Radius) against Blender 5.0.1:
+//! Blender's Voronoi Texture (3D, Detail 0; F1 Euclidean, and since stop 64 F2, Smooth
+//! F1, Distance to Edge, N-Sphere Radius and the other metrics) against Blender 5.0.1:
 //! `tests/fixtures/blender_voronoi_values.py` has Geometry Nodes evaluate the node at
 //! random points (stored in point attributes, read back with foreach_get) and
 //! `nimbus::shader::voronoi` must give the same Distance, Color and Position.
@@ -19,7 +19,7 @@ mod common;
 
 use std::path::Path;
 
-use nimbus::shader::voronoi::{VoronoiFeature, VoronoiTexture};
+use nimbus::shader::voronoi::{VoronoiFeature, VoronoiMetric, VoronoiTexture};
 
 const N: usize = 20_000;
 
@@ -42,6 +42,7 @@ fn cases() -> Vec<Case> {
         smoothness,
         ..n
     };
+    let metric = |metric, n: VoronoiTexture| VoronoiTexture { metric, ..n };
     let case = |name, points, seed, node| Case {
         name,
         points,
@@ -49,6 +50,7 @@ fn cases() -> Vec<Case> {
         node,
     };
     use VoronoiFeature::*;
+    use VoronoiMetric::*;
     vec![
         case("defaults", "box", 1, node(5.0, 1.0, false)),
         case("scale_1_7_random_0_4", "box", 2, node(1.7, 0.4, false)),
@@ -95,7 +97,48 @@ fn cases() -> Vec<Case> {
             14,
             with(NSphereRadius, 1.0, node(2.5, 0.9, false)),
         ),
+        // Stop 64: the other metrics.
+        case(
+            "f1_manhattan",
+            "box",
+            15,
+            metric(Manhattan, node(2.0, 1.0, false)),
+        ),
+        case(
+            "f1_chebychev_normalize",
+            "box",
+            16,
+            metric(Chebychev, node(3.0, 0.7, true)),
+        ),
+        case(
+            "f1_minkowski_0_5",
+            "negative",
+            17,
+            metric(Minkowski(0.5), node(1.5, 1.0, false)),
+        ),
+        case(
+            "f2_minkowski_2_5_normalize",
+            "box",
+            18,
+            metric(Minkowski(2.5), with(F2, 1.0, node(2.0, 0.9, true))),
+        ),
+        case(
+            "smooth_f1_manhattan",
+            "box",
+            19,
+            metric(Manhattan, with(SmoothF1, 0.8, node(3.0, 1.0, false))),
+        ),
     ]
+}
+
+/// The node's `distance` identifier and Exponent.
+fn metric_name(m: VoronoiMetric) -> (&'static str, f32) {
+    match m {
+        VoronoiMetric::Euclidean => ("EUCLIDEAN", 0.5),
+        VoronoiMetric::Manhattan => ("MANHATTAN", 0.5),
+        VoronoiMetric::Chebychev => ("CHEBYCHEV", 0.5),
+        VoronoiMetric::Minkowski(e) => ("MINKOWSKI", e),
+    }
 }
 
 /// The node's `feature` identifier.
@@ -116,7 +159,8 @@ fn cases_json(cases: &[Case]) -> String {
             format!(
                 "{{\"name\": \"{}\", \"points\": \"{}\", \"seed\": {}, \"n\": {N}, \
                  \"scale\": {:?}, \"randomness\": {:?}, \"normalize\": {}, \
-                 \"feature\": \"{}\", \"smoothness\": {:?}}}",
+                 \"feature\": \"{}\", \"smoothness\": {:?}, \"distance\": \"{}\", \
+                 \"exponent\": {:?}}}",
                 c.name,
                 c.points,
                 c.seed,
@@ -124,7 +168,9 @@ fn cases_json(cases: &[Case]) -> String {
                 c.node.randomness,
                 c.node.normalize,
                 feature_name(c.node.feature),
-                c.node.smoothness
+                c.node.smoothness,
+                metric_name(c.node.metric).0,
+                metric_name(c.node.metric).1
             )
         })
         .collect();

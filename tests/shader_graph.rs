@@ -1075,8 +1075,8 @@ fn blender_voronoi_density(feature: &str, p: DVec3) -> f64 {
 /// Blender's Voronoi Texture (Distance, Color and Position) in a fog's density: at 10⁶
 /// points the density is the tree written out (to 1e-5, away from cell faces) and
 /// inside its majorant cell's bounds, flat grid and octree, for the features F1, F2,
-/// Smooth F1 and Distance to Edge (stop 64); another metric (Manhattan) is refused
-/// naming the node and the metric.
+/// Smooth F1 and Distance to Edge (stop 64); a 2D Voronoi is refused naming the node
+/// and the dimensions.
 #[test]
 fn a_blender_voronoi_density_is_bounded_by_its_majorants() {
     let dir = tempfile::tempdir().unwrap();
@@ -1138,14 +1138,14 @@ fn a_blender_voronoi_density_is_bounded_by_its_majorants() {
         assert!(worst < 1e-5 && compared > 990_000, "{worst} {compared}");
     }
 
-    // Every feature compiles (stop 64); a metric other than Euclidean does not.
-    let manhattan = blender_voronoi_stage(dir.path(), "manhattan.usda", "F1");
-    let text = std::fs::read_to_string(&manhattan).unwrap();
-    std::fs::write(&manhattan, text.replace("\"EUCLIDEAN\"", "\"MANHATTAN\"")).unwrap();
+    // Every feature and metric compiles (stop 64); a 2D Voronoi does not.
+    let flat = blender_voronoi_stage(dir.path(), "flat.usda", "F1");
+    let text = std::fs::read_to_string(&flat).unwrap();
+    std::fs::write(&flat, text.replace("\"3D\"", "\"2D\"")).unwrap();
     let out = dir.path().join("never.exr");
     let o = nimbus(&[
         "render",
-        manhattan.to_str().unwrap(),
+        flat.to_str().unwrap(),
         "-o",
         out.to_str().unwrap(),
         "--res",
@@ -1155,7 +1155,7 @@ fn a_blender_voronoi_density_is_bounded_by_its_majorants() {
     ]);
     assert_clean_error(&o, "/Graphs/cells");
     assert!(
-        stderr(&o).contains("ShaderNodeTexVoronoi") && stderr(&o).contains("MANHATTAN"),
+        stderr(&o).contains("ShaderNodeTexVoronoi") && stderr(&o).contains("2D"),
         "{}",
         stderr(&o)
     );

@@ -217,7 +217,7 @@ _COMPILED = {
     ("ShaderNodeTexVoronoi", "voronoi_dimensions"): {"3D"},
     ("ShaderNodeTexVoronoi", "feature"): {"F1", "F2", "SMOOTH_F1", "DISTANCE_TO_EDGE",
                                           "N_SPHERE_RADIUS"},
-    ("ShaderNodeTexVoronoi", "distance"): {"EUCLIDEAN"},
+    ("ShaderNodeTexVoronoi", "distance"): {"EUCLIDEAN", "MANHATTAN", "CHEBYCHEV", "MINKOWSKI"},
     ("ShaderNodeTexGradient", "gradient_type"): {
         "LINEAR", "QUADRATIC", "EASING", "DIAGONAL", "RADIAL", "SPHERICAL",
         "QUADRATIC_SPHERE"},
@@ -266,7 +266,8 @@ def _texture_space(obj):
 _CONSTANT_INPUTS = {
     "ShaderNodeTexNoise": ("Scale", "Detail", "Roughness", "Lacunarity", "Distortion",
                            "Offset", "Gain"),
-    "ShaderNodeTexVoronoi": ("Scale", "Detail", "Roughness", "Randomness", "Smoothness"),
+    "ShaderNodeTexVoronoi": ("Scale", "Detail", "Roughness", "Randomness", "Smoothness",
+                             "Exponent"),
 }
 
 

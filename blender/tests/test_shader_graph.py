@@ -322,8 +322,8 @@ def test_a_colour_ramp_of_every_mode_against_cycles(addon, tmp_path, mode):
 
 
 def voronoi_material(name="cells", interpolation="LINEAR", feature="F1",
-                     from_range=(0.1, 0.6)):
-    """A Voronoi density: Voronoi Texture (3D, `feature`, Euclidean, Scale 2.5,
+                     from_range=(0.1, 0.6), metric="EUCLIDEAN"):
+    """A Voronoi density: Voronoi Texture (3D, `feature`, `metric`, Scale 2.5,
     Randomness 1, its Vector the default Generated coordinates) -> Distance (Radius for
     N-Sphere Radius) -> Map Range (From `from_range`, To 3 .. 0, clamped;
     `interpolation`, Steps 3) -> Principled Volume Density; Color 0.8, Anisotropy 0.3:
@@ -334,6 +334,7 @@ def voronoi_material(name="cells", interpolation="LINEAR", feature="F1",
     pv.inputs["Anisotropy"].default_value = 0.3
     cells = nt.nodes.new("ShaderNodeTexVoronoi")
     cells.feature = feature
+    cells.distance = metric
     cells.inputs["Scale"].default_value = 2.5
     fade = nt.nodes.new("ShaderNodeMapRange")
     fade.clamp = True
@@ -377,6 +378,27 @@ VORONOI_FEATURES = {
     "DISTANCE_TO_EDGE": (0.0, 0.2),  # 3 at the walls, 0 inside: a cellular shell
     "N_SPHERE_RADIUS": (0.2, 0.45),  # constant per cell: blocks of density
 }
+
+
+@pytest.mark.parametrize("metric", ["MANHATTAN", "CHEBYCHEV"])
+def test_a_voronoi_cube_of_another_metric_against_cycles(addon, tmp_path, metric):
+    """The F1 Voronoi cube with the Manhattan or Chebychev metric (stop 64; equal to the
+    bit to Geometry Nodes, tests/blender_voronoi.rs; Map Range From 0.1 .. 0.9 for
+    Manhattan's longer distances), against Cycles 5.0.1 as above."""
+    scene = _cube_scene(f"voronoi {metric}",
+                        voronoi_material(f"cells {metric}", metric=metric,
+                                         from_range=(0.1, 0.9 if metric == "MANHATTAN"
+                                                     else 0.5)))
+    (tmp_path / "overlay").mkdir()
+    t, _ = translated(tmp_path / "overlay")
+    assert not [w for w in t.warnings if "drives" in w], t.warnings
+    assert f'"{metric}"' in open(t.stage).read()
+    ok, report, n = against_cycles(scene, tmp_path, seeds=(0, 1, 2, 3), spp=32,
+                                   bias=CYCLES_BIAS, block=8)
+    print(f"\nvoronoi cube, F1 {metric}, sun, against Cycles ({n} pixels):\n"
+          + "\n".join(report))
+    assert n > 100
+    assert ok, "\n".join(report)
 
 
 @pytest.mark.parametrize("feature", sorted(VORONOI_FEATURES))
@@ -507,21 +529,21 @@ def _power_scene(operation="POWER"):
 
 
 def test_a_property_value_nimbus_does_not_compile_is_a_warning(addon, tmp_path):
-    """A Voronoi Texture whose distance metric Nimbus does not compile (Manhattan)
-    drives the Density: the add-on warns naming the node and the value and writes no
-    graph (the socket's value), instead of a stage Nimbus would refuse. (Every Math and
-    Vector Math operation compiles since stop 62, Reflect and Refract the last; every
-    Voronoi feature since stop 64.)"""
+    """A Voronoi Texture in dimensions Nimbus does not compile (2D) drives the Density:
+    the add-on warns naming the node and the value and writes no graph (the socket's
+    value), instead of a stage Nimbus would refuse. (Every Math and Vector Math
+    operation compiles since stop 62, Reflect and Refract the last; every Voronoi
+    feature and metric since stop 64.)"""
     m, nt, out = _node_material("second")
     pv = nt.nodes.new("ShaderNodeVolumePrincipled")
     vor = nt.nodes.new("ShaderNodeTexVoronoi")
     vor.name = "cells"
-    vor.distance = "MANHATTAN"
+    vor.voronoi_dimensions = "2D"
     nt.links.new(vor.outputs["Distance"], pv.inputs["Density"])
     nt.links.new(pv.outputs["Volume"], out.inputs["Volume"])
     _cube_scene("second cube", m)
     t, _ = translated(tmp_path)
-    warned = [w for w in t.warnings if "'cells'" in w and "MANHATTAN" in w]
+    warned = [w for w in t.warnings if "'cells'" in w and "2D" in w]
     assert warned and "drives" in warned[0], t.warnings
     assert "nimbus:densityScale.connect" not in open(t.stage).read()
 

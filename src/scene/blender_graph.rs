@@ -22,7 +22,7 @@ use super::materialx_graph::{colour, number, usd_network};
 use super::shader_network::{Input, ParamValue, ShaderNetwork, ShaderNode};
 use crate::shader::graph::{Binary, Builder, GraphError, Program, Unary, Value as Reg};
 use crate::shader::noise::{Dimensions, NoiseTexture, NoiseType};
-use crate::shader::voronoi::{VoronoiFeature, VoronoiOutput, VoronoiTexture};
+use crate::shader::voronoi::{VoronoiFeature, VoronoiMetric, VoronoiOutput, VoronoiTexture};
 use openusd::usd::{Prim, TimeCode};
 use std::collections::HashMap;
 
@@ -876,13 +876,22 @@ impl<'a> Reader<'a> {
                     "N_SPHERE_RADIUS" => VoronoiFeature::NSphereRadius,
                     _ => return Err(Self::refuse(node, "feature", &name)),
                 };
-                let metric = Self::text(node, "distance", "EUCLIDEAN")?;
-                if metric != "EUCLIDEAN"
-                    && feature != VoronoiFeature::DistanceToEdge
-                    && feature != VoronoiFeature::NSphereRadius
-                {
-                    return Err(Self::refuse(node, "distance (only Euclidean)", &metric));
-                }
+                // Distance to Edge and N-Sphere Radius are Euclidean whatever the
+                // metric (Cycles); the others read it.
+                let name = Self::text(node, "distance", "EUCLIDEAN")?;
+                let metric = match name.as_str() {
+                    "EUCLIDEAN" => VoronoiMetric::Euclidean,
+                    "MANHATTAN" => VoronoiMetric::Manhattan,
+                    "CHEBYCHEV" => VoronoiMetric::Chebychev,
+                    "MINKOWSKI" => {
+                        let e = self.constant(node, "Exponent", 0.5)? as f32;
+                        if !(e.is_finite() && e > 0.0) {
+                            return Err(Self::refuse(node, "Exponent (only > 0)", &e.to_string()));
+                        }
+                        VoronoiMetric::Minkowski(e)
+                    }
+                    _ => return Err(Self::refuse(node, "distance", &name)),
+                };
                 // Cycles runs one octave when Detail or Roughness is 0 (its clamps
                 // first): only that is compiled. N-Sphere Radius has no octaves.
                 let detail = self.constant(node, "Detail", 0.0)?.clamp(0.0, 15.0);
@@ -903,6 +912,7 @@ impl<'a> Reader<'a> {
                         VoronoiFeature::SmoothF1 => self.constant(node, "Smoothness", 1.0)? as f32,
                         _ => 1.0,
                     },
+                    metric,
                 };
                 let p = self.vector(node, "Vector", None)?;
                 self.builder.node(&at);

@@ -1,4 +1,4 @@
-//! Blender's Voronoi Texture node, 3D, Euclidean distance, one octave, as Cycles 5.0
+//! Blender's Voronoi Texture node, 3D, one octave, every feature and metric, as Cycles 5.0
 //! evaluates it (`kernel/svm/voronoi.h`: `voronoi_f1`, `voronoi_f2`,
 //! `voronoi_smooth_f1`, `voronoi_distance_to_edge`, `voronoi_n_sphere_radius` for a
 //! float3 and the node's `fractal_voronoi_x_fx` with Detail 0; `util/hash.h`:
@@ -18,10 +18,13 @@
 //!   and another; N-Sphere Radius half the distance from the nearest point to its own
 //!   nearest neighbour.
 //!
-//! Normalize divides Distance by the feature's largest value: √3 (0.5 + 0.5 randomness)
-//! for F1 and Smooth F1, twice that for F2, 0.5 + 0.5 randomness for Distance to Edge.
-//! Detail 0 (or Roughness 0) is one octave: only that is read; other metrics and
-//! dimensions are refused by the readers. `tests/blender_voronoi.rs` checks every
+//! Normalize divides Distance by the feature's largest value: the metric's distance of
+//! (0.5 + 0.5 randomness) on every axis for F1 and Smooth F1, twice that for F2, 0.5 +
+//! 0.5 randomness for Distance to Edge.
+//! Distances are the node's metric (Euclidean, Manhattan, Chebychev, Minkowski), but
+//! Distance to Edge's and N-Sphere Radius', which are Euclidean (as in Cycles). Detail
+//! 0 (or Roughness 0) is one octave: only that is read; other dimensions are refused by
+//! the readers. `tests/blender_voronoi.rs` checks every
 //! feature against Blender 5.0.1.
 
 use super::interval::Interval;
@@ -88,7 +91,51 @@ pub enum VoronoiFeature {
     NSphereRadius,
 }
 
-/// The node's settings read (3D, Euclidean, Detail 0).
+/// The node's distance metric (its `distance` property; Minkowski with the Exponent
+/// socket). Distance to Edge and N-Sphere Radius are Euclidean whatever it is (Cycles).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum VoronoiMetric {
+    Euclidean,
+    Manhattan,
+    Chebychev,
+    Minkowski(f32),
+}
+
+impl VoronoiMetric {
+    /// Cycles' `voronoi_distance` of the offset `d`.
+    #[inline(always)]
+    pub fn distance(self, d: [f32; 3]) -> f32 {
+        match self {
+            VoronoiMetric::Euclidean => dot(d, d).sqrt(),
+            VoronoiMetric::Manhattan => d[0].abs() + d[1].abs() + d[2].abs(),
+            VoronoiMetric::Chebychev => d[0].abs().max(d[1].abs()).max(d[2].abs()),
+            VoronoiMetric::Minkowski(e) => {
+                (d[0].abs().powf(e) + d[1].abs().powf(e) + d[2].abs().powf(e)).powf(1.0 / e)
+            }
+        }
+    }
+
+    /// What the search for the nearest points compares: the squared length for
+    /// Euclidean (the same order, one square root less), else the distance.
+    #[inline(always)]
+    fn key(self, d: [f32; 3]) -> f32 {
+        match self {
+            VoronoiMetric::Euclidean => dot(d, d),
+            m => m.distance(d),
+        }
+    }
+
+    /// The distance of a key.
+    #[inline(always)]
+    fn of_key(self, key: f32) -> f32 {
+        match self {
+            VoronoiMetric::Euclidean => key.sqrt(),
+            _ => key,
+        }
+    }
+}
+
+/// The node's settings read (3D, Detail 0).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct VoronoiTexture {
     pub scale: f32,
@@ -98,6 +145,7 @@ pub struct VoronoiTexture {
     pub feature: VoronoiFeature,
     /// Smooth F1's Smoothness socket (Cycles halves it and clamps it to [0, 0.5]).
     pub smoothness: f32,
+    pub metric: VoronoiMetric,
 }
 
 impl Default for VoronoiTexture {
@@ -109,6 +157,7 @@ impl Default for VoronoiTexture {
             normalize: false,
             feature: VoronoiFeature::F1,
             smoothness: 1.0,
+            metric: VoronoiMetric::Euclidean,
         }
     }
 }
@@ -167,11 +216,21 @@ impl VoronoiTexture {
         }
     }
 
-    /// The largest F1 distance: √3 (0.5 + 0.5 randomness), computed as Cycles does
-    /// (the length of that vector).
+    /// The largest F1 distance: the metric's distance of (0.5 + 0.5 randomness) on
+    /// every axis (√3 times that for Euclidean), computed as Cycles does.
     pub fn max_distance(&self) -> f32 {
         let m = 0.5 + 0.5 * self.randomness();
-        dot([m; 3], [m; 3]).sqrt()
+        self.metric.distance([m; 3])
+    }
+
+    /// The metric F1, F2 and Smooth F1 use.
+    fn metric_of(&self, feature: VoronoiFeature) -> VoronoiMetric {
+        match feature {
+            VoronoiFeature::DistanceToEdge | VoronoiFeature::NSphereRadius => {
+                VoronoiMetric::Euclidean
+            }
+            _ => self.metric,
+        }
     }
 
     /// What Normalize divides Distance by: F1's [`max_distance`] (twice it for F2), and
@@ -235,7 +294,7 @@ impl VoronoiTexture {
                 ..Default::default()
             },
             VoronoiFeature::NSphereRadius => VoronoiValues {
-                radius: self.n_sphere_radius(c.at, self.nearest(&c).0),
+                radius: self.n_sphere_radius(c.at, self.nearest(&c, VoronoiMetric::Euclidean).0),
                 ..Default::default()
             },
         };
@@ -245,9 +304,9 @@ impl VoronoiTexture {
         v
     }
 
-    /// The nearest of the 27 points (by squared distance, the first on ties): its
-    /// offset and position.
-    fn nearest(&self, c: &Cell) -> ([i32; 3], [f32; 3]) {
+    /// The nearest of the 27 points by `metric` (the first on ties): its offset and
+    /// position.
+    fn nearest(&self, c: &Cell, metric: VoronoiMetric) -> ([i32; 3], [f32; 3]) {
         let mut best = f32::MAX;
         let mut target = ([0i32; 3], [0.0f32; 3]);
         for k in -1..=1 {
@@ -255,8 +314,7 @@ impl VoronoiTexture {
                 for i in -1..=1 {
                     let off = [i, j, k];
                     let (q, _) = self.point(c.at, off);
-                    let d = sub(q, c.local);
-                    let d2 = dot(d, d);
+                    let d2 = metric.key(sub(q, c.local));
                     if d2 < best {
                         best = d2;
                         target = (off, q);
@@ -268,10 +326,9 @@ impl VoronoiTexture {
     }
 
     fn f1(&self, c: &Cell) -> VoronoiValues {
-        let (off, q) = self.nearest(c);
-        let d = sub(q, c.local);
+        let (off, q) = self.nearest(c, self.metric);
         VoronoiValues {
-            distance: dot(d, d).sqrt(),
+            distance: self.metric.of_key(self.metric.key(sub(q, c.local))),
             color: hash_int3_to_float3(std::array::from_fn(|a| c.at[a].wrapping_add(off[a]))),
             position: self.position(c, q),
             radius: 0.0,
@@ -287,8 +344,7 @@ impl VoronoiTexture {
                 for i in -1..=1 {
                     let off = [i, j, k];
                     let (q, _) = self.point(c.at, off);
-                    let d = sub(q, c.local);
-                    let dd = dot(d, d);
+                    let dd = self.metric.key(sub(q, c.local));
                     if dd < d1 {
                         (d2, second) = (d1, first);
                         (d1, first) = (dd, (off, q));
@@ -299,9 +355,8 @@ impl VoronoiTexture {
             }
         }
         let (off, q) = second;
-        let d = sub(q, c.local);
         VoronoiValues {
-            distance: dot(d, d).sqrt(),
+            distance: self.metric.of_key(d2),
             color: hash_int3_to_float3(std::array::from_fn(|a| c.at[a].wrapping_add(off[a]))),
             position: self.position(c, q),
             radius: 0.0,
@@ -321,8 +376,7 @@ impl VoronoiTexture {
             for j in -2..=2 {
                 for i in -2..=2 {
                     let (q, hash) = self.point(c.at, [i, j, k]);
-                    let d = sub(q, c.local);
-                    let dist = dot(d, d).sqrt();
+                    let dist = self.metric.distance(sub(q, c.local));
                     let h = smoothstep01(0.5 + 0.5 * (s - dist) / k_s);
                     let mut correction = k_s * h * (1.0 - h);
                     s = mix(s, dist, h) - correction;
@@ -346,7 +400,7 @@ impl VoronoiTexture {
     /// nearest bisector plane between the nearest point and another (points within
     /// 0.01 of the nearest are skipped).
     fn distance_to_edge(&self, c: &Cell) -> f32 {
-        let (_, q) = self.nearest(c);
+        let (_, q) = self.nearest(c, VoronoiMetric::Euclidean);
         let to_closest = sub(q, c.local);
         let mut best = 8.0f32;
         for k in -1..=1 {
@@ -447,8 +501,9 @@ impl VoronoiTexture {
         let count: f64 = (0..3).map(|a| (last[a] - first[a] + 1.0) as f64).product();
         let mut out = Cover::default();
         if !finite || count > 512.0 {
-            let far = 3f32.sqrt() * (0.5 + 0.5 * r);
-            let far2 = 2.0 * 3f32.sqrt();
+            let metric = self.metric_of(feature);
+            let far = metric.distance([0.5 + 0.5 * r; 3]);
+            let far2 = metric.distance([2.0; 3]);
             let k_s = self.smoothing();
             let (distance, colour) = match feature {
                 VoronoiFeature::F1 => (Interval::new(0.0, far), Interval::new(0.0, 1.0)),
@@ -520,6 +575,7 @@ impl VoronoiTexture {
         blo: [f32; 3],
         bhi: [f32; 3],
     ) {
+        let metric = self.metric_of(feature);
         // (near, far, hash, point, offset) of each of the 27 points.
         let mut points = [(0.0f32, 0.0f32, [0.0f32; 3], [0.0f32; 3], [0i32; 3]); 27];
         let mut n = 0;
@@ -528,7 +584,7 @@ impl VoronoiTexture {
                 for i in -1..=1 {
                     let off = [i, j, k];
                     let (q, hash) = self.point(cell, off);
-                    let (near, far) = near_far(q, blo, bhi);
+                    let (near, far) = near_far(q, blo, bhi, metric);
                     points[n] = (near, far, hash, q, off);
                     n += 1;
                 }
@@ -602,7 +658,7 @@ impl VoronoiTexture {
             for j in -2..=2 {
                 for i in -2..=2 {
                     let (q, hash) = self.point(cell, [i, j, k]);
-                    let (near, far) = near_far(q, blo, bhi);
+                    let (near, far) = near_far(q, blo, bhi, self.metric);
                     let d = Interval::new(near, far).widened(1e-6, 1e-6);
                     // h rises with s and falls with d.
                     let t = |s: f32, d: f32| smoothstep01(0.5 + 0.5 * (s - d) / k_s);
@@ -654,16 +710,13 @@ impl VoronoiTexture {
     }
 }
 
-/// The least and largest distance from the point `q` to the box [blo, bhi].
-fn near_far(q: [f32; 3], blo: [f32; 3], bhi: [f32; 3]) -> (f32, f32) {
-    let (mut near, mut far) = (0.0f32, 0.0f32);
-    for a in 0..3 {
-        let below = (blo[a] - q[a]).max(q[a] - bhi[a]).max(0.0);
-        let beyond = (q[a] - blo[a]).abs().max((q[a] - bhi[a]).abs());
-        near += below * below;
-        far += beyond * beyond;
-    }
-    (near.sqrt(), far.sqrt())
+/// The least and largest `metric` distance from the point `q` to the box [blo, bhi]:
+/// every metric rises with each axis' absolute offset, so these are its values at the
+/// least and largest offsets per axis.
+fn near_far(q: [f32; 3], blo: [f32; 3], bhi: [f32; 3], metric: VoronoiMetric) -> (f32, f32) {
+    let below = std::array::from_fn(|a| (blo[a] - q[a]).max(q[a] - bhi[a]).max(0.0));
+    let beyond = std::array::from_fn(|a| (q[a] - blo[a]).abs().max((q[a] - bhi[a]).abs()));
+    (metric.distance(below), metric.distance(beyond))
 }
 
 /// mix(x, y, h) = (1 − h) x + h y over x, y and h ∈ [h_lo, h_hi] ⊂ [0, 1]: it rises
@@ -764,15 +817,27 @@ mod tests {
             VoronoiFeature::DistanceToEdge,
             VoronoiFeature::NSphereRadius,
         ];
-        let nodes = nodes.into_iter().flat_map(|n| {
+        let metrics = [
+            VoronoiMetric::Euclidean,
+            VoronoiMetric::Manhattan,
+            VoronoiMetric::Chebychev,
+            VoronoiMetric::Minkowski(0.5),
+            VoronoiMetric::Minkowski(2.5),
+        ];
+        // Every feature with the node's defaults, and each again with another metric.
+        let nodes = nodes.into_iter().enumerate().flat_map(|(k, n)| {
             features
                 .into_iter()
                 .enumerate()
-                .map(move |(i, feature)| VoronoiTexture {
-                    feature,
-                    // Smooth F1 at the socket's default and at its largest.
-                    smoothness: [1.0, 1.0, 0.6, 1.0, 1.0][i] * if n.normalize { 1.5 } else { 1.0 },
-                    ..n
+                .flat_map(move |(i, feature)| {
+                    [metrics[0], metrics[1 + (i + k) % 4]].map(|metric| VoronoiTexture {
+                        feature,
+                        // Smooth F1 at the socket's default and at its largest.
+                        smoothness: [1.0, 1.0, 0.6, 1.0, 1.0][i]
+                            * if n.normalize { 1.5 } else { 1.0 },
+                        metric,
+                        ..n
+                    })
                 })
         });
         for node in nodes {
@@ -812,16 +877,20 @@ mod tests {
     #[test]
     fn small_boxes_get_tight_bounds() {
         let mut s = 77u32;
-        for feature in [
-            VoronoiFeature::F1,
-            VoronoiFeature::F2,
-            VoronoiFeature::SmoothF1,
-            VoronoiFeature::DistanceToEdge,
-            VoronoiFeature::NSphereRadius,
+        for (feature, metric) in [
+            (VoronoiFeature::F1, VoronoiMetric::Euclidean),
+            (VoronoiFeature::F2, VoronoiMetric::Euclidean),
+            (VoronoiFeature::SmoothF1, VoronoiMetric::Euclidean),
+            (VoronoiFeature::DistanceToEdge, VoronoiMetric::Euclidean),
+            (VoronoiFeature::NSphereRadius, VoronoiMetric::Euclidean),
+            (VoronoiFeature::F1, VoronoiMetric::Manhattan),
+            (VoronoiFeature::F2, VoronoiMetric::Chebychev),
+            (VoronoiFeature::SmoothF1, VoronoiMetric::Minkowski(2.5)),
         ] {
             let node = VoronoiTexture {
                 scale: 1.0,
                 feature,
+                metric,
                 ..Default::default()
             };
             let mut tight = 0;
@@ -851,8 +920,8 @@ mod tests {
                     tight += 1;
                 }
             }
-            eprintln!("{feature:?}: {tight} of 1000 boxes tight");
-            assert!(tight >= 900, "{feature:?}: {tight} of 1000");
+            eprintln!("{feature:?} {metric:?}: {tight} of 1000 boxes tight");
+            assert!(tight >= 900, "{feature:?} {metric:?}: {tight} of 1000");
         }
     }
 
