@@ -371,6 +371,23 @@ def test_a_voronoi_cube_against_cycles(addon, tmp_path):
     assert ok, "\n".join(report)
 
 
+def _graph_cube_against_cycles(scene, tmp_path, tokens, label):
+    """The add-on's overlay of `scene` (no warning says a node drives the Density, every
+    string of `tokens` in it), then `scene` against Cycles 5.0.1 (conftest.against_cycles:
+    4 seeds x 32 spp, image and 8 x 8 block means within 5 combined standard errors +
+    0.5 %), its report printed under `label`."""
+    (tmp_path / "overlay").mkdir()
+    t, _ = translated(tmp_path / "overlay")
+    assert not [w for w in t.warnings if "drives" in w], t.warnings
+    text = open(t.stage).read()
+    assert all(token in text for token in tokens), tokens
+    ok, report, n = against_cycles(scene, tmp_path, seeds=(0, 1, 2, 3), spp=32,
+                                   bias=CYCLES_BIAS, block=8)
+    print(f"\n{label}, sun, against Cycles ({n} pixels):\n" + "\n".join(report))
+    assert n > 100
+    assert ok, "\n".join(report)
+
+
 # Each feature's Map Range From range: where its values fall at Scale 2.5.
 VORONOI_FEATURES = {
     "F2": (0.4, 1.1),  # dense where the second point is near: between cells
@@ -389,16 +406,8 @@ def test_a_voronoi_cube_of_another_metric_against_cycles(addon, tmp_path, metric
                         voronoi_material(f"cells {metric}", metric=metric,
                                          from_range=(0.1, 0.9 if metric == "MANHATTAN"
                                                      else 0.5)))
-    (tmp_path / "overlay").mkdir()
-    t, _ = translated(tmp_path / "overlay")
-    assert not [w for w in t.warnings if "drives" in w], t.warnings
-    assert f'"{metric}"' in open(t.stage).read()
-    ok, report, n = against_cycles(scene, tmp_path, seeds=(0, 1, 2, 3), spp=32,
-                                   bias=CYCLES_BIAS, block=8)
-    print(f"\nvoronoi cube, F1 {metric}, sun, against Cycles ({n} pixels):\n"
-          + "\n".join(report))
-    assert n > 100
-    assert ok, "\n".join(report)
+    _graph_cube_against_cycles(scene, tmp_path, [f'"{metric}"'],
+                               f"voronoi cube, F1 {metric}")
 
 
 @pytest.mark.parametrize("feature", sorted(VORONOI_FEATURES))
@@ -411,16 +420,8 @@ def test_a_voronoi_cube_of_each_feature_against_cycles(addon, tmp_path, feature)
     scene = _cube_scene(f"voronoi {feature}",
                         voronoi_material(f"cells {feature}", feature=feature,
                                          from_range=VORONOI_FEATURES[feature]))
-    (tmp_path / "overlay").mkdir()
-    t, _ = translated(tmp_path / "overlay")
-    assert not [w for w in t.warnings if "drives" in w], t.warnings
-    assert f'"{feature}"' in open(t.stage).read()
-    ok, report, n = against_cycles(scene, tmp_path, seeds=(0, 1, 2, 3), spp=32,
-                                   bias=CYCLES_BIAS, block=8)
-    print(f"\nvoronoi cube, {feature}, sun, against Cycles ({n} pixels):\n"
-          + "\n".join(report))
-    assert n > 100
-    assert ok, "\n".join(report)
+    _graph_cube_against_cycles(scene, tmp_path, [f'"{feature}"'],
+                               f"voronoi cube, {feature}")
 
 
 @pytest.mark.parametrize("interpolation", ["STEPPED", "SMOOTHERSTEP"])
@@ -433,16 +434,8 @@ def test_a_voronoi_cube_mapped_stepped_or_smoother_against_cycles(addon, tmp_pat
     spp, image and 8 x 8 block means within 5 combined standard errors + 0.5 %."""
     scene = _cube_scene(f"voronoi {interpolation}",
                         voronoi_material(f"cells {interpolation}", interpolation))
-    (tmp_path / "overlay").mkdir()
-    t, _ = translated(tmp_path / "overlay")
-    assert not [w for w in t.warnings if "drives" in w], t.warnings
-    assert f'"{interpolation}"' in open(t.stage).read()
-    ok, report, n = against_cycles(scene, tmp_path, seeds=(0, 1, 2, 3), spp=32,
-                                   bias=CYCLES_BIAS, block=8)
-    print(f"\nvoronoi cube, Map Range {interpolation}, sun, against Cycles ({n} pixels):\n"
-          + "\n".join(report))
-    assert n > 100
-    assert ok, "\n".join(report)
+    _graph_cube_against_cycles(scene, tmp_path, [f'"{interpolation}"'],
+                               f"voronoi cube, Map Range {interpolation}")
 
 
 def _mapped_material(name, vector_type):
@@ -488,17 +481,9 @@ def test_a_rotated_mapping_noise_cube_against_cycles(addon, tmp_path, vector_typ
     errors + 0.5 %."""
     scene = _cube_scene(f"mapped {vector_type}", _mapped_material(f"turned {vector_type}",
                                                                   vector_type))
-    (tmp_path / "overlay").mkdir()
-    t, _ = translated(tmp_path / "overlay")
-    assert not [w for w in t.warnings if "drives" in w], t.warnings
-    text = open(t.stage).read()
-    assert f'"{vector_type}"' in text and "float3 inputs:Rotation = (0.4" in text
-    ok, report, n = against_cycles(scene, tmp_path, seeds=(0, 1, 2, 3), spp=32,
-                                   bias=CYCLES_BIAS, block=8)
-    print(f"\nnoise cube through a rotated Mapping ({vector_type}), sun, against Cycles "
-          f"({n} pixels):\n" + "\n".join(report))
-    assert n > 100
-    assert ok, "\n".join(report)
+    _graph_cube_against_cycles(scene, tmp_path,
+                               [f'"{vector_type}"', "float3 inputs:Rotation = (0.4"],
+                               f"noise cube through a rotated Mapping ({vector_type})")
 
 
 def _power_material(name="cubed", operation="POWER"):
