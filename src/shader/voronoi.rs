@@ -304,9 +304,9 @@ impl VoronoiTexture {
         v
     }
 
-    /// The nearest of the 27 points by `metric` (the first on ties): its offset and
-    /// position.
-    fn nearest(&self, c: &Cell, metric: VoronoiMetric) -> ([i32; 3], [f32; 3]) {
+    /// The nearest of the 27 points by `metric` (the first on ties): its offset, its
+    /// position and its key ([`VoronoiMetric::key`]).
+    fn nearest(&self, c: &Cell, metric: VoronoiMetric) -> ([i32; 3], [f32; 3], f32) {
         let mut best = f32::MAX;
         let mut target = ([0i32; 3], [0.0f32; 3]);
         for k in -1..=1 {
@@ -322,13 +322,13 @@ impl VoronoiTexture {
                 }
             }
         }
-        target
+        (target.0, target.1, best)
     }
 
     fn f1(&self, c: &Cell) -> VoronoiValues {
-        let (off, q) = self.nearest(c, self.metric);
+        let (off, q, key) = self.nearest(c, self.metric);
         VoronoiValues {
-            distance: self.metric.of_key(self.metric.key(sub(q, c.local))),
+            distance: self.metric.of_key(key),
             color: hash_int3_to_float3(std::array::from_fn(|a| c.at[a].wrapping_add(off[a]))),
             position: self.position(c, q),
             radius: 0.0,
@@ -400,24 +400,34 @@ impl VoronoiTexture {
     /// nearest bisector plane between the nearest point and another (points within
     /// 0.01 of the nearest are skipped).
     fn distance_to_edge(&self, c: &Cell) -> f32 {
-        let (_, q) = self.nearest(c, VoronoiMetric::Euclidean);
-        let to_closest = sub(q, c.local);
-        let mut best = 8.0f32;
+        // Cycles' two passes visit the same 27 points: their offsets from the Vector
+        // are computed (and hashed) once.
+        let mut to_points = [[0.0f32; 3]; 27];
+        let (mut least, mut closest) = (f32::MAX, 0);
+        let mut n = 0;
         for k in -1..=1 {
             for j in -1..=1 {
                 for i in -1..=1 {
-                    let (q, _) = self.point(c.at, [i, j, k]);
-                    let to_point = sub(q, c.local);
-                    let perpendicular = sub(to_point, to_closest);
-                    let l2 = dot(perpendicular, perpendicular);
-                    if l2 > 0.0001 {
-                        let length = l2.sqrt();
-                        let n = perpendicular.map(|x| x / length);
-                        let mid: [f32; 3] =
-                            std::array::from_fn(|a| (to_closest[a] + to_point[a]) / 2.0);
-                        best = best.min(dot(mid, n));
+                    let to_point = sub(self.point(c.at, [i, j, k]).0, c.local);
+                    let d2 = dot(to_point, to_point);
+                    if d2 < least {
+                        (least, closest) = (d2, n);
                     }
+                    to_points[n] = to_point;
+                    n += 1;
                 }
+            }
+        }
+        let to_closest = to_points[closest];
+        let mut best = 8.0f32;
+        for to_point in to_points {
+            let perpendicular = sub(to_point, to_closest);
+            let l2 = dot(perpendicular, perpendicular);
+            if l2 > 0.0001 {
+                let length = l2.sqrt();
+                let n = perpendicular.map(|x| x / length);
+                let mid: [f32; 3] = std::array::from_fn(|a| (to_closest[a] + to_point[a]) / 2.0);
+                best = best.min(dot(mid, n));
             }
         }
         best
