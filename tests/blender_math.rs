@@ -18,7 +18,8 @@
 
 mod common;
 
-use nimbus::scene::blender_graph::{gradient, map_range, mapping, math, vector_math};
+use nimbus::scene::blender_color::{self, BLEND_TYPES};
+use nimbus::scene::blender_graph::{float_curve, gradient, map_range, mapping, math, vector_math};
 use nimbus::shader::graph::{Builder, Program};
 use nimbus::shader::interval::Interval;
 
@@ -562,4 +563,299 @@ fn mapping_types_match_blender() {
             }
         }
     }
+}
+
+/// The Mix node's kinds (as `KINDS` in tests/fixtures/blender_mix_values.py): Float and
+/// Vector, Color with each blend type compiled (with the factor unclamped and the
+/// result clamped for Mix), the legacy MixRGB, and Clamp.
+fn mix_kinds() -> Vec<String> {
+    let mut kinds: Vec<String> = ["FLOAT", "FLOAT_UNCLAMPED", "VECTOR", "VECTOR_NON_UNIFORM"]
+        .map(String::from)
+        .to_vec();
+    kinds.extend(BLEND_TYPES.iter().map(|b| b.to_string()));
+    kinds.extend(["MIX_UNCLAMPED", "MIX_CLAMPED", "SCREEN_UNCLAMPED"].map(String::from));
+    kinds.extend(["LEGACY_MIX", "LEGACY_OVERLAY_CLAMPED", "LEGACY_DIVIDE"].map(String::from));
+    kinds.extend(["CLAMP_MINMAX", "CLAMP_RANGE"].map(String::from));
+    kinds
+}
+
+/// The program of the Mix `kind` with A the position, B its (z, x, y) and the factor
+/// the attribute (as the fixture wires them); with `component`, that component alone
+/// (the range analysis bounds floats).
+fn mix_program(kind: &str, component: Option<u16>) -> Program {
+    let mut bl = Builder::default();
+    let p = bl.position();
+    let f = bl.attribute();
+    let [x, y, z] = [0, 1, 2].map(|k| bl.component(p, k).unwrap());
+    let zxy = bl.combine3(z, x, y).unwrap();
+    let v = if let Some(range) = kind.strip_prefix("CLAMP_") {
+        blender_color::clamp(&mut bl, range == "RANGE", f, x, y).unwrap()
+    } else if let Some(rest) = kind.strip_prefix("LEGACY_") {
+        let (blend, clamped) = match rest.strip_suffix("_CLAMPED") {
+            Some(b) => (b, true),
+            None => (rest, false),
+        };
+        let t = blender_color::saturate(&mut bl, f).unwrap();
+        let v = blender_color::mix_color(&mut bl, blend, t, p, zxy)
+            .unwrap()
+            .expect("compiled");
+        match clamped {
+            true => blender_color::saturate(&mut bl, v).unwrap(),
+            false => v,
+        }
+    } else {
+        let unclamped = kind.ends_with("_UNCLAMPED");
+        let base = kind
+            .trim_end_matches("_UNCLAMPED")
+            .trim_end_matches("_CLAMPED");
+        let t = match base {
+            "VECTOR_NON_UNIFORM" => bl.combine3(f, z, x).unwrap(),
+            _ => f,
+        };
+        let t = match unclamped {
+            true => t,
+            false => blender_color::saturate(&mut bl, t).unwrap(),
+        };
+        match base {
+            "FLOAT" => blender_color::mix_linear(&mut bl, t, x, y).unwrap(),
+            "VECTOR" | "VECTOR_NON_UNIFORM" => {
+                blender_color::mix_linear(&mut bl, t, p, zxy).unwrap()
+            }
+            blend => {
+                let v = blender_color::mix_color(&mut bl, blend, t, p, zxy)
+                    .unwrap()
+                    .expect("compiled");
+                match kind.ends_with("_CLAMPED") {
+                    true => blender_color::saturate(&mut bl, v).unwrap(),
+                    false => v,
+                }
+            }
+        }
+    };
+    let v = match component {
+        Some(k) if v.width() == 3 => bl.component(v, k).unwrap(),
+        _ => v,
+    };
+    match v.width() {
+        1 => bl.finish(v).unwrap(),
+        _ => bl.finish_rgb(v).unwrap(),
+    }
+}
+
+/// Every compiled kind of Blender's Mix, MixRGB and Clamp against Geometry Nodes at
+/// 20,000 points (tests/fixtures/blender_mix_values.py: inputs uniform in
+/// [-0.25, 1.25), one in ten snapped to 0, 0.5 or 1, the edges of the branches), and
+/// each kind's range analysis bounds it.
+///
+/// Nimbus computes Cycles' `svm_mix_*` operations in Cycles' order. Geometry Nodes
+/// computes blenlib's `ramp_blend`, which orders some differently (Mix: a(1 − t) + bt
+/// against Cycles' a + t(b − a)): each is a handful of roundings of values below 4 in
+/// magnitude, so the two differ by a few ulps of the operands. The allowed error,
+/// |ours − Blender's| / max(1, |Blender's|), is `MIX_ROUNDING` = 8 ulps of 1; a
+/// division (Divide, Dodge, Burn) scales its operands' errors by the quotient, which the
+/// relative measure covers above 1.
+const MIX_ROUNDING: f64 = 8.0 * f32::EPSILON as f64;
+
+#[test]
+fn mix_nodes_match_blender() {
+    let Some(python) = common::data::bpy_python("bpy, numpy") else {
+        return;
+    };
+    let kinds = mix_kinds();
+    let names: Vec<&str> = kinds.iter().map(String::as_str).collect();
+    let dir = run_fixture(python, "blender_mix_values.py", &names);
+    let mut failed = Vec::new();
+    for kind in &kinds {
+        let prog = mix_program(kind, None);
+        let (mut equal, mut worst) = (0, 0f64);
+        for r in read_rows::<7>(dir.path(), kind) {
+            let (p, f) = ([r[0], r[1], r[2]], r[3]);
+            let ours = match prog.outputs_rgb() {
+                true => prog.eval_rgb(p, f),
+                false => [prog.eval(p, f), 0.0, 0.0],
+            };
+            let reference = [r[4], r[5], r[6]];
+            if (0..3)
+                .all(|k| ours[k].to_bits() == reference[k].to_bits() || ours[k] == reference[k])
+            {
+                equal += 1;
+                continue;
+            }
+            for k in 0..3 {
+                let e = (ours[k] as f64 - reference[k] as f64).abs()
+                    / (reference[k].abs() as f64).max(1.0);
+                worst = worst.max(if e.is_nan() { f64::INFINITY } else { e });
+            }
+        }
+        println!("{kind:<22} {equal}/{N} equal to the bit; worst error {worst:.2e} (allowed {MIX_ROUNDING:.1e})");
+        if worst > MIX_ROUNDING {
+            failed.push(kind.clone());
+        }
+    }
+    assert!(failed.is_empty(), "{failed:?}");
+
+    // The range analysis, every component inside its bounds.
+    let mut uniform = xorshift(0x9e37_79b9_7f4a_7c15);
+    for kind in &kinds {
+        let width = if mix_program(kind, None).outputs_rgb() {
+            3
+        } else {
+            1
+        };
+        for k in 0..width {
+            let prog = mix_program(kind, Some(k));
+            assert_bounds_hold_with_factor(&format!("{kind} component {k}"), &prog, &mut uniform);
+        }
+    }
+}
+
+/// Asserts that `prog`'s range analysis bounds it, its attribute a factor: 500 boxes of
+/// the position in [-0.25, 1.25)^3 and of the attribute, wide and narrow, 40 uniform
+/// points in each inside the box's bounds.
+fn assert_bounds_hold_with_factor(
+    name: &str,
+    prog: &Program,
+    uniform: &mut impl FnMut(f32, f32) -> f32,
+) {
+    for b in 0..500 {
+        let w = if b % 2 == 0 { 1.0 } else { 0.05 };
+        let mut lo = [0f32; 4];
+        let mut hi = [0f32; 4];
+        for d in 0..4 {
+            let (x, y) = (uniform(-0.25, 1.25), uniform(-0.25, 1.25));
+            lo[d] = x.min(x + w * (y - x));
+            hi[d] = x.max(x + w * (y - x));
+        }
+        let bound = prog.bounds(
+            [lo[0], lo[1], lo[2]],
+            [hi[0], hi[1], hi[2]],
+            Interval {
+                lo: lo[3],
+                hi: hi[3],
+            },
+        );
+        for _ in 0..40 {
+            let q: [f32; 4] = std::array::from_fn(|d| uniform(lo[d], hi[d]).clamp(lo[d], hi[d]));
+            let v = prog.eval([q[0], q[1], q[2]], q[3]);
+            assert!(
+                v >= bound.lo && v <= bound.hi,
+                "{name}: {v} at {q:?} outside [{}, {}]",
+                bound.lo,
+                bound.hi
+            );
+        }
+    }
+}
+
+/// The Float Curves of tests/fixtures/blender_float_curve_values.py: (name, its points
+/// when its segments are straight, for the extrapolation's error bound below).
+const FLOAT_CURVES: [(&str, &[(f64, f64)]); 4] = [
+    (
+        "POLYLINE",
+        &[(0.0, 0.0), (0.25, 0.75), (0.5, 0.25), (1.0, 1.0)],
+    ),
+    ("SMOOTH", &[]),
+    ("SMOOTH_HORIZONTAL", &[]),
+    ("NARROW", &[(0.2, 0.1), (0.7, 0.9)]),
+];
+
+/// The straight-segment curve through `points` at `x` (its end segments continued).
+fn polyline(points: &[(f64, f64)], x: f64) -> f64 {
+    let k = points
+        .windows(2)
+        .position(|w| x <= w[1].0)
+        .unwrap_or(points.len() - 2);
+    let ((x0, y0), (x1, y1)) = (points[k], points[k + 1]);
+    y0 + (x - x0) * (y1 - y0) / (x1 - x0)
+}
+
+/// Blender's Float Curve against Geometry Nodes at 20,000 points (Value and Factor
+/// uniform in [-0.25, 1.25): the curve is read inside its points' x range, clamped or
+/// extrapolated beyond it, and the factor is not clamped), with the table the add-on
+/// writes (`float_curve`: Cycles' `svm_node_curve`).
+///
+/// Inside the points' range Cycles reads its table of the curve at i/256 of the range,
+/// and Geometry Nodes Blender's own table of the same curve at the same x when the
+/// range is [0, 1]: equal up to `MIX_ROUNDING`. Beyond it Cycles continues the table's
+/// last chord, Blender the end point's handle: the same line for straight end
+/// segments (POLYLINE, NARROW), up to the table entries' own error ε (their largest
+/// difference from the exact polyline) amplified by the extrapolation, ε + 2ε·d·256
+/// at a distance d beyond the range in range units, plus rounding; for a smooth curve
+/// a different line by design (Nimbus follows Cycles), so SMOOTH's extrapolated rows
+/// are counted, not compared. With a horizontal extension both clamp. Each curve's
+/// range analysis bounds it (20,000 points in 500 boxes of Value and Factor).
+#[test]
+fn float_curves_match_blender() {
+    let Some(python) = common::data::bpy_python("bpy, numpy") else {
+        return;
+    };
+    let names: Vec<&str> = FLOAT_CURVES.iter().map(|(n, _)| *n).collect();
+    let dir = run_fixture(python, "blender_float_curve_values.py", &names);
+    let mut uniform = xorshift(0x2545_f491_4f6c_dd1d);
+    let mut failed = Vec::new();
+    for (name, points) in FLOAT_CURVES {
+        let path = dir.path().join(format!("{name}.table.f32"));
+        let raw = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let head: Vec<f32> = raw
+            .chunks_exact(4)
+            .map(|b| f32::from_le_bytes(b.try_into().unwrap()))
+            .collect();
+        let (min, max, extrapolate) = (head[0], head[1], head[2] != 0.0);
+        let table = head[3..].to_vec();
+        assert_eq!(table.len(), 257, "{name}: table entries");
+        let eps = match points.is_empty() {
+            true => 0.0,
+            false => table
+                .iter()
+                .enumerate()
+                .map(|(i, v)| {
+                    let x = min as f64 + i as f64 / 256.0 * (max - min) as f64;
+                    (*v as f64 - polyline(points, x)).abs()
+                })
+                .fold(0.0, f64::max),
+        };
+        let mut bl = Builder::default();
+        let p = bl.position();
+        let value = bl.component(p, 0).unwrap();
+        let fac = bl.attribute();
+        let v = float_curve(&mut bl, table, (min, max), extrapolate, fac, value).unwrap();
+        let prog = bl.finish(v).unwrap();
+        let (mut equal, mut worst, mut beyond, mut skipped) = (0, 0f64, 0, 0);
+        for r in read_rows::<5>(dir.path(), name) {
+            let ours = prog.eval([r[0], r[1], r[2]], r[3]);
+            let d = ((min as f64 - r[0] as f64).max(r[0] as f64 - max as f64) / (max - min) as f64)
+                .max(0.0);
+            if d > 0.0 {
+                beyond += 1;
+                if extrapolate && points.is_empty() {
+                    skipped += 1;
+                    continue;
+                }
+            }
+            if ours.to_bits() == r[4].to_bits() || ours == r[4] {
+                equal += 1;
+                continue;
+            }
+            let scale = (r[4].abs() as f64).max(1.0);
+            let allowed = MIX_ROUNDING
+                + match extrapolate && d > 0.0 {
+                    true => (eps + 2.0 * eps * d * 256.0) * r[3].abs() as f64 / scale,
+                    false => 0.0,
+                };
+            let e = (ours as f64 - r[4] as f64).abs() / scale;
+            worst = worst.max(if e.is_nan() {
+                f64::INFINITY
+            } else {
+                e / allowed
+            });
+        }
+        assert_bounds_hold_with_factor(name, &prog, &mut uniform);
+        println!(
+            "{name:<18} {equal}/{N} equal to the bit; {beyond} beyond the points ({skipped} not compared); table error {eps:.1e}; worst error / allowed {worst:.3}"
+        );
+        if worst > 1.0 {
+            failed.push(name);
+        }
+    }
+    assert!(failed.is_empty(), "{failed:?}");
 }

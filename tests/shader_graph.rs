@@ -1622,3 +1622,244 @@ fn every_noise_type_is_read_and_bounded_by_its_majorants() {
         );
     }
 }
+
+/// A fog cube whose density is a tree of the colour-mixing nodes of stop 65 as the
+/// add-on writes them: Mix (Color, `blend`, factor 0.7) of the Object coordinates and
+/// their Invert Color, through RGB to BW, Clamp (Range, Min 1.2 > Max 0.8) × 2. The
+/// Clamp's Value is `clamp_value` (a connection).
+fn blender_mix_stage(dir: &Path, blend: &str, clamp_value: &str) -> PathBuf {
+    let body = format!(
+        r#"def Scope "Graphs"
+{{
+    def Shader "coords"
+    {{
+        uniform token info:id = "ShaderNodeTexCoord"
+    }}
+    def Shader "invert"
+    {{
+        uniform token info:id = "ShaderNodeInvert"
+        float inputs:Fac = 1
+        float3 inputs:Color.connect = </Graphs/coords.outputs:Object>
+    }}
+    def Shader "mix"
+    {{
+        uniform token info:id = "ShaderNodeMix"
+        uniform token inputs:data_type = "RGBA"
+        uniform token inputs:factor_mode = "UNIFORM"
+        uniform token inputs:blend_type = "{blend}"
+        float inputs:clamp_factor = 1
+        float inputs:clamp_result = 0
+        float inputs:Factor_Float = 0.7
+        float3 inputs:A_Color.connect = </Graphs/coords.outputs:Object>
+        float3 inputs:B_Color.connect = </Graphs/invert.outputs:Color>
+    }}
+    def Shader "bw"
+    {{
+        uniform token info:id = "ShaderNodeRGBToBW"
+        float3 inputs:Color.connect = </Graphs/mix.outputs:Result_Color>
+    }}
+    def Shader "info"
+    {{
+        uniform token info:id = "ShaderNodeVolumeInfo"
+    }}
+    def Shader "clamp"
+    {{
+        uniform token info:id = "ShaderNodeClamp"
+        uniform token inputs:clamp_type = "RANGE"
+        float inputs:Value.connect = <{clamp_value}>
+        float inputs:Min = 1.2
+        float inputs:Max = 0.8
+    }}
+    def Shader "times"
+    {{
+        uniform token info:id = "ShaderNodeMath"
+        uniform token inputs:operation = "MULTIPLY"
+        float inputs:Value.connect = </Graphs/clamp.outputs:Result>
+        float inputs:Value_001 = 2
+    }}
+}}
+def Cube "Box" (
+    prepend apiSchemas = ["NimbusVolumeAPI"]
+)
+{{
+    double size = 2
+    float nimbus:densityScale.connect = </Graphs/times.outputs:Value>
+    color3f nimbus:scattering = (0.9, 0.9, 0.9)
+    color3f nimbus:absorption = (0.1, 0.1, 0.1)
+}}
+"#
+    );
+    stage(dir, &format!("blender_mix_{blend}.usda"), &body)
+}
+
+/// The density of [`blender_mix_stage`] with Screen, written out: with a = p and b =
+/// 1 − p, Screen is 1 − (0.3 + 0.7(1 − b))(1 − a) = 1 − (0.3 + 0.7p)(1 − p) per
+/// channel (0.64 .. 1.71), then Rec. 709 luminance, clamped into [0.8, 1.2], × 2.
+fn blender_screen_density(p: DVec3) -> f64 {
+    let s = |x: f64| 1.0 - (0.3 + 0.7 * x) * (1.0 - x);
+    let bw = 0.2126729 * s(p.x) + 0.7151522 * s(p.y) + 0.072175 * s(p.z);
+    bw.clamp(0.8, 1.2) * 2.0
+}
+
+/// The reader compiles Mix (Color), Invert Color and Clamp (stop 65) into the fog's
+/// density: 10^6 points of the cube against the function written out (within 1e-5:
+/// float rounding of values below 2) and inside their octree cell's bounds. A blend
+/// type that goes through HSV, and Volume Info's Color (a colour grid), are refused
+/// naming the node, and nothing is written.
+#[test]
+fn blender_mix_invert_and_clamp_nodes_are_the_fog_density() {
+    let dir = tempfile::tempdir().unwrap();
+    let screen = blender_mix_stage(dir.path(), "SCREEN", "/Graphs/bw.outputs:Val");
+    let scene = load_stage(&screen, &LoadOptions::default()).unwrap();
+    let media = media_for_scene_with(&scene, MajorantSpec::Octree { depth: 6 }).unwrap();
+    let m = &media[0];
+    assert!(m.shader.is_some());
+    let mut c = Counters::default();
+    let mut state = 5u64;
+    let mut next = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let (mut worst, mut lo, mut hi) = (0f64, f64::MAX, 0f64);
+    for _ in 0..1_000_000 {
+        let p = DVec3::new(next(), next(), next()) * 1.9 - DVec3::splat(0.95);
+        let i = m.index_ray(p, DVec3::X).o;
+        let d = m.density(i, &mut c) as f64;
+        worst = worst.max((d - blender_screen_density(p)).abs());
+        (lo, hi) = (lo.min(d), hi.max(d));
+        let cell = m.majorants.leaf_at(i).expect("inside the cube");
+        let (mn, mx) = m.majorants.leaf_bounds(cell).unwrap();
+        assert!(
+            d as f32 <= mx && d as f32 >= mn,
+            "density {d} outside [{mn}, {mx}] at {p}"
+        );
+    }
+    eprintln!(
+        "mix, invert, clamp: worst |density - written out| {worst:e}, densities {lo} .. {hi}"
+    );
+    assert!(worst < 1e-5, "worst difference {worst}");
+    assert!(
+        (lo - 1.6).abs() < 1e-6 && (hi - 2.4).abs() < 1e-6,
+        "both clamp edges reached: {lo} .. {hi}"
+    );
+
+    for (stage, node, what) in [
+        (
+            blender_mix_stage(dir.path(), "HUE", "/Graphs/bw.outputs:Val"),
+            "/Graphs/mix",
+            "HUE",
+        ),
+        (
+            blender_mix_stage(dir.path(), "MIX", "/Graphs/info.outputs:Color"),
+            "/Graphs/info",
+            "Color",
+        ),
+    ] {
+        let out = dir.path().join("never.exr");
+        let o = nimbus(&[
+            "render",
+            stage.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--res",
+            "8x8",
+            "--spp",
+            "1",
+        ]);
+        assert_clean_error(&o, node);
+        assert!(stderr(&o).contains(what), "{}", stderr(&o));
+        assert!(!out.exists());
+    }
+}
+
+/// A fog cube whose density is a Float Curve (the add-on's form: a table, its points'
+/// x range `min_x` .. `max_x`) of the Object x coordinate.
+fn blender_curve_stage(dir: &Path, min_x: f32, max_x: f32) -> PathBuf {
+    let body = format!(
+        r#"def Scope "Graphs"
+{{
+    def Shader "coords"
+    {{
+        uniform token info:id = "ShaderNodeTexCoord"
+    }}
+    def Shader "x"
+    {{
+        uniform token info:id = "ShaderNodeSeparateXYZ"
+        float3 inputs:Vector.connect = </Graphs/coords.outputs:Object>
+    }}
+    def Shader "curve"
+    {{
+        uniform token info:id = "ShaderNodeFloatCurve"
+        float[] inputs:table = [0.5, 2, 1]
+        float inputs:min_x = {min_x}
+        float inputs:max_x = {max_x}
+        float inputs:extrapolate = 1
+        float inputs:Factor = 1
+        float inputs:Value.connect = </Graphs/x.outputs:X>
+    }}
+}}
+def Cube "Box" (
+    prepend apiSchemas = ["NimbusVolumeAPI"]
+)
+{{
+    double size = 2
+    float nimbus:densityScale.connect = </Graphs/curve.outputs:Value>
+    color3f nimbus:scattering = (0.9, 0.9, 0.9)
+    color3f nimbus:absorption = (0.1, 0.1, 0.1)
+}}
+"#
+    );
+    stage(dir, "blender_curve.usda", &body)
+}
+
+/// A Float Curve as the add-on writes it is the fog's density: the table 0.5, 2, 1
+/// over x in [-0.5, 0.5], extrapolated along its end chords beyond (slopes 3 and −2 per
+/// unit x, so 0 at x = −2/3 and 0 at x = 1), against that function written out at
+/// 10,000 points of the cube; a curve whose points span no x range is refused naming
+/// the node.
+#[test]
+fn a_blender_float_curve_is_the_fog_density() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = load_stage(
+        &blender_curve_stage(dir.path(), -0.5, 0.5),
+        &LoadOptions::default(),
+    )
+    .unwrap();
+    let media = media_for_scene_with(&scene, MajorantSpec::Octree { depth: 6 }).unwrap();
+    let m = &media[0];
+    let mut c = Counters::default();
+    let written_out = |x: f64| {
+        let y = if x < 0.0 {
+            2.0 + 3.0 * x
+        } else {
+            2.0 - 2.0 * x
+        };
+        y.max(0.0)
+    };
+    let mut worst = 0f64;
+    for k in 0..10_000 {
+        let x = -0.95 + 1.9 * (k as f64 + 0.5) / 10_000.0;
+        let p = DVec3::new(x, 0.3, -0.2);
+        let d = m.density(m.index_ray(p, DVec3::X).o, &mut c) as f64;
+        worst = worst.max((d - written_out(x)).abs());
+    }
+    assert!(worst < 1e-5, "worst difference {worst}");
+
+    let flat = blender_curve_stage(dir.path(), 0.25, 0.25);
+    let out = dir.path().join("never.exr");
+    let o = nimbus(&[
+        "render",
+        flat.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--res",
+        "8x8",
+        "--spp",
+        "1",
+    ]);
+    assert_clean_error(&o, "/Graphs/curve");
+    assert!(stderr(&o).contains("no x range"), "{}", stderr(&o));
+    assert!(!out.exists());
+}

@@ -193,6 +193,13 @@ _GRAPH_NODES = {
     "ShaderNodeSeparateXYZ": (),
     "ShaderNodeAttribute": ("attribute_name",),
     "ShaderNodeValue": (),
+    "ShaderNodeClamp": ("clamp_type",),
+    "ShaderNodeMix": ("data_type", "factor_mode", "blend_type", "clamp_factor",
+                      "clamp_result"),
+    "ShaderNodeMixRGB": ("blend_type", "use_clamp"),
+    "ShaderNodeInvert": (),
+    "ShaderNodeVolumeInfo": (),
+    "ShaderNodeFloatCurve": (),
 }
 # The values of node properties Nimbus compiles where it compiles fewer than Blender
 # offers (src/scene/blender_graph.rs refuses the others): another value is
@@ -225,6 +232,20 @@ _COMPILED = {
     ("ShaderNodeMapRange", "interpolation_type"): {"LINEAR", "STEPPED", "SMOOTHSTEP",
                                                    "SMOOTHERSTEP"},
     ("ShaderNodeMapping", "vector_type"): {"POINT", "TEXTURE", "VECTOR", "NORMAL"},
+    ("ShaderNodeMix", "data_type"): {"FLOAT", "VECTOR", "RGBA"},
+    # Read only where data_type is RGBA (_IRRELEVANT); Hue, Saturation, Color and
+    # Value go through HSV, which is not compiled (src/scene/blender_color.rs).
+    ("ShaderNodeMix", "blend_type"): {
+        "MIX", "DARKEN", "MULTIPLY", "BURN", "LIGHTEN", "SCREEN", "DODGE", "ADD", "OVERLAY",
+        "SOFT_LIGHT", "LINEAR_LIGHT", "DIFFERENCE", "EXCLUSION", "SUBTRACT", "DIVIDE"},
+    ("ShaderNodeMixRGB", "blend_type"): {
+        "MIX", "DARKEN", "MULTIPLY", "BURN", "LIGHTEN", "SCREEN", "DODGE", "ADD", "OVERLAY",
+        "SOFT_LIGHT", "LINEAR_LIGHT", "DIFFERENCE", "EXCLUSION", "SUBTRACT", "DIVIDE"},
+}
+# Properties a node's other settings make irrelevant (Blender keeps their values):
+# (type, property) -> a test of the node that is true where the property is not read.
+_IRRELEVANT = {
+    ("ShaderNodeMix", "blend_type"): lambda node: node.data_type != "RGBA",
 }
 # Texture nodes whose unlinked Vector is Blender's Generated coordinates.
 _TEXTURES = ("ShaderNodeTexNoise", "ShaderNodeTexVoronoi", "ShaderNodeTexGradient")
@@ -271,6 +292,32 @@ _CONSTANT_INPUTS = {
 }
 
 
+def _float_curve_lines(mapping):
+    """A Float Curve as Cycles samples it (curvemapping_float_to_array): the curve at
+    t = min + (i / 256) * (max - min), in float32 as Cycles computes t, with min and max
+    its first and last points' x; and whether it extrapolates."""
+    import numpy as np
+    mapping.initialize()
+    mapping.update()
+    curve = mapping.curves[0]
+    lo = np.float32(curve.points[0].location[0])
+    hi = np.float32(curve.points[len(curve.points) - 1].location[0])
+    span = np.float32(hi - lo)
+    ts = [lo + np.float32(i) / np.float32(_RAMP_TABLE) * span for i in range(_RAMP_TABLE + 1)]
+    table = [mapping.evaluate(curve, float(t)) for t in ts]
+    return ["float[] inputs:table = [{}]".format(", ".join(_f(v) for v in table)),
+            f"float inputs:min_x = {_f(float(lo))}",
+            f"float inputs:max_x = {_f(float(hi))}",
+            f"float inputs:extrapolate = {_f(mapping.extend == 'EXTRAPOLATED')}"]
+
+
+def _check_output(node, socket):
+    """Raises _Untranslatable for an output the reader does not compile: Volume Info's
+    Color (a colour grid; Nimbus' graphs read one float field)."""
+    if node.bl_idname == "ShaderNodeVolumeInfo" and socket.identifier == "Color":
+        raise _Untranslatable(f"node '{node.name}': its Color output (a colour grid)")
+
+
 def _check_inputs(node):
     """Raises _Untranslatable for the input values the reader refuses: a linked input
     it needs constant (_CONSTANT_INPUTS, and a Stepped Map Range's Steps), a Voronoi
@@ -314,7 +361,8 @@ def _graph(socket, obj, owner, folder_prim):
             raise _Untranslatable(f"node '{node.name}' ({kind}) is not one Nimbus compiles")
         for prop in _GRAPH_NODES[kind]:
             allowed = _COMPILED.get((kind, prop))
-            if allowed is not None and getattr(node, prop) not in allowed:
+            irrelevant = _IRRELEVANT.get((kind, prop), lambda _node: False)(node)
+            if allowed is not None and not irrelevant and getattr(node, prop) not in allowed:
                 raise _Untranslatable(
                     f"node '{node.name}': {prop} {getattr(node, prop)} is not one Nimbus "
                     "compiles")
@@ -337,8 +385,13 @@ def _graph(socket, obj, owner, folder_prim):
                 lines.append("float[] inputs:{}_table = [{}]".format(
                     channel, ", ".join(_f(row[k]) for row in rows)))
             lines.append(f"float inputs:interpolate = {_f(ramp.interpolation != 'CONSTANT')}")
+        if kind == "ShaderNodeFloatCurve":
+            lines += _float_curve_lines(node.mapping)
         if kind == "ShaderNodeValue":
             lines.append(f"float inputs:value = {_f(node.outputs[0].default_value)}")
+        if kind == "ShaderNodeVolumeInfo" and obj.type != "VOLUME":
+            raise _Untranslatable(
+                f"node '{node.name}': Volume Info in a fog's density (Cycles reads it as 0)")
         if kind == "ShaderNodeAttribute" and obj.type != "VOLUME":
             raise _Untranslatable(
                 f"node '{node.name}': an Attribute in a fog's density (Cycles reads it as 0)")
@@ -356,6 +409,7 @@ def _graph(socket, obj, owner, folder_prim):
                         raise _Untranslatable(f"reroute '{src.name}' is not linked")
                     link = src.inputs[0].links[0]
                     src = link.from_node
+                _check_output(src, link.from_socket)
                 up = f"{define(src)}.outputs:{_ident(link.from_socket)}"
                 kind_line = "float3" if link.from_socket.type in ("VECTOR", "RGBA") else "float"
                 if link.from_socket.type == "RGBA" and sock.type == "VALUE":
@@ -405,6 +459,7 @@ def _graph(socket, obj, owner, folder_prim):
         src, out = link.from_node, link.from_socket
     if out.type not in ("VALUE", "RGBA", "VECTOR"):
         raise _Untranslatable(f"output '{out.name}' of node '{src.name}'")
+    _check_output(src, out)
     output = f"{define(src)}.outputs:{_ident(out)}"
     if out.type == "RGBA" and socket.type == "VALUE":
         output = to_bw(output)

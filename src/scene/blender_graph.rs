@@ -18,6 +18,7 @@
 //! [`NODES`] lists what is compiled; any other node is an error naming it.
 
 use super::attrs::{prim_error_str, SceneError};
+use super::blender_color::{clamp, invert, mix_color, mix_linear, saturate, select};
 use super::materialx_graph::{colour, number, usd_network};
 use super::shader_network::{Input, ParamValue, ShaderNetwork, ShaderNode};
 use crate::shader::graph::{Binary, Builder, GraphError, Program, Unary, Value as Reg};
@@ -42,6 +43,12 @@ pub const NODES: &[&str] = &[
     "ShaderNodeSeparateXYZ",
     "ShaderNodeAttribute",
     "ShaderNodeValue",
+    "ShaderNodeClamp",
+    "ShaderNodeMix",
+    "ShaderNodeMixRGB",
+    "ShaderNodeInvert",
+    "ShaderNodeVolumeInfo",
+    "ShaderNodeFloatCurve",
 ];
 
 /// A density graph read from Blender nodes.
@@ -402,6 +409,54 @@ pub fn mapping(
         }
         _ => return Ok(None),
     }))
+}
+
+/// Blender's Float Curve as Cycles evaluates it (`svm_node_curve`): the curve sampled
+/// into `table` at min + (i / (n − 1))·(max − min) (the add-on evaluates Blender's own
+/// curve there, as Cycles' `curvemapping_float_to_array` does), read at (value − min) /
+/// (max − min) linearly between entries, clamped into the table or, with
+/// `extrapolate`, continued along its first or last segment; then (1 − fac)·value +
+/// fac·curve. The extrapolated branches are chosen by [`select`], exact where they
+/// are finite (the reader refuses a curve with no x range, where they are not).
+pub fn float_curve(
+    bl: &mut Builder,
+    table: Vec<f32>,
+    (min, max): (f32, f32),
+    extrapolate: bool,
+    fac: Reg,
+    value: Reg,
+) -> Result<Reg, GraphError> {
+    let n = table.len();
+    let ends = (n >= 2).then(|| (table[0], table[1], table[n - 1], table[n - 2]));
+    let lo = bl.constant(min)?;
+    let range = bl.constant(max - min)?;
+    let rel = bl.binary(Binary::Sub, value, lo)?;
+    let rel = bl.binary(Binary::Div, rel, range)?;
+    let mut v = bl.ramp(rel, table, true)?;
+    if let (true, Some((first, second, last, before))) = (extrapolate, ends) {
+        let steps = bl.constant((n - 1) as f32)?;
+        let one = bl.constant(1.0)?;
+        let zero = bl.constant(0.0)?;
+        // Below 0: first + (first − second)·(−rel)·(n − 1).
+        let below = bl.unary(Unary::Neg, rel)?;
+        let dy = bl.constant(first - second)?;
+        let below = bl.binary(Binary::Mul, dy, below)?;
+        let below = bl.binary(Binary::Mul, below, steps)?;
+        let t0 = bl.constant(first)?;
+        let below = bl.binary(Binary::Add, t0, below)?;
+        // Above 1: last + (last − before)·(rel − 1)·(n − 1).
+        let above = bl.binary(Binary::Sub, rel, one)?;
+        let dy = bl.constant(last - before)?;
+        let above = bl.binary(Binary::Mul, dy, above)?;
+        let above = bl.binary(Binary::Mul, above, steps)?;
+        let t1 = bl.constant(last)?;
+        let above = bl.binary(Binary::Add, t1, above)?;
+        let z = bl.binary(Binary::Greater, rel, one)?;
+        v = select(bl, z, above, v)?;
+        let z = bl.binary(Binary::Less, rel, zero)?;
+        v = select(bl, z, below, v)?;
+    }
+    bl.mix(value, v, fac)
 }
 
 /// Blender's Map Range on floats with interpolation `kind` (its identifier) of `x` from
@@ -765,6 +820,84 @@ impl<'a> Reader<'a> {
             .map_err(Self::graph_error(&node.path))
     }
 
+    /// The register of the volume's field `name` (an Attribute or Volume Info node):
+    /// one field per graph.
+    fn field(&mut self, node: &ShaderNode, name: String) -> Result<Reg, SceneError> {
+        match &self.attribute {
+            Some(a) if *a != name => {
+                return Err(prim_error_str(
+                    &node.path,
+                    format!("reads `{name}` where the graph already reads `{a}`; Nimbus reads one field per density graph"),
+                ))
+            }
+            _ => self.attribute = Some(name),
+        }
+        Ok(self.builder.attribute())
+    }
+
+    /// Blender's Mix node (3.4 and later) of floats, vectors or colours
+    /// (`data_type`); its output is named by the type (`Result_Float`…).
+    fn mix(&mut self, node: &ShaderNode, output: &str) -> Result<Reg, SceneError> {
+        let at = node.path.clone();
+        let err = Self::graph_error(&at);
+        let ty = Self::text(node, "data_type", "FLOAT")?;
+        let expected = match ty.as_str() {
+            "FLOAT" => "Result_Float",
+            "VECTOR" => "Result_Vector",
+            "RGBA" => "Result_Color",
+            _ => return Err(Self::refuse(node, "data_type", &ty)),
+        };
+        if output != expected {
+            return Err(prim_error_str(
+                &node.path,
+                format!(
+                    "{}: output `{output}` is not compiled (a {ty} Mix gives {expected})",
+                    node.id
+                ),
+            ));
+        }
+        let clamp_factor = self.constant(node, "clamp_factor", 1.0)? != 0.0;
+        let non_uniform =
+            ty == "VECTOR" && Self::text(node, "factor_mode", "UNIFORM")? == "NON_UNIFORM";
+        let t = match non_uniform {
+            true => self.vector(node, "Factor_Vector", Some([0.5; 3]))?,
+            false => self.float(node, "Factor_Float", 0.5)?,
+        };
+        let (a, b) = match ty.as_str() {
+            "FLOAT" => (
+                self.float(node, "A_Float", 0.0)?,
+                self.float(node, "B_Float", 0.0)?,
+            ),
+            "VECTOR" => (
+                self.vector(node, "A_Vector", Some([0.0; 3]))?,
+                self.vector(node, "B_Vector", Some([0.0; 3]))?,
+            ),
+            _ => (
+                self.vector(node, "A_Color", Some([0.5; 3]))?,
+                self.vector(node, "B_Color", Some([0.5; 3]))?,
+            ),
+        };
+        self.builder.node(&at);
+        let bl = &mut self.builder;
+        let t = match clamp_factor {
+            true => saturate(bl, t).map_err(&err)?,
+            false => t,
+        };
+        if ty != "RGBA" {
+            return mix_linear(bl, t, a, b).map_err(&err);
+        }
+        let blend = Self::text(node, "blend_type", "MIX")?;
+        let clamp_result = self.constant(node, "clamp_result", 0.0)? != 0.0;
+        let bl = &mut self.builder;
+        let v = mix_color(bl, &blend, t, a, b)
+            .map_err(&err)?
+            .ok_or_else(|| Self::refuse(node, "blend_type", &blend))?;
+        match clamp_result {
+            true => saturate(bl, v).map_err(&err),
+            false => Ok(v),
+        }
+    }
+
     fn refuse(node: &ShaderNode, what: &str, value: &str) -> SceneError {
         prim_error_str(
             &node.path,
@@ -1117,16 +1250,90 @@ impl<'a> Reader<'a> {
                     return Err(wrong_output());
                 }
                 let name = Self::text(node, "attribute_name", "")?;
-                match &self.attribute {
-                    Some(a) if *a != name => {
-                        return Err(prim_error_str(
-                            &node.path,
-                            format!("reads `{name}` where the graph already reads `{a}`; Nimbus reads one field per density graph"),
-                        ))
-                    }
-                    _ => self.attribute = Some(name),
+                self.field(node, name)?
+            }
+            // Volume Info reads the grids Blender names density, flame and temperature
+            // (Cycles: the attributes of those names), as Attribute nodes would.
+            "ShaderNodeVolumeInfo" => match output {
+                "Density" | "Flame" | "Temperature" => self.field(node, output.to_lowercase())?,
+                _ => return Err(wrong_output()),
+            },
+            "ShaderNodeClamp" => {
+                if output != "Result" {
+                    return Err(wrong_output());
                 }
-                self.builder.attribute()
+                let kind = Self::text(node, "clamp_type", "MINMAX")?;
+                let range = match kind.as_str() {
+                    "MINMAX" => false,
+                    "RANGE" => true,
+                    _ => return Err(Self::refuse(node, "clamp_type", &kind)),
+                };
+                let x = self.float(node, "Value", 1.0)?;
+                let lo = self.float(node, "Min", 0.0)?;
+                let hi = self.float(node, "Max", 1.0)?;
+                self.builder.node(&at);
+                clamp(&mut self.builder, range, x, lo, hi).map_err(&err)?
+            }
+            "ShaderNodeMix" => self.mix(node, output)?,
+            // The Mix node before Blender 3.4: its factor always clamped, its result
+            // clamped with use_clamp (Cycles' MixNode).
+            "ShaderNodeMixRGB" => {
+                if output != "Color" {
+                    return Err(wrong_output());
+                }
+                let blend = Self::text(node, "blend_type", "MIX")?;
+                let clamp_result = self.constant(node, "use_clamp", 0.0)? != 0.0;
+                let t = self.float(node, "Fac", 0.5)?;
+                let a = self.vector(node, "Color1", Some([0.5; 3]))?;
+                let b = self.vector(node, "Color2", Some([0.5; 3]))?;
+                self.builder.node(&at);
+                let bl = &mut self.builder;
+                let t = saturate(bl, t).map_err(&err)?;
+                let v = mix_color(bl, &blend, t, a, b)
+                    .map_err(&err)?
+                    .ok_or_else(|| Self::refuse(node, "blend_type", &blend))?;
+                match clamp_result {
+                    true => saturate(bl, v).map_err(&err)?,
+                    false => v,
+                }
+            }
+            // The add-on writes the curve as Cycles samples it: `table` (257 entries),
+            // `min_x` and `max_x` (its first and last points' x) and `extrapolate`.
+            "ShaderNodeFloatCurve" => {
+                if output != "Value" {
+                    return Err(wrong_output());
+                }
+                let table = Self::table(node, "table")?;
+                let min = self.constant(node, "min_x", 0.0)? as f32;
+                let max = self.constant(node, "max_x", 1.0)? as f32;
+                if !(max - min > 0.0 && (max - min).is_finite()) {
+                    return Err(prim_error_str(
+                        &node.path,
+                        format!("the curve's points span no x range ({min} .. {max})"),
+                    ));
+                }
+                let extrapolate = self.constant(node, "extrapolate", 1.0)? != 0.0;
+                let fac = self.float(node, "Factor", 1.0)?;
+                let value = self.float(node, "Value", 1.0)?;
+                self.builder.node(&at);
+                float_curve(
+                    &mut self.builder,
+                    table,
+                    (min, max),
+                    extrapolate,
+                    fac,
+                    value,
+                )
+                .map_err(&err)?
+            }
+            "ShaderNodeInvert" => {
+                if output != "Color" {
+                    return Err(wrong_output());
+                }
+                let fac = self.float(node, "Fac", 1.0)?;
+                let c = self.vector(node, "Color", Some([0.0; 3]))?;
+                self.builder.node(&at);
+                invert(&mut self.builder, fac, c).map_err(&err)?
             }
             "ShaderNodeValue" => {
                 if output != "Value" {

@@ -8,6 +8,7 @@
 //! [`schema`].
 
 mod attrs;
+pub mod blender_color;
 pub mod blender_graph;
 mod camera;
 pub mod defaults;
