@@ -1,5 +1,6 @@
-//! Blender's Voronoi Texture (3D, Detail 0; F1 Euclidean, and since stop 64 F2, Smooth
-//! F1, Distance to Edge, N-Sphere Radius and the other metrics) against Blender 5.0.1:
+//! Blender's Voronoi Texture (3D; F1 Euclidean, and since stop 64 F2, Smooth
+//! F1, Distance to Edge, N-Sphere Radius and the other metrics; since stop 65 with
+//! Detail) against Blender 5.0.1:
 //! `tests/fixtures/blender_voronoi_values.py` has Geometry Nodes evaluate the node at
 //! random points (stored in point attributes, read back with foreach_get) and
 //! `nimbus::shader::voronoi` must give the same Distance, Color and Position.
@@ -43,6 +44,12 @@ fn cases() -> Vec<Case> {
         ..n
     };
     let metric = |metric, n: VoronoiTexture| VoronoiTexture { metric, ..n };
+    let octaves = |detail, roughness, lacunarity, n: VoronoiTexture| VoronoiTexture {
+        detail,
+        roughness,
+        lacunarity,
+        ..n
+    };
     let case = |name, points, seed, node| Case {
         name,
         points,
@@ -128,6 +135,57 @@ fn cases() -> Vec<Case> {
             19,
             metric(Manhattan, with(SmoothF1, 0.8, node(3.0, 1.0, false))),
         ),
+        // Stop 65: Detail above 0 (fractal Voronoi), a fractional Detail blending in a
+        // partial octave.
+        case(
+            "f1_detail_2",
+            "box",
+            20,
+            octaves(2.0, 0.5, 2.0, node(2.0, 1.0, false)),
+        ),
+        case(
+            "f1_detail_2_5_normalize",
+            "box",
+            21,
+            octaves(2.5, 0.6, 2.3, node(1.5, 0.8, true)),
+        ),
+        case(
+            "f2_detail_1_5_chebychev",
+            "negative",
+            22,
+            metric(
+                Chebychev,
+                octaves(1.5, 0.7, 1.8, with(F2, 1.0, node(1.2, 1.0, false))),
+            ),
+        ),
+        case(
+            "smooth_f1_detail_1",
+            "box",
+            23,
+            octaves(1.0, 0.5, 2.0, with(SmoothF1, 0.6, node(2.0, 1.0, false))),
+        ),
+        case(
+            "distance_to_edge_detail_3_normalize",
+            "box",
+            24,
+            octaves(
+                3.0,
+                0.5,
+                2.0,
+                with(DistanceToEdge, 1.0, node(2.0, 1.0, true)),
+            ),
+        ),
+        case(
+            "distance_to_edge_detail_1_5",
+            "negative",
+            25,
+            octaves(
+                1.5,
+                0.8,
+                2.5,
+                with(DistanceToEdge, 1.0, node(1.1, 0.9, false)),
+            ),
+        ),
     ]
 }
 
@@ -160,7 +218,8 @@ fn cases_json(cases: &[Case]) -> String {
                 "{{\"name\": \"{}\", \"points\": \"{}\", \"seed\": {}, \"n\": {N}, \
                  \"scale\": {:?}, \"randomness\": {:?}, \"normalize\": {}, \
                  \"feature\": \"{}\", \"smoothness\": {:?}, \"distance\": \"{}\", \
-                 \"exponent\": {:?}}}",
+                 \"exponent\": {:?}, \"detail\": {:?}, \"roughness\": {:?}, \
+                 \"lacunarity\": {:?}}}",
                 c.name,
                 c.points,
                 c.seed,
@@ -170,7 +229,10 @@ fn cases_json(cases: &[Case]) -> String {
                 feature_name(c.node.feature),
                 c.node.smoothness,
                 metric_name(c.node.metric).0,
-                metric_name(c.node.metric).1
+                metric_name(c.node.metric).1,
+                c.node.detail,
+                c.node.roughness,
+                c.node.lacunarity
             )
         })
         .collect();
@@ -224,7 +286,7 @@ fn voronoi_f1_matches_blender() {
                 // The fixture writes Radius in Distance's column.
                 v.distance = v.radius;
             }
-            if case.node.feature == VoronoiFeature::SmoothF1 {
+            if case.node.feature == VoronoiFeature::SmoothF1 || case.node.is_fractal() {
                 // Smooth F1 blends with Cycles' mix, a + t (b − a), where Geometry Nodes
                 // takes blenlib's a (1 − t) + b t: each step whose h is not 0 rounds
                 // its blend differently, by up to an ulp of operands below 8 (the
@@ -234,11 +296,20 @@ fn voronoi_f1_matches_blender() {
                 // position in the scaled cell units, the distance before Normalize),
                 // allows ten such steps. (With blenlib's form every row was equal to the
                 // bit; measured: Distance 2.6e-7, Color 5.4e-7, Position 1.4e-6.)
+                //
+                // Fractal Voronoi (stop 65) blends the octaves' positions, and a partial
+                // octave's distance and colour, with the same two forms of mix; the
+                // octaves' sums are computed alike. An ulp grows with the position's
+                // magnitude (cell units, up to 48 on the "negative" points), so its
+                // error is measured against max(8, |position|) / 8: the same 1e-5 of
+                // ten ulps of 8.
                 let abs = |a: f32, b: f32| (a as f64 - b as f64).abs();
                 d_rel = d_rel.max(abs(v.distance, r[3]) * norm);
+                let scale = case.node.scale.abs() as f64;
                 for a in 0..3 {
                     c_rel = c_rel.max(abs(v.color[a], r[4 + a]));
-                    p_rel = p_rel.max(abs(v.position[a], r[7 + a]) * case.node.scale.abs() as f64);
+                    let magnitude = (r[7 + a].abs() as f64 * scale / 8.0).max(1.0);
+                    p_rel = p_rel.max(abs(v.position[a], r[7 + a]) * scale / magnitude);
                 }
                 continue;
             }

@@ -287,8 +287,8 @@ def _texture_space(obj):
 _CONSTANT_INPUTS = {
     "ShaderNodeTexNoise": ("Scale", "Detail", "Roughness", "Lacunarity", "Distortion",
                            "Offset", "Gain"),
-    "ShaderNodeTexVoronoi": ("Scale", "Detail", "Roughness", "Randomness", "Smoothness",
-                             "Exponent"),
+    "ShaderNodeTexVoronoi": ("Scale", "Detail", "Roughness", "Lacunarity", "Randomness",
+                             "Smoothness", "Exponent"),
 }
 
 
@@ -320,9 +320,8 @@ def _check_output(node, socket):
 
 def _check_inputs(node):
     """Raises _Untranslatable for the input values the reader refuses: a linked input
-    it needs constant (_CONSTANT_INPUTS, and a Stepped Map Range's Steps), a Voronoi
-    Texture's octaves (Detail and Roughness both above 0; Cycles runs one octave when
-    either is 0) and a Mapping's linked Rotation (a constant one is compiled)."""
+    it needs constant (_CONSTANT_INPUTS, and a Stepped Map Range's Steps) and a
+    Mapping's linked Rotation (a constant one is compiled)."""
     def unlinked_value(name, default):
         # By identifier: a name finds only the sockets the node's type shows. A socket
         # this Blender does not have, or hides, is not written: its default.
@@ -335,12 +334,6 @@ def _check_inputs(node):
         return sock.default_value
     for name in _CONSTANT_INPUTS.get(node.bl_idname, ()):
         unlinked_value(name, None)
-    if node.bl_idname == "ShaderNodeTexVoronoi" and node.feature != "N_SPHERE_RADIUS":
-        detail, roughness = unlinked_value("Detail", 0.0), unlinked_value("Roughness", 0.5)
-        if detail > 0 and roughness > 0:
-            raise _Untranslatable(
-                f"node '{node.name}': Detail {detail:g} (Nimbus compiles one octave: "
-                "Detail 0)")
     if node.bl_idname == "ShaderNodeMapRange" and node.interpolation_type == "STEPPED":
         unlinked_value("Steps", 4.0)
     if node.bl_idname == "ShaderNodeMapping":

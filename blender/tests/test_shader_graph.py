@@ -322,7 +322,7 @@ def test_a_colour_ramp_of_every_mode_against_cycles(addon, tmp_path, mode):
 
 
 def voronoi_material(name="cells", interpolation="LINEAR", feature="F1",
-                     from_range=(0.1, 0.6), metric="EUCLIDEAN"):
+                     from_range=(0.1, 0.6), metric="EUCLIDEAN", detail=0.0):
     """A Voronoi density: Voronoi Texture (3D, `feature`, `metric`, Scale 2.5,
     Randomness 1, its Vector the default Generated coordinates) -> Distance (Radius for
     N-Sphere Radius) -> Map Range (From `from_range`, To 3 .. 0, clamped;
@@ -336,6 +336,9 @@ def voronoi_material(name="cells", interpolation="LINEAR", feature="F1",
     cells.feature = feature
     cells.distance = metric
     cells.inputs["Scale"].default_value = 2.5
+    if detail:
+        cells.inputs["Detail"].default_value = detail
+        cells.inputs["Roughness"].default_value = 0.6
     fade = nt.nodes.new("ShaderNodeMapRange")
     fade.clamp = True
     fade.interpolation_type = interpolation
@@ -422,6 +425,19 @@ def test_a_voronoi_cube_of_each_feature_against_cycles(addon, tmp_path, feature)
                                          from_range=VORONOI_FEATURES[feature]))
     _graph_cube_against_cycles(scene, tmp_path, [f'"{feature}"'],
                                f"voronoi cube, {feature}")
+
+
+@pytest.mark.parametrize("feature", ["F1", "DISTANCE_TO_EDGE"])
+def test_a_fractal_voronoi_cube_against_cycles(addon, tmp_path, feature):
+    """The Voronoi cube with Detail 2.5 and Roughness 0.6 (stop 65: Cycles' fractal
+    Voronoi, within 1e-5 of Geometry Nodes, tests/blender_voronoi.rs; F1's octaves sum,
+    so Map Range From 0.3 .. 1.2), against Cycles 5.0.1 as the one-octave ones."""
+    from_range = (0.3, 1.2) if feature == "F1" else VORONOI_FEATURES[feature]
+    scene = _cube_scene(f"voronoi {feature} detail",
+                        voronoi_material(f"cells {feature} detail", feature=feature,
+                                         from_range=from_range, detail=2.5))
+    _graph_cube_against_cycles(scene, tmp_path, ["inputs:Detail = 2.5"],
+                               f"voronoi cube, {feature}, Detail 2.5")
 
 
 @pytest.mark.parametrize("interpolation", ["STEPPED", "SMOOTHERSTEP"])
@@ -547,9 +563,9 @@ def test_every_property_value_either_compiles_or_warns(addon, nimbus_bin, tmp_pa
     listed there) and translates with no warning, or it is not and the add-on warns
     naming the node. Then `nimbus info` reads the whole stage: a value the add-on
     writes but the reader refuses fails here, not at a user's F12. So do linked
-    constant inputs (a Value node into a Noise Texture's Scale), a Voronoi with Detail
-    2 and a Mapping whose Rotation is linked, which must warn; a Mapping with a constant
-    Rotation translates."""
+    constant inputs (a Value node into a Noise Texture's Scale) and a Mapping whose
+    Rotation is linked, which must warn; a Mapping with a constant Rotation and a
+    Voronoi with Detail 2 (stop 65) translate."""
     from nimbus_blender import translate
 
     _render_settings((32, 32), True)
@@ -607,7 +623,7 @@ def test_every_property_value_either_compiles_or_warns(addon, nimbus_bin, tmp_pa
 
     cube("noise_linked_scale", "ShaderNodeTexNoise", linked_scale, False)
     cube("voronoi_detail_2", "ShaderNodeTexVoronoi",
-         lambda n, _nt: setattr(n.inputs["Detail"], "default_value", 2.0), False)
+         lambda n, _nt: setattr(n.inputs["Detail"], "default_value", 2.0), True)
     cube("mapping_rotated", "ShaderNodeMapping",
          lambda n, _nt: setattr(n.inputs["Rotation"], "default_value", (0.0, 0.0, 0.3)), True)
 

@@ -1025,17 +1025,11 @@ impl<'a> Reader<'a> {
                     }
                     _ => return Err(Self::refuse(node, "distance", &name)),
                 };
-                // Cycles runs one octave when Detail or Roughness is 0 (its clamps
-                // first): only that is compiled. N-Sphere Radius has no octaves.
-                let detail = self.constant(node, "Detail", 0.0)?.clamp(0.0, 15.0);
-                let roughness = self.constant(node, "Roughness", 0.5)?.clamp(0.0, 1.0);
-                if detail != 0.0 && roughness != 0.0 && feature != VoronoiFeature::NSphereRadius {
-                    return Err(Self::refuse(
-                        node,
-                        "Detail (only 0: one octave)",
-                        &detail.to_string(),
-                    ));
-                }
+                // Cycles clamps Detail into [0, 15] and Roughness into [0, 1]; one
+                // octave when either is 0.
+                let detail = self.constant(node, "Detail", 0.0)?.clamp(0.0, 15.0) as f32;
+                let roughness = self.constant(node, "Roughness", 0.5)?.clamp(0.0, 1.0) as f32;
+                let lacunarity = self.constant(node, "Lacunarity", 2.0)? as f32;
                 let texture = VoronoiTexture {
                     scale: self.constant(node, "Scale", 5.0)? as f32,
                     randomness: self.constant(node, "Randomness", 1.0)? as f32,
@@ -1046,6 +1040,9 @@ impl<'a> Reader<'a> {
                         _ => 1.0,
                     },
                     metric,
+                    detail,
+                    roughness,
+                    lacunarity,
                 };
                 let p = self.vector(node, "Vector", None)?;
                 self.builder.node(&at);
