@@ -200,6 +200,9 @@ _GRAPH_NODES = {
     "ShaderNodeInvert": (),
     "ShaderNodeVolumeInfo": (),
     "ShaderNodeFloatCurve": (),
+    "ShaderNodeSeparateColor": ("mode",),
+    "ShaderNodeCombineColor": ("mode",),
+    "ShaderNodeHueSaturation": (),
 }
 # The values of node properties Nimbus compiles where it compiles fewer than Blender
 # offers (src/scene/blender_graph.rs refuses the others): another value is
@@ -207,6 +210,10 @@ _GRAPH_NODES = {
 # writing a stage Nimbus refuses. Every Math and Vector Math operation compiles; they
 # are listed so that one a later Blender adds is caught. blender/tests checks every
 # value Blender offers against the reader.
+_BLEND_TYPES = {
+    "MIX", "DARKEN", "MULTIPLY", "BURN", "LIGHTEN", "SCREEN", "DODGE", "ADD", "OVERLAY",
+    "SOFT_LIGHT", "LINEAR_LIGHT", "DIFFERENCE", "EXCLUSION", "SUBTRACT", "DIVIDE", "HUE",
+    "SATURATION", "COLOR", "VALUE"}
 _COMPILED = {
     ("ShaderNodeMath", "operation"): {
         "ADD", "SUBTRACT", "MULTIPLY", "DIVIDE", "MULTIPLY_ADD", "POWER", "LOGARITHM",
@@ -233,14 +240,12 @@ _COMPILED = {
                                                    "SMOOTHERSTEP"},
     ("ShaderNodeMapping", "vector_type"): {"POINT", "TEXTURE", "VECTOR", "NORMAL"},
     ("ShaderNodeMix", "data_type"): {"FLOAT", "VECTOR", "RGBA"},
-    # Read only where data_type is RGBA (_IRRELEVANT); Hue, Saturation, Color and
-    # Value go through HSV, which is not compiled (src/scene/blender_color.rs).
-    ("ShaderNodeMix", "blend_type"): {
-        "MIX", "DARKEN", "MULTIPLY", "BURN", "LIGHTEN", "SCREEN", "DODGE", "ADD", "OVERLAY",
-        "SOFT_LIGHT", "LINEAR_LIGHT", "DIFFERENCE", "EXCLUSION", "SUBTRACT", "DIVIDE"},
-    ("ShaderNodeMixRGB", "blend_type"): {
-        "MIX", "DARKEN", "MULTIPLY", "BURN", "LIGHTEN", "SCREEN", "DODGE", "ADD", "OVERLAY",
-        "SOFT_LIGHT", "LINEAR_LIGHT", "DIFFERENCE", "EXCLUSION", "SUBTRACT", "DIVIDE"},
+    # Read only where data_type is RGBA (_IRRELEVANT); every blend type compiles
+    # (src/scene/blender_color.rs), listed to catch one a later Blender adds.
+    ("ShaderNodeMix", "blend_type"): _BLEND_TYPES,
+    ("ShaderNodeMixRGB", "blend_type"): _BLEND_TYPES,
+    ("ShaderNodeSeparateColor", "mode"): {"RGB", "HSV", "HSL"},
+    ("ShaderNodeCombineColor", "mode"): {"RGB", "HSV", "HSL"},
 }
 # Properties a node's other settings make irrelevant (Blender keeps their values):
 # (type, property) -> a test of the node that is true where the property is not read.

@@ -754,6 +754,53 @@ def test_a_float_curve_of_noise_cube_against_cycles(addon, tmp_path):
                                "float curve of noise cube")
 
 
+def hsv_material(saturation=1.6):
+    """Density = the saturation (Separate Color, HSV: Green) of a Mix (Color, blend
+    Saturation, factor 0.8) of the Hue/Saturation/Value (Hue 0.35, Saturation
+    `saturation`, Value 1.1, Fac 0.9) of a Noise Texture's Color (Scale 2, Detail 2)
+    with that Color itself, x 6; Color 0.8, Anisotropy 0.3."""
+    m, nt, out = _node_material("hsv")
+    pv = nt.nodes.new("ShaderNodeVolumePrincipled")
+    pv.inputs["Color"].default_value = (0.8, 0.8, 0.8, 1.0)
+    pv.inputs["Anisotropy"].default_value = 0.3
+    noise = nt.nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 2.0
+    hsv = nt.nodes.new("ShaderNodeHueSaturation")
+    for name, value in (("Hue", 0.35), ("Saturation", saturation), ("Value", 1.1),
+                        ("Fac", 0.9)):
+        hsv.inputs[name].default_value = value
+    mix = nt.nodes.new("ShaderNodeMix")
+    mix.data_type = "RGBA"
+    mix.blend_type = "SATURATION"
+    sockets = {s.identifier: s for s in mix.inputs}
+    sockets["Factor_Float"].default_value = 0.8
+    separate = nt.nodes.new("ShaderNodeSeparateColor")
+    separate.mode = "HSV"
+    six = nt.nodes.new("ShaderNodeMath")
+    six.operation = "MULTIPLY"
+    six.inputs[1].default_value = 6.0
+    nt.links.new(noise.outputs["Color"], hsv.inputs["Color"])
+    nt.links.new(hsv.outputs["Color"], sockets["A_Color"])
+    nt.links.new(noise.outputs["Color"], sockets["B_Color"])
+    result = next(o for o in mix.outputs if o.identifier == "Result_Color")
+    nt.links.new(result, separate.inputs["Color"])
+    nt.links.new(separate.outputs["Green"], six.inputs[0])
+    nt.links.new(six.outputs["Value"], pv.inputs["Density"])
+    nt.links.new(pv.outputs["Volume"], out.inputs["Volume"])
+    return m
+
+
+def test_an_hsv_density_cube_against_cycles(addon, tmp_path):
+    """Hue/Saturation/Value, Mix's Saturation blend and Separate Color in HSV (stop 65:
+    Cycles' rgb_to_hsv and hsv_to_rgb; the Mix and the conversions within 16 ulps of
+    Geometry Nodes on [0, 1], tests/blender_math.rs) in a cube's density
+    (hsv_material), against Cycles 5.0.1 as above."""
+    scene = _cube_scene("hsv cube", hsv_material())
+    _graph_cube_against_cycles(scene, tmp_path, ['"ShaderNodeHueSaturation"',
+                                                 '"SATURATION"', '"HSV"'],
+                               "hsv cube")
+
+
 def test_volume_info_density_in_the_smoke_against_cycles(addon, smoke_vdb, tmp_path):
     """Volume Info's Density (stop 65: the grid named density, as an Attribute node
     reads it) in scene (b)'s graph: Density = Volume Info Density x (Noise x 0.5 + 0.5)

@@ -18,7 +18,10 @@
 //! [`NODES`] lists what is compiled; any other node is an error naming it.
 
 use super::attrs::{prim_error_str, SceneError};
-use super::blender_color::{clamp, invert, mix_color, mix_linear, saturate, select};
+use super::blender_color::{
+    clamp, hsl_to_rgb, hsv_to_rgb, hue_saturation_value, invert, mix_color, mix_linear, rgb_to_hsl,
+    rgb_to_hsv, saturate, select,
+};
 use super::materialx_graph::{colour, number, usd_network};
 use super::shader_network::{Input, ParamValue, ShaderNetwork, ShaderNode};
 use crate::shader::graph::{Binary, Builder, GraphError, Program, Unary, Value as Reg};
@@ -49,6 +52,9 @@ pub const NODES: &[&str] = &[
     "ShaderNodeInvert",
     "ShaderNodeVolumeInfo",
     "ShaderNodeFloatCurve",
+    "ShaderNodeSeparateColor",
+    "ShaderNodeCombineColor",
+    "ShaderNodeHueSaturation",
 ];
 
 /// A density graph read from Blender nodes.
@@ -1322,6 +1328,57 @@ impl<'a> Reader<'a> {
                     value,
                 )
                 .map_err(&err)?
+            }
+            // Cycles' svm_separate_color and svm_combine_color: RGB as it is, HSV and
+            // HSL through util/color.h's conversions.
+            "ShaderNodeSeparateColor" => {
+                let k = match output {
+                    "Red" => 0,
+                    "Green" => 1,
+                    "Blue" => 2,
+                    _ => return Err(wrong_output()),
+                };
+                let mode = Self::text(node, "mode", "RGB")?;
+                let c = self.vector(node, "Color", Some([0.8; 3]))?;
+                self.builder.node(&at);
+                let bl = &mut self.builder;
+                let c = match mode.as_str() {
+                    "RGB" => c,
+                    "HSV" => rgb_to_hsv(bl, c).map_err(&err)?,
+                    "HSL" => rgb_to_hsl(bl, c).map_err(&err)?,
+                    _ => return Err(Self::refuse(node, "mode", &mode)),
+                };
+                bl.component(c, k).map_err(&err)?
+            }
+            "ShaderNodeCombineColor" => {
+                if output != "Color" {
+                    return Err(wrong_output());
+                }
+                let mode = Self::text(node, "mode", "RGB")?;
+                let r = self.float(node, "Red", 0.0)?;
+                let g = self.float(node, "Green", 0.0)?;
+                let b = self.float(node, "Blue", 0.0)?;
+                self.builder.node(&at);
+                let bl = &mut self.builder;
+                let c = bl.combine3(r, g, b).map_err(&err)?;
+                match mode.as_str() {
+                    "RGB" => c,
+                    "HSV" => hsv_to_rgb(bl, c).map_err(&err)?,
+                    "HSL" => hsl_to_rgb(bl, c).map_err(&err)?,
+                    _ => return Err(Self::refuse(node, "mode", &mode)),
+                }
+            }
+            "ShaderNodeHueSaturation" => {
+                if output != "Color" {
+                    return Err(wrong_output());
+                }
+                let hue = self.float(node, "Hue", 0.5)?;
+                let sat = self.float(node, "Saturation", 1.0)?;
+                let val = self.float(node, "Value", 1.0)?;
+                let fac = self.float(node, "Fac", 1.0)?;
+                let c = self.vector(node, "Color", Some([0.8; 3]))?;
+                self.builder.node(&at);
+                hue_saturation_value(&mut self.builder, [hue, sat, val, fac], c).map_err(&err)?
             }
             "ShaderNodeInvert" => {
                 if output != "Color" {

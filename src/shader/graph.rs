@@ -27,13 +27,15 @@ use super::voronoi::{VoronoiOutput, VoronoiTexture, VoronoiValues};
 pub type Reg = u16;
 
 /// Registers a program may use. Registers are not reused (each value has its own), so
-/// a Blender tree of a few dozen nodes on vectors can pass 64.
-pub const MAX_REGISTERS: usize = 256;
+/// a Blender tree of a few dozen nodes on vectors can pass 64, and one converting
+/// colours through HSV (a Mix of Hue: two conversions there and one back) 256.
+pub const MAX_REGISTERS: usize = 1024;
 
 /// The register file is a stack array, zeroed per lookup: programs that fit in this many
-/// registers (most) run with the small one (256 bytes), the others with
-/// [`MAX_REGISTERS`].
+/// registers (most) run with the small one (256 bytes), the others with the medium one
+/// (1 KiB) or, past it, [`MAX_REGISTERS`] (4 KiB).
 const SMALL_REGISTERS: usize = 64;
+const MEDIUM_REGISTERS: usize = 256;
 
 /// The position's registers (x, y, z).
 pub const POSITION: Reg = 0;
@@ -770,9 +772,10 @@ impl Program {
     #[inline]
     pub fn eval(&self, position: [f32; 3], attribute: f32) -> f32 {
         let o = self.output as usize;
-        match self.registers <= SMALL_REGISTERS {
-            true => self.run::<SMALL_REGISTERS>(position, attribute)[o],
-            false => self.run::<MAX_REGISTERS>(position, attribute)[o],
+        match self.registers {
+            n if n <= SMALL_REGISTERS => self.run::<SMALL_REGISTERS>(position, attribute)[o],
+            n if n <= MEDIUM_REGISTERS => self.run::<MEDIUM_REGISTERS>(position, attribute)[o],
+            _ => self.run::<MAX_REGISTERS>(position, attribute)[o],
         }
     }
 
@@ -780,12 +783,16 @@ impl Program {
     #[inline]
     pub fn eval_rgb(&self, position: [f32; 3], attribute: f32) -> [f32; 3] {
         let o = self.output as usize;
-        match self.registers <= SMALL_REGISTERS {
-            true => {
+        match self.registers {
+            n if n <= SMALL_REGISTERS => {
                 let r = self.run::<SMALL_REGISTERS>(position, attribute);
                 [r[o], r[o + 1], r[o + 2]]
             }
-            false => {
+            n if n <= MEDIUM_REGISTERS => {
+                let r = self.run::<MEDIUM_REGISTERS>(position, attribute);
+                [r[o], r[o + 1], r[o + 2]]
+            }
+            _ => {
                 let r = self.run::<MAX_REGISTERS>(position, attribute);
                 [r[o], r[o + 1], r[o + 2]]
             }
@@ -1163,11 +1170,11 @@ mod tests {
         b.finish(v)
     }
 
-    /// A program past the small register file runs with the large one, to the same
-    /// values; past [`MAX_REGISTERS`] it is refused.
+    /// A program past the small register file runs with the medium one, and past that
+    /// with the large one, to the same values; past [`MAX_REGISTERS`] it is refused.
     #[test]
     fn programs_of_every_register_count_up_to_the_limit_run() {
-        for n in [10, 29, 30, 31, 100, 125] {
+        for n in [10, 29, 30, 31, 100, 125, 126, 127, 400, 510] {
             let program = chain(n).unwrap();
             for x in [-3.0f32, 0.25, 7.0] {
                 assert_eq!(
@@ -1177,7 +1184,7 @@ mod tests {
                 );
             }
         }
-        assert!(matches!(chain(127), Err(GraphError::TooLarge)));
+        assert!(matches!(chain(511), Err(GraphError::TooLarge)));
     }
 
     fn fbm_graph() -> Program {
