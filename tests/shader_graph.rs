@@ -1623,15 +1623,73 @@ fn every_noise_type_is_read_and_bounded_by_its_majorants() {
     }
 }
 
+/// A stage of the Blender node prims `graphs` (the body of a `Scope "Graphs"`) and a fog
+/// Cube of side 2 whose `nimbus:densityScale` is connected to `/Graphs/<output>`.
+fn fog_graph_stage(dir: &Path, name: &str, graphs: &str, output: &str) -> PathBuf {
+    let body = format!(
+        r#"def Scope "Graphs"
+{{
+{graphs}}}
+def Cube "Box" (
+    prepend apiSchemas = ["NimbusVolumeAPI"]
+)
+{{
+    double size = 2
+    float nimbus:densityScale.connect = </Graphs/{output}>
+    color3f nimbus:scattering = (0.9, 0.9, 0.9)
+    color3f nimbus:absorption = (0.1, 0.1, 0.1)
+}}
+"#
+    );
+    stage(dir, name, &body)
+}
+
+/// The fog of `stage` (octree depth 6) at `n` points uniform in [-0.95, 0.95]³ (an LCG
+/// from `seed`): each density inside its majorant cell's bounds, and the worst
+/// |density − written_out(p)| and the densities' range returned.
+fn sample_graph_fog(
+    stage: &Path,
+    n: usize,
+    seed: u64,
+    written_out: impl Fn(DVec3) -> f64,
+) -> (f64, f64, f64) {
+    let scene = load_stage(stage, &LoadOptions::default()).unwrap();
+    let media = media_for_scene_with(&scene, MajorantSpec::Octree { depth: 6 }).unwrap();
+    let m = &media[0];
+    assert!(m.shader.is_some(), "{}: no graph", stage.display());
+    let mut c = Counters::default();
+    let mut state = seed;
+    let mut next = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let (mut worst, mut lo, mut hi) = (0f64, f64::MAX, f64::MIN);
+    for _ in 0..n {
+        let p = DVec3::new(next(), next(), next()) * 1.9 - DVec3::splat(0.95);
+        let i = m.index_ray(p, DVec3::X).o;
+        let d = m.density(i, &mut c) as f64;
+        worst = worst.max((d - written_out(p)).abs());
+        (lo, hi) = (lo.min(d), hi.max(d));
+        let cell = m.majorants.leaf_at(i).expect("inside the cube");
+        let (mn, mx) = m.majorants.leaf_bounds(cell).unwrap();
+        assert!(
+            d as f32 <= mx && d as f32 >= mn,
+            "{}: density {d} outside [{mn}, {mx}] at {p}",
+            stage.display()
+        );
+    }
+    (worst, lo, hi)
+}
+
 /// A fog cube whose density is a tree of the colour-mixing nodes of stop 65 as the
 /// add-on writes them: Mix (Color, `blend`, factor 0.7) of the Object coordinates and
 /// their Invert Color, through RGB to BW, Clamp (Range, Min 1.2 > Max 0.8) × 2. The
 /// Clamp's Value is `clamp_value` (a connection).
 fn blender_mix_stage(dir: &Path, blend: &str, clamp_value: &str) -> PathBuf {
-    let body = format!(
-        r#"def Scope "Graphs"
-{{
-    def Shader "coords"
+    let graphs = format!(
+        r#"    def Shader "coords"
     {{
         uniform token info:id = "ShaderNodeTexCoord"
     }}
@@ -1677,19 +1735,14 @@ fn blender_mix_stage(dir: &Path, blend: &str, clamp_value: &str) -> PathBuf {
         float inputs:Value.connect = </Graphs/clamp.outputs:Result>
         float inputs:Value_001 = 2
     }}
-}}
-def Cube "Box" (
-    prepend apiSchemas = ["NimbusVolumeAPI"]
-)
-{{
-    double size = 2
-    float nimbus:densityScale.connect = </Graphs/times.outputs:Value>
-    color3f nimbus:scattering = (0.9, 0.9, 0.9)
-    color3f nimbus:absorption = (0.1, 0.1, 0.1)
-}}
 "#
     );
-    stage(dir, &format!("blender_mix_{blend}.usda"), &body)
+    fog_graph_stage(
+        dir,
+        &format!("blender_mix_{blend}.usda"),
+        &graphs,
+        "times.outputs:Value",
+    )
 }
 
 /// The density of [`blender_mix_stage`] with Screen, written out: with a = p and b =
@@ -1710,32 +1763,7 @@ fn blender_screen_density(p: DVec3) -> f64 {
 fn blender_mix_invert_and_clamp_nodes_are_the_fog_density() {
     let dir = tempfile::tempdir().unwrap();
     let screen = blender_mix_stage(dir.path(), "SCREEN", "/Graphs/bw.outputs:Val");
-    let scene = load_stage(&screen, &LoadOptions::default()).unwrap();
-    let media = media_for_scene_with(&scene, MajorantSpec::Octree { depth: 6 }).unwrap();
-    let m = &media[0];
-    assert!(m.shader.is_some());
-    let mut c = Counters::default();
-    let mut state = 5u64;
-    let mut next = || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
-    let (mut worst, mut lo, mut hi) = (0f64, f64::MAX, 0f64);
-    for _ in 0..1_000_000 {
-        let p = DVec3::new(next(), next(), next()) * 1.9 - DVec3::splat(0.95);
-        let i = m.index_ray(p, DVec3::X).o;
-        let d = m.density(i, &mut c) as f64;
-        worst = worst.max((d - blender_screen_density(p)).abs());
-        (lo, hi) = (lo.min(d), hi.max(d));
-        let cell = m.majorants.leaf_at(i).expect("inside the cube");
-        let (mn, mx) = m.majorants.leaf_bounds(cell).unwrap();
-        assert!(
-            d as f32 <= mx && d as f32 >= mn,
-            "density {d} outside [{mn}, {mx}] at {p}"
-        );
-    }
+    let (worst, lo, hi) = sample_graph_fog(&screen, 1_000_000, 5, blender_screen_density);
     eprintln!(
         "mix, invert, clamp: worst |density - written out| {worst:e}, densities {lo} .. {hi}"
     );
@@ -1777,10 +1805,8 @@ fn blender_mix_invert_and_clamp_nodes_are_the_fog_density() {
 /// A fog cube whose density is a Float Curve (the add-on's form: a table, its points'
 /// x range `min_x` .. `max_x`) of the Object x coordinate.
 fn blender_curve_stage(dir: &Path, min_x: f32, max_x: f32) -> PathBuf {
-    let body = format!(
-        r#"def Scope "Graphs"
-{{
-    def Shader "coords"
+    let graphs = format!(
+        r#"    def Shader "coords"
     {{
         uniform token info:id = "ShaderNodeTexCoord"
     }}
@@ -1799,52 +1825,29 @@ fn blender_curve_stage(dir: &Path, min_x: f32, max_x: f32) -> PathBuf {
         float inputs:Factor = 1
         float inputs:Value.connect = </Graphs/x.outputs:X>
     }}
-}}
-def Cube "Box" (
-    prepend apiSchemas = ["NimbusVolumeAPI"]
-)
-{{
-    double size = 2
-    float nimbus:densityScale.connect = </Graphs/curve.outputs:Value>
-    color3f nimbus:scattering = (0.9, 0.9, 0.9)
-    color3f nimbus:absorption = (0.1, 0.1, 0.1)
-}}
 "#
     );
-    stage(dir, "blender_curve.usda", &body)
+    fog_graph_stage(dir, "blender_curve.usda", &graphs, "curve.outputs:Value")
 }
 
 /// A Float Curve as the add-on writes it is the fog's density: the table 0.5, 2, 1
 /// over x in [-0.5, 0.5], extrapolated along its end chords beyond (slopes 3 and −2 per
 /// unit x, so 0 at x = −2/3 and 0 at x = 1), against that function written out at
-/// 10,000 points of the cube; a curve whose points span no x range is refused naming
-/// the node.
+/// 100,000 points of the cube (inside their cells' bounds); a curve whose points span
+/// no x range is refused naming the node.
 #[test]
 fn a_blender_float_curve_is_the_fog_density() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = load_stage(
-        &blender_curve_stage(dir.path(), -0.5, 0.5),
-        &LoadOptions::default(),
-    )
-    .unwrap();
-    let media = media_for_scene_with(&scene, MajorantSpec::Octree { depth: 6 }).unwrap();
-    let m = &media[0];
-    let mut c = Counters::default();
-    let written_out = |x: f64| {
-        let y = if x < 0.0 {
-            2.0 + 3.0 * x
+    let written_out = |p: DVec3| {
+        let y = if p.x < 0.0 {
+            2.0 + 3.0 * p.x
         } else {
-            2.0 - 2.0 * x
+            2.0 - 2.0 * p.x
         };
         y.max(0.0)
     };
-    let mut worst = 0f64;
-    for k in 0..10_000 {
-        let x = -0.95 + 1.9 * (k as f64 + 0.5) / 10_000.0;
-        let p = DVec3::new(x, 0.3, -0.2);
-        let d = m.density(m.index_ray(p, DVec3::X).o, &mut c) as f64;
-        worst = worst.max((d - written_out(x)).abs());
-    }
+    let curve = blender_curve_stage(dir.path(), -0.5, 0.5);
+    let (worst, ..) = sample_graph_fog(&curve, 100_000, 13, written_out);
     assert!(worst < 1e-5, "worst difference {worst}");
 
     let flat = blender_curve_stage(dir.path(), 0.25, 0.25);
@@ -1868,10 +1871,8 @@ fn a_blender_float_curve_is_the_fog_density() {
 /// through Separate Color and Combine Color in `mode` (a round trip: HSV or HSL and
 /// back), × 2.
 fn blender_round_trip_stage(dir: &Path, mode: &str) -> PathBuf {
-    let body = format!(
-        r#"def Scope "Graphs"
-{{
-    def Shader "coords"
+    let graphs = format!(
+        r#"    def Shader "coords"
     {{
         uniform token info:id = "ShaderNodeTexCoord"
         float3 inputs:generated_scale = (0.5, 0.5, 0.5)
@@ -1903,19 +1904,14 @@ fn blender_round_trip_stage(dir: &Path, mode: &str) -> PathBuf {
         float inputs:Value.connect = </Graphs/bw.outputs:Val>
         float inputs:Value_001 = 2
     }}
-}}
-def Cube "Box" (
-    prepend apiSchemas = ["NimbusVolumeAPI"]
-)
-{{
-    double size = 2
-    float nimbus:densityScale.connect = </Graphs/times.outputs:Value>
-    color3f nimbus:scattering = (0.9, 0.9, 0.9)
-    color3f nimbus:absorption = (0.1, 0.1, 0.1)
-}}
 "#
     );
-    stage(dir, &format!("blender_round_trip_{mode}.usda"), &body)
+    fog_graph_stage(
+        dir,
+        &format!("blender_round_trip_{mode}.usda"),
+        &graphs,
+        "times.outputs:Value",
+    )
 }
 
 /// Separate Color and Combine Color (stop 65) in HSV and in HSL read from a stage: the
@@ -1927,32 +1923,11 @@ fn blender_colour_conversions_round_trip_in_the_fog_density() {
     let dir = tempfile::tempdir().unwrap();
     for mode in ["HSV", "HSL"] {
         let stage = blender_round_trip_stage(dir.path(), mode);
-        let scene = load_stage(&stage, &LoadOptions::default()).unwrap();
-        let media = media_for_scene_with(&scene, MajorantSpec::Octree { depth: 6 }).unwrap();
-        let m = &media[0];
-        let mut c = Counters::default();
-        let mut state = 11u64;
-        let mut next = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
-        let mut worst = 0f64;
-        for _ in 0..100_000 {
-            let p = DVec3::new(next(), next(), next()) * 1.9 - DVec3::splat(0.95);
-            let i = m.index_ray(p, DVec3::X).o;
-            let d = m.density(i, &mut c) as f64;
+        let luminance = |p: DVec3| {
             let g = (p + DVec3::ONE) * 0.5;
-            let bw = 0.2126729 * g.x + 0.7151522 * g.y + 0.072175 * g.z;
-            worst = worst.max((d - 2.0 * bw).abs());
-            let cell = m.majorants.leaf_at(i).expect("inside the cube");
-            let (mn, mx) = m.majorants.leaf_bounds(cell).unwrap();
-            assert!(
-                d as f32 <= mx && d as f32 >= mn,
-                "{mode}: {d} outside [{mn}, {mx}] at {p}"
-            );
-        }
+            2.0 * (0.2126729 * g.x + 0.7151522 * g.y + 0.072175 * g.z)
+        };
+        let (worst, ..) = sample_graph_fog(&stage, 100_000, 11, luminance);
         eprintln!("{mode} round trip: worst |density - written out| {worst:e}");
         assert!(worst < 1e-5, "{mode}: worst difference {worst}");
     }

@@ -196,7 +196,7 @@ _GRAPH_NODES = {
     "ShaderNodeClamp": ("clamp_type",),
     "ShaderNodeMix": ("data_type", "factor_mode", "blend_type", "clamp_factor",
                       "clamp_result"),
-    "ShaderNodeMixRGB": ("blend_type", "use_clamp"),
+    "ShaderNodeMixRGB": ("blend_type", "use_clamp", "use_alpha"),
     "ShaderNodeInvert": (),
     "ShaderNodeVolumeInfo": (),
     "ShaderNodeFloatCurve": (),
@@ -244,6 +244,8 @@ _COMPILED = {
     # (src/scene/blender_color.rs), listed to catch one a later Blender adds.
     ("ShaderNodeMix", "blend_type"): _BLEND_TYPES,
     ("ShaderNodeMixRGB", "blend_type"): _BLEND_TYPES,
+    # Use Alpha scales the factor by Color2's alpha, which the overlay does not carry.
+    ("ShaderNodeMixRGB", "use_alpha"): {False},
     ("ShaderNodeSeparateColor", "mode"): {"RGB", "HSV", "HSL"},
     ("ShaderNodeCombineColor", "mode"): {"RGB", "HSV", "HSL"},
 }

@@ -650,6 +650,25 @@ def test_every_property_value_either_compiles_or_warns(addon, nimbus_bin, tmp_pa
     assert info.returncode == 0, info.stderr[-3000:]
 
 
+def _grey_principled(nt):
+    """A Principled Volume of Color 0.8 and Anisotropy 0.3 (the graph cubes')."""
+    pv = nt.nodes.new("ShaderNodeVolumePrincipled")
+    pv.inputs["Color"].default_value = (0.8, 0.8, 0.8, 1.0)
+    pv.inputs["Anisotropy"].default_value = 0.3
+    return pv
+
+
+def _into_density(nt, pv, out, socket, factor):
+    """`socket` x `factor` (a Math Multiply) into `pv`'s Density, and `pv` into the
+    material output `out`."""
+    times = nt.nodes.new("ShaderNodeMath")
+    times.operation = "MULTIPLY"
+    times.inputs[1].default_value = factor
+    nt.links.new(socket, times.inputs[0])
+    nt.links.new(times.outputs["Value"], pv.inputs["Density"])
+    nt.links.new(pv.outputs["Volume"], out.inputs["Volume"])
+
+
 def mix_material(blend):
     """A density of two textures mixed by the Mix node (stop 65): with `blend` FLOAT,
     Mix (Float) of 0 and a Noise Texture's Fac (Scale 2.5, Detail 2) by a spherical
@@ -658,9 +677,7 @@ def mix_material(blend):
     0.9 > Max 0, so Cycles swaps them; the colour through its luminance) x 2 into
     Principled Volume's Density; Color 0.8, Anisotropy 0.3."""
     m, nt, out = _node_material(f"mixed {blend}")
-    pv = nt.nodes.new("ShaderNodeVolumePrincipled")
-    pv.inputs["Color"].default_value = (0.8, 0.8, 0.8, 1.0)
-    pv.inputs["Anisotropy"].default_value = 0.3
+    pv = _grey_principled(nt)
     coords = nt.nodes.new("ShaderNodeTexCoord")
     gradient = nt.nodes.new("ShaderNodeTexGradient")
     gradient.gradient_type = "SPHERICAL"
@@ -688,13 +705,8 @@ def mix_material(blend):
     clamp.clamp_type = "RANGE"
     clamp.inputs["Min"].default_value = 0.9
     clamp.inputs["Max"].default_value = 0.0
-    five = nt.nodes.new("ShaderNodeMath")
-    five.operation = "MULTIPLY"
-    five.inputs[1].default_value = 2.0
     nt.links.new(result, clamp.inputs["Value"])
-    nt.links.new(clamp.outputs["Result"], five.inputs[0])
-    nt.links.new(five.outputs["Value"], pv.inputs["Density"])
-    nt.links.new(pv.outputs["Volume"], out.inputs["Volume"])
+    _into_density(nt, pv, out, clamp.outputs["Result"], 2.0)
     return m
 
 
@@ -719,9 +731,7 @@ def curve_material(points=((0.0, 0.0), (0.45, 0.1), (0.6, 0.9), (1.0, 1.0))):
     factor 1) of a Noise Texture's Fac (Scale 2, Detail 4) x 4; Color 0.8, Anisotropy
     0.3: the noise's mid-range made a sharp-edged cloud."""
     m, nt, out = _node_material("curved")
-    pv = nt.nodes.new("ShaderNodeVolumePrincipled")
-    pv.inputs["Color"].default_value = (0.8, 0.8, 0.8, 1.0)
-    pv.inputs["Anisotropy"].default_value = 0.3
+    pv = _grey_principled(nt)
     noise = nt.nodes.new("ShaderNodeTexNoise")
     noise.inputs["Scale"].default_value = 2.0
     noise.inputs["Detail"].default_value = 4.0
@@ -732,13 +742,8 @@ def curve_material(points=((0.0, 0.0), (0.45, 0.1), (0.6, 0.9), (1.0, 1.0))):
     for xy in points[2:]:
         c.points.new(*xy)
     curve.mapping.update()
-    four = nt.nodes.new("ShaderNodeMath")
-    four.operation = "MULTIPLY"
-    four.inputs[1].default_value = 4.0
     nt.links.new(noise.outputs["Fac"], curve.inputs["Value"])
-    nt.links.new(curve.outputs["Value"], four.inputs[0])
-    nt.links.new(four.outputs["Value"], pv.inputs["Density"])
-    nt.links.new(pv.outputs["Volume"], out.inputs["Volume"])
+    _into_density(nt, pv, out, curve.outputs["Value"], 4.0)
     return m
 
 
@@ -760,9 +765,7 @@ def hsv_material(saturation=1.6):
     `saturation`, Value 1.1, Fac 0.9) of a Noise Texture's Color (Scale 2, Detail 2)
     with that Color itself, x 6; Color 0.8, Anisotropy 0.3."""
     m, nt, out = _node_material("hsv")
-    pv = nt.nodes.new("ShaderNodeVolumePrincipled")
-    pv.inputs["Color"].default_value = (0.8, 0.8, 0.8, 1.0)
-    pv.inputs["Anisotropy"].default_value = 0.3
+    pv = _grey_principled(nt)
     noise = nt.nodes.new("ShaderNodeTexNoise")
     noise.inputs["Scale"].default_value = 2.0
     hsv = nt.nodes.new("ShaderNodeHueSaturation")
@@ -776,17 +779,12 @@ def hsv_material(saturation=1.6):
     sockets["Factor_Float"].default_value = 0.8
     separate = nt.nodes.new("ShaderNodeSeparateColor")
     separate.mode = "HSV"
-    six = nt.nodes.new("ShaderNodeMath")
-    six.operation = "MULTIPLY"
-    six.inputs[1].default_value = 6.0
     nt.links.new(noise.outputs["Color"], hsv.inputs["Color"])
     nt.links.new(hsv.outputs["Color"], sockets["A_Color"])
     nt.links.new(noise.outputs["Color"], sockets["B_Color"])
     result = next(o for o in mix.outputs if o.identifier == "Result_Color")
     nt.links.new(result, separate.inputs["Color"])
-    nt.links.new(separate.outputs["Green"], six.inputs[0])
-    nt.links.new(six.outputs["Value"], pv.inputs["Density"])
-    nt.links.new(pv.outputs["Volume"], out.inputs["Volume"])
+    _into_density(nt, pv, out, separate.outputs["Green"], 6.0)
     return m
 
 
