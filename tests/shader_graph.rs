@@ -1932,3 +1932,56 @@ fn blender_colour_conversions_round_trip_in_the_fog_density() {
         assert!(worst < 1e-5, "{mode}: worst difference {worst}");
     }
 }
+
+/// A MaterialX `volume` whose `edf` (emission) is connected: Nimbus reads its `vdf`
+/// and warns that the emission is not read, naming the `volume` prim and `inputs:edf`
+/// (stop 65; it was ignored silently); without the connection, no such warning.
+#[test]
+fn a_materialx_volume_emission_is_a_warning_naming_its_edf() {
+    let dir = tempfile::tempdir().unwrap();
+    for emitting in [true, false] {
+        let edf = match emitting {
+            true => "token inputs:edf.connect = </Mat/glow.outputs:out>",
+            false => "",
+        };
+        let body = format!(
+            r#"def Material "Mat"
+{{
+    token outputs:mtlx:volume.connect = </Mat/volume.outputs:out>
+    def Shader "volume"
+    {{
+        uniform token info:id = "ND_volume"
+        token inputs:vdf.connect = </Mat/vdf.outputs:out>
+        {edf}
+        token outputs:out
+    }}
+    def Shader "vdf"
+    {{
+        uniform token info:id = "ND_anisotropic_vdf"
+        color3f inputs:absorption = (0.1, 0.1, 0.1)
+        color3f inputs:scattering = (0.9, 0.9, 0.9)
+        token outputs:out
+    }}
+    def Shader "glow"
+    {{
+        uniform token info:id = "ND_uniform_edf"
+        color3f inputs:color = (1, 0.5, 0.2)
+        token outputs:out
+    }}
+}}
+def Cube "Box" (
+    prepend apiSchemas = ["MaterialBindingAPI"]
+)
+{{
+    double size = 2
+    rel material:binding = </Mat>
+}}
+"#
+        );
+        let path = stage(dir.path(), &format!("edf_{emitting}.usda"), &body);
+        let scene = load_stage(&path, &LoadOptions::default()).unwrap();
+        let lines = scene.warnings.lines().join("\n");
+        let warned = lines.contains("/Mat/volume") && lines.contains("inputs:edf");
+        assert_eq!(warned, emitting, "emitting {emitting}: {lines}");
+    }
+}

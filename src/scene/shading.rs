@@ -33,6 +33,9 @@ pub struct MaterialVolume {
     /// A MaterialX graph driving the coefficients: the density is its value, the
     /// coefficients above are per unit of it.
     pub density_graph: Option<super::materialx_graph::MaterialXDensity>,
+    /// Connected inputs on the way to the shader that Nimbus does not read, as (prim,
+    /// attribute): a MaterialX `volume`'s `edf` (its emission). The caller warns.
+    pub unread: Vec<(String, String)>,
 }
 
 /// Material outputs a volume shader hangs from, by renderer context, most specific
@@ -64,8 +67,11 @@ pub fn bound_volume_material(
             .connections()
             .map_err(|e| prim_error(material.path(), format!("{output}: {e}")))?;
         if let Some(source) = sources.first() {
-            let shader = volume_shader(stage, &material, source)?;
-            return read_shader(&shader, time).map(Some);
+            let mut unread = Vec::new();
+            let shader = volume_shader(stage, &material, source, &mut unread)?;
+            let mut m = read_shader(&shader, time)?;
+            m.unread = unread;
+            return Ok(Some(m));
         }
     }
     Ok(None)
@@ -107,8 +113,14 @@ fn bound_material(stage: &Stage, volume: &Prim) -> Result<Option<Prim>, SceneErr
 }
 
 /// Follows `source` (a material output's connection) to a volume shader Nimbus
-/// reads, through MaterialX's `volumematerial` and `volume` nodes.
-fn volume_shader(stage: &Stage, material: &Prim, source: &sdf::Path) -> Result<Prim, SceneError> {
+/// reads, through MaterialX's `volumematerial` and `volume` nodes; a `volume`'s
+/// connected `edf` (emission, not read) goes into `unread`.
+fn volume_shader(
+    stage: &Stage,
+    material: &Prim,
+    source: &sdf::Path,
+    unread: &mut Vec<(String, String)>,
+) -> Result<Prim, SceneError> {
     let mut source = source.clone();
     for _ in 0..MAX_HOPS {
         let (path, _) = split_property(&source);
@@ -119,7 +131,16 @@ fn volume_shader(stage: &Stage, material: &Prim, source: &sdf::Path) -> Result<P
         let next_input = match id.as_str() {
             "PxrVolume" | "ND_anisotropic_vdf" => return Ok(shader),
             "ND_volumematerial" => "inputs:volumeshader".to_string(),
-            "ND_volume" => "inputs:vdf".to_string(),
+            "ND_volume" => {
+                let edf = shader
+                    .attribute("inputs:edf")
+                    .connections()
+                    .map_err(|e| prim_error(shader.path(), e))?;
+                if !edf.is_empty() {
+                    unread.push((shader.path().to_string(), "inputs:edf".to_string()));
+                }
+                "inputs:vdf".to_string()
+            }
             // No id: a NodeGraph (or Material) output forwarding to a shader.
             "" => split_property(&source).1,
             other => {
@@ -169,6 +190,7 @@ fn read_shader(shader: &Prim, time: Option<TimeCode>) -> Result<MaterialVolume, 
             scattering,
             anisotropy,
             density_graph: None,
+            unread: Vec::new(),
         };
     if id == "PxrVolume" {
         // RenderMan: extinction `densityFloat` (overridden by the primvar when one is

@@ -483,6 +483,7 @@ impl Loader<'_> {
         let Some(m) = shading::bound_volume_material(self.stage, prim, t)? else {
             return Ok(None);
         };
+        unsupported::unread_material_inputs(&m.unread, &mut self.warnings.borrow_mut());
         let source = format!("{} ({})", m.shader, m.shader_id);
         // Placed in the gprim's space by the caller (world fog refuses it).
         let density_graph = m.density_graph.map(|g| DensityGraph {
@@ -766,6 +767,7 @@ impl Loader<'_> {
             }
         }
         if let Some(m) = material {
+            unsupported::unread_material_inputs(&m.unread, &mut self.warnings.borrow_mut());
             let density = self.density_field(prim, &m.density_field, &fields)?;
             let (volume_to_world, motion) = self.blurred_transform(prim)?;
             let velocity = self.velocity(prim, &fields)?;
