@@ -393,7 +393,22 @@ fn fog_box_stage(dir: &Path) -> PathBuf {
     def Material "Haze"
     {
         float inputs:g = 0.3
-        token outputs:mtlx:volume.connect = </World/Haze/vdf.outputs:out>
+        token outputs:mtlx:volume.connect = </World/Haze/volume.outputs:out>
+
+        def Shader "volume"
+        {
+            uniform token info:id = "ND_volume"
+            token inputs:vdf.connect = </World/Haze/vdf.outputs:out>
+            token inputs:edf.connect = </World/Haze/glow.outputs:out>
+            token outputs:out
+        }
+
+        def Shader "glow"
+        {
+            uniform token info:id = "ND_uniform_edf"
+            color3f inputs:color = (1, 0.5, 0.2)
+            token outputs:out
+        }
 
         def Shader "vdf"
         {
@@ -840,7 +855,9 @@ mod hydra_host {
     /// fog boxes and world fog as the USD reader, and the images agree with `nimbus
     /// render` of the same stages as the example stages do (same tolerance: the
     /// transforms are handed over as matrices). The inward prism's warning reaches the
-    /// host as the reader's reaches `nimbus render`'s log, naming the prim. Power: the
+    /// host as the reader's reaches `nimbus render`'s log, naming the prim; so does the
+    /// warning that the Veil's MaterialX `volume` has an `edf` (its emission) neither
+    /// reads (stop 65), naming the node and the input. Power: the
     /// fog shows (mean alpha measured 0.095 for the three boxes, 0.60 for world fog; a
     /// holdout or nothing leaves alpha 0), and fog read as holdouts or left out would
     /// differ from `nimbus render`'s image. Measured: fog boxes 3,063 to 3,072 of 3,072
@@ -877,6 +894,12 @@ mod hydra_host {
                         log.lines()
                             .any(|l| l.contains("/World/Prism") && l.contains(inward)),
                         "{who}: no warning about /World/Prism's faces: {log}"
+                    );
+                    // The Haze's MaterialX volume emits (its edf), which neither reads.
+                    assert!(
+                        log.lines()
+                            .any(|l| l.contains("/World/Haze/volume") && l.contains("inputs:edf")),
+                        "{who}: no warning about /World/Haze/volume's edf: {log}"
                     );
                 }
             } else {

@@ -478,6 +478,20 @@ struct Material<'a> {
 }
 
 impl<'a> Material<'a> {
+    /// Warns for each MaterialX `volume` node of the network whose `edf` (its
+    /// emission) is connected: not read, the warning the USD reader gives
+    /// (`nimbus::scene::shading`), naming the prim at `path`, the node and the input.
+    fn warn_unread_emission(&self, path: &str, warnings: &mut Vec<String>) {
+        for n in self.network.iter().filter(|n| n.id == "ND_volume") {
+            if n.connections.iter().any(|c| c.input == "edf") {
+                warnings.push(format!(
+                    "{path}: material {}: {} inputs:edf: a MaterialX volume's emission (its edf) is not read: the volume renders without it",
+                    self.path, n.path
+                ));
+            }
+        }
+    }
+
     fn of_volume(v: &'a VolumeDesc) -> Material<'a> {
         Material {
             path: &v.material_path,
@@ -676,6 +690,7 @@ fn fog_medium(
     let Some(m) = material.coefficients()? else {
         return Ok(None);
     };
+    material.warn_unread_emission(path, warnings);
     if let (Some(field), Some(_)) = (&m.density_field, &m.density_graph) {
         bail!(
             "{path}: {}: its density graph reads the field `{field}` (ND_geompropvalue_float); fog has no fields",
@@ -847,6 +862,9 @@ fn volume(
             &material,
             "the schema's fallback coefficients are used",
         ));
+    }
+    if coefficients.is_some() {
+        material.warn_unread_emission(path, warnings);
     }
     let volume_to_world = finite_matrix(path, &v.xform)?;
     let motion = motion(path, &v.xform_samples, shutter)?;
