@@ -452,19 +452,7 @@ fn graphs_nimbus_cannot_read_are_refused_naming_the_node() {
     ] {
         let path = dir.path().join(format!("{}.usda", what.replace(' ', "_")));
         std::fs::write(&path, text.replace(from, to)).unwrap();
-        let out = dir.path().join("never.exr");
-        let o = nimbus(&[
-            "render",
-            path.to_str().unwrap(),
-            "-o",
-            out.to_str().unwrap(),
-            "--res",
-            "8x8",
-            "--spp",
-            "1",
-        ]);
-        assert_clean_error(&o, needle);
-        assert!(!out.exists(), "{what}: no image is written");
+        render_refused(dir.path(), &path, needle);
     }
 }
 
@@ -750,20 +738,8 @@ fn a_blender_node_tree_on_densityscale_is_the_fog_density() {
     }
 
     let wave = blender_cube_stage(dir.path(), "ShaderNodeTexWave");
-    let out = dir.path().join("never.exr");
-    let o = nimbus(&[
-        "render",
-        wave.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--res",
-        "8x8",
-        "--spp",
-        "1",
-    ]);
-    assert_clean_error(&o, "/Graphs/noise");
-    assert!(stderr(&o).contains("ShaderNodeTexWave"), "{}", stderr(&o));
-    assert!(!out.exists());
+    let e = render_refused(dir.path(), &wave, "/Graphs/noise");
+    assert!(e.contains("ShaderNodeTexWave"), "{}", e);
 }
 
 /// A material whose density is MaterialX's `cellnoise3d` and ramps (no texcoord on a
@@ -963,20 +939,8 @@ fn cellnoise_and_ramps_are_bounded_by_their_majorants() {
         ),
     ] {
         let path = ramps_stage(dir.path(), &format!("{what}.usda"), texcoord);
-        let out = dir.path().join("never.exr");
-        let o = nimbus(&[
-            "render",
-            path.to_str().unwrap(),
-            "-o",
-            out.to_str().unwrap(),
-            "--res",
-            "8x8",
-            "--spp",
-            "1",
-        ]);
-        assert_clean_error(&o, "/Mat/graph/lr");
-        assert!(stderr(&o).contains(needle), "{what}: {}", stderr(&o));
-        assert!(!out.exists());
+        let e = render_refused(dir.path(), &path, "/Mat/graph/lr");
+        assert!(e.contains(needle), "{what}: {}", e);
     }
 }
 
@@ -1142,24 +1106,12 @@ fn a_blender_voronoi_density_is_bounded_by_its_majorants() {
     let flat = blender_voronoi_stage(dir.path(), "flat.usda", "F1");
     let text = std::fs::read_to_string(&flat).unwrap();
     std::fs::write(&flat, text.replace("\"3D\"", "\"2D\"")).unwrap();
-    let out = dir.path().join("never.exr");
-    let o = nimbus(&[
-        "render",
-        flat.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--res",
-        "8x8",
-        "--spp",
-        "1",
-    ]);
-    assert_clean_error(&o, "/Graphs/cells");
+    let e = render_refused(dir.path(), &flat, "/Graphs/cells");
     assert!(
-        stderr(&o).contains("ShaderNodeTexVoronoi") && stderr(&o).contains("2D"),
+        e.contains("ShaderNodeTexVoronoi") && e.contains("2D"),
         "{}",
-        stderr(&o)
+        e
     );
-    assert!(!out.exists());
 }
 
 /// The albedo colour graph of the tests below (a Principled Volume's Color as the
@@ -1623,6 +1575,25 @@ fn every_noise_type_is_read_and_bounded_by_its_majorants() {
     }
 }
 
+/// `nimbus render` of `stage` (8×8, 1 spp) fails cleanly: exit 1 with an error line
+/// naming `node` and no image written. Returns the standard error.
+fn render_refused(dir: &Path, stage: &Path, node: &str) -> String {
+    let out = dir.join("never.exr");
+    let o = nimbus(&[
+        "render",
+        stage.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--res",
+        "8x8",
+        "--spp",
+        "1",
+    ]);
+    assert_clean_error(&o, node);
+    assert!(!out.exists(), "{}: no image is written", stage.display());
+    stderr(&o)
+}
+
 /// A stage of the Blender node prims `graphs` (the body of a `Scope "Graphs"`) and a fog
 /// Cube of side 2 whose `nimbus:densityScale` is connected to `/Graphs/<output>`.
 fn fog_graph_stage(dir: &Path, name: &str, graphs: &str, output: &str) -> PathBuf {
@@ -1785,20 +1756,8 @@ fn blender_mix_invert_and_clamp_nodes_are_the_fog_density() {
             "Color",
         ),
     ] {
-        let out = dir.path().join("never.exr");
-        let o = nimbus(&[
-            "render",
-            stage.to_str().unwrap(),
-            "-o",
-            out.to_str().unwrap(),
-            "--res",
-            "8x8",
-            "--spp",
-            "1",
-        ]);
-        assert_clean_error(&o, node);
-        assert!(stderr(&o).contains(what), "{}", stderr(&o));
-        assert!(!out.exists());
+        let e = render_refused(dir.path(), &stage, node);
+        assert!(e.contains(what), "{}", e);
     }
 }
 
@@ -1851,20 +1810,8 @@ fn a_blender_float_curve_is_the_fog_density() {
     assert!(worst < 1e-5, "worst difference {worst}");
 
     let flat = blender_curve_stage(dir.path(), 0.25, 0.25);
-    let out = dir.path().join("never.exr");
-    let o = nimbus(&[
-        "render",
-        flat.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--res",
-        "8x8",
-        "--spp",
-        "1",
-    ]);
-    assert_clean_error(&o, "/Graphs/curve");
-    assert!(stderr(&o).contains("no x range"), "{}", stderr(&o));
-    assert!(!out.exists());
+    let e = render_refused(dir.path(), &flat, "/Graphs/curve");
+    assert!(e.contains("no x range"), "{}", e);
 }
 
 /// A fog cube whose density is the luminance of its Generated coordinates (in [0, 1]³)

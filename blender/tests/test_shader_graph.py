@@ -136,6 +136,17 @@ def smoke_density_graph():
     """The issue's scene (b) material on the smoke: Density = (Noise Texture (Scale
     0.5, on Generated) x 0.5 + 0.5) x 4, times the density grid (Principled Volume's
     Density Attribute)."""
+    nt, pv, half = _smoke_half_noise()
+    four = nt.nodes.new("ShaderNodeMath")
+    four.operation = "MULTIPLY"
+    four.inputs[1].default_value = 4.0
+    nt.links.new(half, four.inputs[0])
+    nt.links.new(four.outputs["Value"], pv.inputs["Density"])
+
+
+def _smoke_half_noise():
+    """The smoke's node tree, its Principled Volume, and Noise Texture (Scale 0.5, on
+    Generated) x 0.5 + 0.5 (a Math Multiply Add's output) added to it."""
     obj = bpy.data.objects["smoke"]
     nt = obj.data.materials[0].node_tree
     pv = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeVolumePrincipled")
@@ -145,12 +156,8 @@ def smoke_density_graph():
     half.operation = "MULTIPLY_ADD"
     half.inputs[1].default_value = 0.5
     half.inputs[2].default_value = 0.5
-    four = nt.nodes.new("ShaderNodeMath")
-    four.operation = "MULTIPLY"
-    four.inputs[1].default_value = 4.0
     nt.links.new(noise.outputs["Fac"], half.inputs[0])
-    nt.links.new(half.outputs["Value"], four.inputs[0])
-    nt.links.new(four.outputs["Value"], pv.inputs["Density"])
+    return nt, pv, half.outputs["Value"]
 
 
 def test_the_smoke_times_noise_against_cycles(addon, smoke_vdb, tmp_path):
@@ -807,36 +814,19 @@ def test_volume_info_density_in_the_smoke_against_cycles(addon, smoke_vdb, tmp_p
     from conftest import smoke_scene
 
     scene, _, _ = smoke_scene(smoke_vdb, res=32, lights=("sun",), world=False)
-    obj = bpy.data.objects["smoke"]
-    nt = obj.data.materials[0].node_tree
-    pv = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeVolumePrincipled")
+    nt, pv, half = _smoke_half_noise()
     info = nt.nodes.new("ShaderNodeVolumeInfo")
-    noise = nt.nodes.new("ShaderNodeTexNoise")
-    noise.inputs["Scale"].default_value = 0.5
-    half = nt.nodes.new("ShaderNodeMath")
-    half.operation = "MULTIPLY_ADD"
-    half.inputs[1].default_value = 0.5
-    half.inputs[2].default_value = 0.5
     times = nt.nodes.new("ShaderNodeMath")
     times.operation = "MULTIPLY"
     two = nt.nodes.new("ShaderNodeMath")
     two.operation = "MULTIPLY"
     two.inputs[1].default_value = 2.0
-    nt.links.new(noise.outputs["Fac"], half.inputs[0])
-    nt.links.new(half.outputs["Value"], times.inputs[0])
+    nt.links.new(half, times.inputs[0])
     nt.links.new(info.outputs["Density"], times.inputs[1])
     nt.links.new(times.outputs["Value"], two.inputs[0])
     nt.links.new(two.outputs["Value"], pv.inputs["Density"])
-    (tmp_path / "overlay").mkdir()
-    t, _ = translated(tmp_path / "overlay")
-    assert not [w for w in t.warnings if "drives" in w], t.warnings
-    assert '"ShaderNodeVolumeInfo"' in open(t.stage).read()
-    ok, report, n = against_cycles(scene, tmp_path, seeds=(0, 1, 2, 3), spp=32,
-                                   bias=CYCLES_BIAS, block=8)
-    print(f"\nsmoke x volume info density x noise, sun, against Cycles ({n} pixels):\n"
-          + "\n".join(report))
-    assert n > 100
-    assert ok, "\n".join(report)
+    _graph_cube_against_cycles(scene, tmp_path, ['"ShaderNodeVolumeInfo"'],
+                               "smoke x volume info density x noise")
 
 
 def test_a_cross_product_of_noise_is_translated_as_a_graph(addon, nimbus_bin, tmp_path):

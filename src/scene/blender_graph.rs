@@ -203,13 +203,9 @@ pub fn math(bl: &mut Builder, op: &str, a: Reg, b: Reg, c: Reg) -> Result<Option
             let q = bl.binary(Binary::Mul, r, q)?;
             let v = bl.binary(Binary::Sub, a, q)?;
             let zero = bl.constant(0.0)?;
-            let one = bl.constant(1.0)?;
             let size = bl.unary(Unary::Abs, r)?;
             let z = bl.binary(Binary::Greater, size, zero)?;
-            let y = bl.binary(Binary::Sub, one, z)?;
-            let v = bl.binary(Binary::Mul, z, v)?;
-            let c = bl.binary(Binary::Mul, y, c)?;
-            Some(bl.binary(Binary::Add, v, c)?)
+            Some(select(bl, z, v, c)?)
         }
         // Cycles' pingpongf: |fract((a − b)/(2b))·b·2 − b|, 0 at b = 0 (the safe
         // division gives fract(0) = 0 and so 0 there).
