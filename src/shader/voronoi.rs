@@ -773,8 +773,8 @@ impl VoronoiTexture {
                 };
             } else {
                 distance = distance.add(b.distance.mul(Interval::point(weight)));
-                for a in 0..3 {
-                    color[a] = color[a].add(b.color[a].mul(Interval::point(weight)));
+                for (c, bc) in color.iter_mut().zip(b.color) {
+                    *c = c.add(bc.mul(Interval::point(weight)));
                 }
                 position = Some(match position {
                     None => b.position,
