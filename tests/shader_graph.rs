@@ -384,6 +384,8 @@ fn majorants_bound_the_graph_at_a_million_points() {
         for spec in [
             MajorantSpec::Uniform { cell_voxels: 4 },
             MajorantSpec::Octree { depth: 6 },
+            // `auto`'s for graphs: leaves of one voxel on these grids.
+            MajorantSpec::Octree { depth: 8 },
         ] {
             let media = media_for_scene_with(&scene, spec).unwrap();
             let m = &media[0];
@@ -475,6 +477,55 @@ fn info_names_the_density_graph_and_why_auto_chooses() {
             && out.contains("ns per lookup measured at load): its minorants carry"),
         "{out}"
     );
+}
+
+/// `auto` tracks a density graph under an octree of depth 8, pruned at a crossing cost
+/// of 0.2 lookups, in place of the flat grid of 8-voxel cells, and says so: the same
+/// render (the same lookups) as that octree named, not the one pruned at the default
+/// cost; a structure or a cost the user names is kept.
+#[test]
+fn auto_tracks_a_graph_under_an_octree() {
+    let dir = tempfile::tempdir().unwrap();
+    let cube = cube_stage(dir.path());
+    let render = |extra: &[&str]| {
+        let stats = dir.path().join("stats.json");
+        let out = dir.path().join("octree.exr");
+        let mut args = vec![
+            "render",
+            cube.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--res",
+            "16x16",
+            "--spp",
+            "4",
+            "--stats",
+            stats.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let o = nimbus(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let s: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+        (
+            s["octree_depth"].clone(),
+            s["tracker_auto_reason"].to_string(),
+            s["density_lookups"].as_u64().unwrap(),
+        )
+    };
+    let (depth, reason, lookups) = render(&[]);
+    assert_eq!(depth, serde_json::json!(8));
+    assert!(reason.contains("an octree of depth 8"), "{reason}");
+    let named = ["--octree-depth", "8", "--octree-prune", "0.2"];
+    assert_eq!(render(&named).2, lookups);
+    let (_, _, default_cost) = render(&["--octree-depth", "8"]);
+    assert_ne!(default_cost, lookups, "pruned at 1, not 0.2");
+    assert_eq!(render(&["--octree-prune", "1"]).2, default_cost);
+    let (depth, reason, _) = render(&["--majorant-cell", "4"]);
+    assert_eq!(depth, serde_json::Value::Null);
+    assert!(!reason.contains("octree"), "{reason}");
+    let (depth, _, _) = render(&["--octree-depth", "5"]);
+    assert_eq!(depth, serde_json::json!(5));
 }
 
 /// Ratio tracking's one-voxel lookup (`Medium::density_estimate`, what `auto`'s

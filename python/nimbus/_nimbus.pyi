@@ -80,7 +80,7 @@ def render(
     max_depth: Optional[int] = None,
     majorant_cell: Optional[int] = None,
     octree_depth: Optional[int] = None,
-    octree_prune: float = 1.0,
+    octree_prune: Optional[float] = None,
     tracker: Optional[str] = None,
     scheme: Optional[str] = None,
     transmittance: Optional[str] = None,

@@ -20,7 +20,7 @@ use nimbus::output::exr::Denoise;
 use nimbus::output::products::{OutputRequest, Outputs};
 use nimbus::output::stats::{RenderStats, RunFacts};
 use nimbus::render::sampler::SamplerKind;
-use nimbus::render::session::{Overrides, Session, DEFAULT_OCTREE_PRUNE};
+use nimbus::render::session::{Overrides, Session};
 use nimbus::track::select::{SchemeKind, TransmittanceKind};
 use numpy::PyArrayMethods;
 use pyo3::prelude::*;
@@ -71,7 +71,7 @@ use std::time::Instant;
 #[pyo3(signature = (
     stage=None, *, stage_text=None, base_dir=None,
     spp=None, res=None, region=None, seed=None, sampler=None, threads=None, max_depth=None,
-    majorant_cell=None, octree_depth=None, octree_prune=DEFAULT_OCTREE_PRUNE,
+    majorant_cell=None, octree_depth=None, octree_prune=None,
     tracker=None, scheme=None, transmittance=None, control=None,
     reduced_termination=false, no_absorption_events=false, majorant_scale=1.0,
     profile=false, no_specialise=false, aovs=None, time_limit=None,
@@ -93,7 +93,7 @@ pub fn render(
     max_depth: Option<u32>,
     majorant_cell: Option<u32>,
     octree_depth: Option<u32>,
-    octree_prune: f32,
+    octree_prune: Option<f32>,
     tracker: Option<String>,
     scheme: Option<String>,
     transmittance: Option<String>,
@@ -135,7 +135,7 @@ pub fn render(
         max_depth,
         majorant_cell,
         octree_depth,
-        octree_prune: Some(octree_prune),
+        octree_prune,
         tracker,
         scheme: parse_choice::<SchemeKind>("scheme", scheme)?,
         transmittance: parse_choice::<TransmittanceKind>("transmittance", transmittance)?,

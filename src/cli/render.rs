@@ -8,7 +8,7 @@ use crate::output::stats::RunFacts;
 use crate::render::film::Region;
 use crate::render::progressive::Clock;
 use crate::render::sampler::SamplerKind;
-use crate::render::session::{Overrides, Session, DEFAULT_OCTREE_PRUNE};
+use crate::render::session::{Overrides, Session};
 use crate::render::tiles::{parse_region, Tile};
 use crate::track::select::{LightSampling, SchemeKind, TrackerKind, TransmittanceKind};
 use anyhow::{bail, Result};
@@ -72,8 +72,10 @@ pub struct RenderArgs {
     /// Octree pruning: the cost of crossing a cell in density lookups. The walk stops
     /// higher in the octree wherever finer cells would cost more crossings than they
     /// save lookups (bounds stay valid, only cost changes); 0 keeps every level.
-    #[arg(long, default_value_t = DEFAULT_OCTREE_PRUNE, value_name = "LOOKUPS")]
-    pub octree_prune: f32,
+    /// Default 1; 0.2 for the octree `auto` builds for a density shader graph, whose
+    /// lookups cost about five brick reads.
+    #[arg(long, value_name = "LOOKUPS")]
+    pub octree_prune: Option<f32>,
     /// Free-path sampler (overrides nimbus:tracker). `auto` (the default) picks the
     /// tracker, scheme and options from the scene analysis; the stats say what and why.
     #[arg(long, value_parser = tracker_values())]
@@ -274,7 +276,7 @@ impl RenderArgs {
             frame,
             camera: self.camera.clone(),
             max_depth: self.max_depth,
-            octree_prune: Some(self.octree_prune),
+            octree_prune: self.octree_prune,
             tracker: self.tracker.clone(),
             scheme: self.scheme,
             transmittance: self.transmittance,

@@ -8,7 +8,7 @@
 //! the stage authors, which beats the schema fallback.
 
 use crate::render::adaptive::Adaptive;
-use crate::render::analysis::{Analysis, CodePaths, Given};
+use crate::render::analysis::{Analysis, CodePaths, Given, GRAPH_OCTREE_PRUNE};
 use crate::render::camera::CameraRays;
 use crate::render::film::{DepthBins, Film, Region};
 use crate::render::holdouts::Holdouts;
@@ -269,7 +269,7 @@ impl Session {
             };
             anyhow!("{}: {source}: {e}", stage.display())
         })?;
-        let prune = o.octree_prune.unwrap_or(DEFAULT_OCTREE_PRUNE);
+        let mut prune = o.octree_prune.unwrap_or(DEFAULT_OCTREE_PRUNE);
         if !(prune.is_finite() && prune >= 0.0) {
             bail!("the octree pruning cost must be a non-negative number, got {prune}");
         }
@@ -321,6 +321,10 @@ impl Session {
                     medium.replace_majorants(tree);
                 }
                 spec = majorants;
+                // `auto`'s only octree is a density graph's, priced for its lookups.
+                if matches!(spec, MajorantSpec::Octree { .. }) && o.octree_prune.is_none() {
+                    prune = GRAPH_OCTREE_PRUNE;
+                }
             }
         }
         if let Some(e) = analysis

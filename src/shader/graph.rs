@@ -200,6 +200,13 @@ pub enum Instr {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Program {
     instrs: Vec<Instr>,
+    /// The instructions a lookup runs: `instrs` without the constants, which
+    /// `registers` already holds.
+    body: Vec<Instr>,
+    /// The register file a lookup starts from: the constants in their registers (each
+    /// register is written by one instruction only, so a constant can be in place
+    /// before the others run), 0 elsewhere; as long as the registers used.
+    initial: Vec<f32>,
     /// The Noise Texture nodes [`Instr::BlenderNoise`] evaluates (kept aside: they are
     /// larger than any instruction).
     noises: Vec<NoiseTexture>,
@@ -691,8 +698,18 @@ impl Builder {
 
     fn finish_any(self, output: Value) -> Result<Program, GraphError> {
         let (output_width, output) = (output.width(), output.reg());
+        let mut initial = vec![0.0f32; self.next];
+        let mut body = Vec::with_capacity(self.instrs.len());
+        for i in &self.instrs {
+            match *i {
+                Instr::Const { dst, value } => initial[dst as usize] = value,
+                other => body.push(other),
+            }
+        }
         Ok(Program {
             output_width,
+            body,
+            initial,
             instrs: self.instrs,
             noises: self.noises,
             voronois: self.voronois,
@@ -771,38 +788,33 @@ impl Program {
     /// The graph's value at `position` with the attribute `attribute`.
     #[inline]
     pub fn eval(&self, position: [f32; 3], attribute: f32) -> f32 {
-        let o = self.output as usize;
-        match self.registers {
-            n if n <= SMALL_REGISTERS => self.run::<SMALL_REGISTERS>(position, attribute)[o],
-            n if n <= MEDIUM_REGISTERS => self.run::<MEDIUM_REGISTERS>(position, attribute)[o],
-            _ => self.run::<MAX_REGISTERS>(position, attribute)[o],
-        }
+        self.outputs(position, attribute)[0]
     }
 
     /// A colour graph's value ([`Builder::finish_rgb`]) at `position`.
     #[inline]
     pub fn eval_rgb(&self, position: [f32; 3], attribute: f32) -> [f32; 3] {
-        let o = self.output as usize;
+        self.outputs(position, attribute)
+    }
+
+    /// The output register and the two after it (0 past the file's end), run on the
+    /// smallest register file the program fits. Only these three leave `run`: the
+    /// register file itself is not copied out (a 4 KiB copy per lookup in the
+    /// largest file).
+    #[inline(always)]
+    fn outputs(&self, position: [f32; 3], attribute: f32) -> [f32; 3] {
         match self.registers {
-            n if n <= SMALL_REGISTERS => {
-                let r = self.run::<SMALL_REGISTERS>(position, attribute);
-                [r[o], r[o + 1], r[o + 2]]
-            }
-            n if n <= MEDIUM_REGISTERS => {
-                let r = self.run::<MEDIUM_REGISTERS>(position, attribute);
-                [r[o], r[o + 1], r[o + 2]]
-            }
-            _ => {
-                let r = self.run::<MAX_REGISTERS>(position, attribute);
-                [r[o], r[o + 1], r[o + 2]]
-            }
+            n if n <= SMALL_REGISTERS => self.run::<SMALL_REGISTERS>(position, attribute),
+            n if n <= MEDIUM_REGISTERS => self.run::<MEDIUM_REGISTERS>(position, attribute),
+            _ => self.run::<MAX_REGISTERS>(position, attribute),
         }
     }
 
-    /// The registers after the program ran.
+    /// Runs the program on a register file of `N` and returns [`outputs`](Self::outputs).
     #[inline(always)]
-    fn run<const N: usize>(&self, position: [f32; 3], attribute: f32) -> [f32; N] {
+    fn run<const N: usize>(&self, position: [f32; 3], attribute: f32) -> [f32; 3] {
         let mut r = [0.0f32; N];
+        r[..self.initial.len()].copy_from_slice(&self.initial);
         r[0] = position[0];
         r[1] = position[1];
         r[2] = position[2];
@@ -811,7 +823,7 @@ impl Program {
         // instruction per output: the last evaluation is kept, so the same node at the
         // same point is searched once per lookup.
         let mut last_voronoi: Option<(u16, [f32; 3], VoronoiValues)> = None;
-        for i in &self.instrs {
+        for i in &self.body {
             match *i {
                 Instr::Const { dst, value } => r[dst as usize] = value,
                 Instr::Unary { op, dst, a } => {
@@ -952,7 +964,8 @@ impl Program {
                 }
             }
         }
-        r
+        let o = self.output as usize;
+        [o, o + 1, o + 2].map(|k| r.get(k).copied().unwrap_or(0.0))
     }
 
     /// Bounds of the graph's value over the position box `[lo, hi]` with the attribute

@@ -906,7 +906,23 @@ pub fn fbm<A: Arithmetic, P: SignedNoise>(
     let mut amp = 1.0f32;
     let mut maxamp = 0.0f32;
     let mut sum = 0.0f32;
-    for _ in 0..=whole_octaves(detail) {
+    // Two octaves per step: their noises do not depend on each other, and written
+    // side by side the CPU overlaps one's hash chain with the other's (a lookup in a
+    // tracking walk waits for its result, so latency is what counts). The sums are
+    // taken in the same order as one octave at a time: the same values.
+    let octaves = whole_octaves(detail) + 1;
+    for _ in 0..octaves / 2 {
+        let next = fscale * lacunarity;
+        let (t0, t1) = ((p * fscale).snoise::<A>(), (p * next).snoise::<A>());
+        sum = A::madd(t0, amp, sum);
+        maxamp += amp;
+        amp *= roughness;
+        sum = A::madd(t1, amp, sum);
+        maxamp += amp;
+        amp *= roughness;
+        fscale = next * lacunarity;
+    }
+    if octaves % 2 == 1 {
         let t = (p * fscale).snoise::<A>();
         sum = A::madd(t, amp, sum);
         maxamp += amp;

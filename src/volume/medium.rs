@@ -785,8 +785,19 @@ impl Medium {
     pub fn density_estimate<C: Tally>(&self, p: Vec3, u: u64, counters: &mut C) -> f32 {
         lookup(counters, || match &self.shader {
             None => self.density.sample_stochastic(p.to_array(), u),
-            Some(s) => s.density(p, self.density.sample_trilinear(p.to_array())),
+            Some(s) => self.shaded(s, p),
         })
+    }
+
+    /// The density through the graph `s` at `p`. A graph that never reads its
+    /// attribute (a fog box's noise) gets no grid read: its value does not depend on
+    /// it.
+    #[inline(always)]
+    fn shaded(&self, s: &DensityShader, p: Vec3) -> f32 {
+        match s.program.reads_attribute() {
+            true => s.density(p, self.density.sample_trilinear(p.to_array())),
+            false => s.density(p, 0.0),
+        }
     }
 
     /// [`density`](Self::density) at a world-space point at frame-relative `time`
@@ -801,12 +812,9 @@ impl Medium {
     /// Every call is one density lookup.
     #[inline(always)]
     pub fn density<C: Tally>(&self, p: Vec3, counters: &mut C) -> f32 {
-        lookup(counters, || {
-            let g = self.density.sample_trilinear(p.to_array());
-            match &self.shader {
-                None => g,
-                Some(s) => s.density(p, g),
-            }
+        lookup(counters, || match &self.shader {
+            None => self.density.sample_trilinear(p.to_array()),
+            Some(s) => self.shaded(s, p),
         })
     }
 }
