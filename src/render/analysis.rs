@@ -337,9 +337,8 @@ impl Analysis {
     /// of depth [`GRAPH_OCTREE_DEPTH`], pruned at [`GRAPH_OCTREE_PRUNE`] unless a cost
     /// is named: a graph's lookup costs several brick reads (a Perlin octave alone
     /// about as much as one), so finer cells pay for their crossings sooner than on a
-    /// grid. Measured with
-    /// equal-sample relMSE and time on issue 47's scenes (a) and (b)
-    /// (`docs/shaders.md`, "Majorants for graphs"). Not where some majorants are
+    /// grid. Measured with equal-sample relMSE and time on issue 47's scenes (a) and
+    /// (b) (`docs/shaders.md`, "Majorants for graphs"). Not where some majorants are
     /// estimates: each estimated leaf costs 133 lookups at load.
     pub fn majorants(&self, given: Given) -> Option<MajorantSpec> {
         if given.majorants {

@@ -201,7 +201,7 @@ pub enum Instr {
 pub struct Program {
     instrs: Vec<Instr>,
     /// The instructions a lookup runs: `instrs` without the constants, which
-    /// `registers` already holds.
+    /// `initial` already holds.
     body: Vec<Instr>,
     /// The register file a lookup starts from: the constants in their registers (each
     /// register is written by one instruction only, so a constant can be in place
