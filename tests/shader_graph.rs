@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::cli::{assert_clean_error, channels, nimbus, stderr};
+use common::cli::{assert_clean_error, channels, nimbus, stats_json, stderr};
 use glam::DVec3;
 use nimbus::render::job::media_for_scene_with;
 use nimbus::scene::{load_stage, LoadOptions};
@@ -505,8 +505,7 @@ fn auto_tracks_a_graph_under_an_octree() {
         args.extend_from_slice(extra);
         let o = nimbus(&args);
         assert!(o.status.success(), "{}", stderr(&o));
-        let s: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+        let s = stats_json(&stats);
         (
             s["octree_depth"].clone(),
             s["tracker_auto_reason"].to_string(),

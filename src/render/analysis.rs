@@ -352,6 +352,12 @@ impl Analysis {
         })
     }
 
+    /// The octree pruning cost `auto` gives the structure [`majorants`](Self::majorants)
+    /// builds, `None` to keep the session's: [`GRAPH_OCTREE_PRUNE`] for a graph's octree.
+    pub fn majorant_prune(&self, given: Given) -> Option<f32> {
+        (!given.majorants && !self.homogeneous && self.graph_octree()).then_some(GRAPH_OCTREE_PRUNE)
+    }
+
     /// Whether [`majorants`](Self::majorants) builds the graph octree (no structure
     /// named aside).
     fn graph_octree(&self) -> bool {

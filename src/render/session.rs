@@ -8,7 +8,7 @@
 //! the stage authors, which beats the schema fallback.
 
 use crate::render::adaptive::Adaptive;
-use crate::render::analysis::{Analysis, CodePaths, Given, GRAPH_OCTREE_PRUNE};
+use crate::render::analysis::{Analysis, CodePaths, Given};
 use crate::render::camera::CameraRays;
 use crate::render::film::{DepthBins, Film, Region};
 use crate::render::holdouts::Holdouts;
@@ -321,10 +321,9 @@ impl Session {
                     medium.replace_majorants(tree);
                 }
                 spec = majorants;
-                // `auto`'s only octree is a density graph's, priced for its lookups.
-                if matches!(spec, MajorantSpec::Octree { .. }) && o.octree_prune.is_none() {
-                    prune = GRAPH_OCTREE_PRUNE;
-                }
+            }
+            if let Some(cost) = analysis.majorant_prune(request.given) {
+                prune = o.octree_prune.unwrap_or(cost);
             }
         }
         if let Some(e) = analysis
