@@ -203,6 +203,14 @@ _GRAPH_NODES = {
     "ShaderNodeSeparateColor": ("mode",),
     "ShaderNodeCombineColor": ("mode",),
     "ShaderNodeHueSaturation": (),
+    "ShaderNodeRGBCurve": (),
+    "ShaderNodeVectorCurve": (),
+    "ShaderNodeGamma": (),
+    "ShaderNodeBrightContrast": (),
+    "ShaderNodeTexWhiteNoise": ("noise_dimensions",),
+    "ShaderNodeBlackbody": (),
+    "ShaderNodeTexWave": ("wave_type", "bands_direction", "rings_direction", "wave_profile"),
+    "ShaderNodeTexMagic": ("turbulence_depth",),
 }
 # The values of node properties Nimbus compiles where it compiles fewer than Blender
 # offers (src/scene/blender_graph.rs refuses the others): another value is
@@ -255,7 +263,8 @@ _IRRELEVANT = {
     ("ShaderNodeMix", "blend_type"): lambda node: node.data_type != "RGBA",
 }
 # Texture nodes whose unlinked Vector is Blender's Generated coordinates.
-_TEXTURES = ("ShaderNodeTexNoise", "ShaderNodeTexVoronoi", "ShaderNodeTexGradient")
+_TEXTURES = ("ShaderNodeTexNoise", "ShaderNodeTexVoronoi", "ShaderNodeTexGradient",
+             "ShaderNodeTexWave", "ShaderNodeTexMagic")
 # Cycles bakes a Color Ramp into this many intervals (RAMP_TABLE_SIZE).
 _RAMP_TABLE = 256
 
@@ -296,6 +305,7 @@ _CONSTANT_INPUTS = {
                            "Offset", "Gain"),
     "ShaderNodeTexVoronoi": ("Scale", "Detail", "Roughness", "Lacunarity", "Randomness",
                              "Smoothness", "Exponent"),
+    "ShaderNodeTexWave": ("Detail", "Detail Scale", "Detail Roughness"),
 }
 
 
@@ -318,6 +328,32 @@ def _float_curve_lines(mapping):
             f"float inputs:extrapolate = {_f(mapping.extend == 'EXTRAPOLATED')}"]
 
 
+def _curves_lines(mapping, rgb):
+    """RGB Curves (`rgb`) or Vector Curves as Cycles bakes them
+    (curvemapping_color_to_array): each channel's curve at t = min + (i / 256) * (max -
+    min), in float32 as Cycles computes t, min and max the least first point's and the
+    largest last point's x over the curves (RGB Curves' combined curve among them),
+    the combined curve applied first for RGB Curves; and whether it extrapolates."""
+    import numpy as np
+    mapping.initialize()
+    mapping.update()
+    curves = list(mapping.curves)[:4 if rgb else 3]
+    lo = min(np.float32(c.points[0].location[0]) for c in curves)
+    hi = max(np.float32(c.points[len(c.points) - 1].location[0]) for c in curves)
+    span = np.float32(hi - lo)
+    ts = [lo + np.float32(i) / np.float32(_RAMP_TABLE) * span for i in range(_RAMP_TABLE + 1)]
+    if rgb:
+        ts = [mapping.evaluate(curves[3], float(t)) for t in ts]
+    lines = []
+    for channel, curve in zip(("red", "green", "blue"), curves):
+        table = [mapping.evaluate(curve, float(t)) for t in ts]
+        lines.append("float[] inputs:{}_table = [{}]".format(
+            channel, ", ".join(_f(v) for v in table)))
+    return lines + [f"float inputs:min_x = {_f(float(lo))}",
+                    f"float inputs:max_x = {_f(float(hi))}",
+                    f"float inputs:extrapolate = {_f(mapping.extend == 'EXTRAPOLATED')}"]
+
+
 def _check_output(node, socket):
     """Raises _Untranslatable for an output the reader does not compile: Volume Info's
     Color (a colour grid; Nimbus' graphs read one float field)."""
@@ -327,8 +363,9 @@ def _check_output(node, socket):
 
 def _check_inputs(node):
     """Raises _Untranslatable for the input values the reader refuses: a linked input
-    it needs constant (_CONSTANT_INPUTS, and a Stepped Map Range's Steps) and a
-    Mapping's linked Rotation (a constant one is compiled)."""
+    it needs constant (_CONSTANT_INPUTS, and a Stepped Map Range's Steps), a
+    Mapping's linked Rotation (a constant one is compiled) and a Wave Texture's Detail
+    beyond 0 to 15 or negative Detail Roughness."""
     def unlinked_value(name, default):
         # By identifier: a name finds only the sockets the node's type shows. A socket
         # this Blender does not have, or hides, is not written: its default.
@@ -345,6 +382,13 @@ def _check_inputs(node):
         unlinked_value("Steps", 4.0)
     if node.bl_idname == "ShaderNodeMapping":
         unlinked_value("Rotation", (0.0, 0.0, 0.0))
+    if node.bl_idname == "ShaderNodeTexWave":
+        detail = unlinked_value("Detail", 2.0)
+        roughness = unlinked_value("Detail Roughness", 0.5)
+        if not (0.0 <= detail <= 15.0 and roughness >= 0.0):
+            raise _Untranslatable(
+                f"node '{node.name}': Detail {detail:g} or Detail Roughness {roughness:g} "
+                "(Nimbus compiles Detail 0 to 15 and a Roughness from 0)")
 
 
 def _graph(socket, obj, owner, folder_prim):
@@ -387,6 +431,8 @@ def _graph(socket, obj, owner, folder_prim):
             lines.append(f"float inputs:interpolate = {_f(ramp.interpolation != 'CONSTANT')}")
         if kind == "ShaderNodeFloatCurve":
             lines += _float_curve_lines(node.mapping)
+        if kind in ("ShaderNodeRGBCurve", "ShaderNodeVectorCurve"):
+            lines += _curves_lines(node.mapping, kind == "ShaderNodeRGBCurve")
         if kind == "ShaderNodeValue":
             lines.append(f"float inputs:value = {_f(node.outputs[0].default_value)}")
         if kind == "ShaderNodeVolumeInfo" and obj.type != "VOLUME":

@@ -916,3 +916,115 @@ def test_a_multifractal_noise_cube_against_cycles(addon, tmp_path):
     print(f"\nmultifractal noise, sun, against Cycles ({n} pixels):\n" + "\n".join(report))
     assert n > 100
     assert ok, "\n".join(report)
+
+
+def curves_material():
+    """Density = Brightness/Contrast (Bright 0.05, Contrast 0.3) of Gamma 1.8 of RGB
+    Curves (red an S through (0.3, 0.15) and (0.7, 0.9), the combined curve through
+    (0.5, 0.6)) of a Noise Texture's Color (Scale 2, Detail 2) whose Vector is the
+    Generated coordinates through Vector Curves (X through (0, 0.1), Y through
+    (0.5, 0.4)), through its luminance, x 4; Emission Color = Blackbody of the noise's
+    Fac x 5000 + 1000 K, Emission Strength 0.5; Color 0.8, Anisotropy 0.3."""
+    m, nt, out = _node_material("curves")
+    pv = _grey_principled(nt)
+    coords = nt.nodes.new("ShaderNodeTexCoord")
+    vcurves = nt.nodes.new("ShaderNodeVectorCurve")
+    vcurves.mapping.curves[0].points.new(0.0, 0.1)
+    vcurves.mapping.curves[1].points.new(0.5, 0.4)
+    vcurves.mapping.update()
+    noise = nt.nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 2.0
+    curves = nt.nodes.new("ShaderNodeRGBCurve")
+    curves.mapping.curves[0].points.new(0.3, 0.15)
+    curves.mapping.curves[0].points.new(0.7, 0.9)
+    curves.mapping.curves[3].points.new(0.5, 0.6)
+    curves.mapping.update()
+    gamma = nt.nodes.new("ShaderNodeGamma")
+    gamma.inputs["Gamma"].default_value = 1.8
+    bc = nt.nodes.new("ShaderNodeBrightContrast")
+    bc.inputs["Bright"].default_value = 0.05
+    bc.inputs["Contrast"].default_value = 0.3
+    kelvin = nt.nodes.new("ShaderNodeMath")
+    kelvin.operation = "MULTIPLY_ADD"
+    kelvin.inputs[1].default_value = 5000.0
+    kelvin.inputs[2].default_value = 1000.0
+    blackbody = nt.nodes.new("ShaderNodeBlackbody")
+    nt.links.new(coords.outputs["Generated"], vcurves.inputs["Vector"])
+    nt.links.new(vcurves.outputs["Vector"], noise.inputs["Vector"])
+    nt.links.new(noise.outputs["Color"], curves.inputs["Color"])
+    nt.links.new(curves.outputs["Color"], gamma.inputs["Color"])
+    nt.links.new(gamma.outputs["Color"], bc.inputs["Color"])
+    nt.links.new(noise.outputs["Fac"], kelvin.inputs[0])
+    nt.links.new(kelvin.outputs["Value"], blackbody.inputs["Temperature"])
+    nt.links.new(blackbody.outputs["Color"], pv.inputs["Emission Color"])
+    pv.inputs["Emission Strength"].default_value = 0.5
+    _into_density(nt, pv, out, bc.outputs["Color"], 4.0)
+    return m
+
+
+def test_curves_gamma_contrast_and_blackbody_cube_against_cycles(addon, tmp_path):
+    """RGB Curves, Vector Curves, Gamma, Brightness/Contrast and Blackbody (stop 67;
+    against Geometry Nodes in tests/blender_math.rs: the curves within 8 ulps inside
+    their points, Gamma and Blackbody equal to the bit) in a cube's density and
+    emission colour (curves_material), against Cycles 5.0.1 as above."""
+    scene = _cube_scene("curves cube", curves_material())
+    _graph_cube_against_cycles(scene, tmp_path, ['"ShaderNodeRGBCurve"', '"ShaderNodeVectorCurve"',
+                                                 '"ShaderNodeGamma"', '"ShaderNodeBrightContrast"',
+                                                 '"ShaderNodeBlackbody"', "inputs:red_table"],
+                               "curves, gamma, contrast and blackbody cube")
+
+
+def textures_material():
+    """Density = a Wave Texture (Rings, Spherical, Saw, Scale 0.4, Distortion 0.5, Detail
+    2, on Object coordinates: about two and a half rings across the cube) x the Magic Texture's Fac (Depth 3, Scale 1.2, Distortion
+    1.5) x (0.8 + 0.2 x White Noise 3D of the Generated coordinates' floor at 8 cells
+    per unit: a constant per cell, not per point), x 6; Color 0.8, Anisotropy 0.3."""
+    m, nt, out = _node_material("textures")
+    pv = _grey_principled(nt)
+    coords = nt.nodes.new("ShaderNodeTexCoord")
+    wave = nt.nodes.new("ShaderNodeTexWave")
+    wave.wave_type = "RINGS"
+    wave.rings_direction = "SPHERICAL"
+    wave.wave_profile = "SAW"
+    for name, value in (("Scale", 0.4), ("Distortion", 0.5), ("Detail", 2.0)):
+        wave.inputs[name].default_value = value
+    magic = nt.nodes.new("ShaderNodeTexMagic")
+    magic.turbulence_depth = 3
+    magic.inputs["Scale"].default_value = 1.2
+    magic.inputs["Distortion"].default_value = 1.5
+    cells = nt.nodes.new("ShaderNodeVectorMath")
+    cells.operation = "SCALE"
+    cells.inputs["Scale"].default_value = 8.0
+    floor = nt.nodes.new("ShaderNodeVectorMath")
+    floor.operation = "FLOOR"
+    white = nt.nodes.new("ShaderNodeTexWhiteNoise")
+    speckle = nt.nodes.new("ShaderNodeMath")
+    speckle.operation = "MULTIPLY_ADD"
+    speckle.inputs[1].default_value = 0.2
+    speckle.inputs[2].default_value = 0.8
+    product = nt.nodes.new("ShaderNodeMath")
+    product.operation = "MULTIPLY"
+    product2 = nt.nodes.new("ShaderNodeMath")
+    product2.operation = "MULTIPLY"
+    nt.links.new(coords.outputs["Object"], wave.inputs["Vector"])
+    nt.links.new(coords.outputs["Generated"], cells.inputs["Vector"])
+    nt.links.new(cells.outputs["Vector"], floor.inputs["Vector"])
+    nt.links.new(floor.outputs["Vector"], white.inputs["Vector"])
+    nt.links.new(white.outputs["Value"], speckle.inputs[0])
+    nt.links.new(wave.outputs["Fac"], product.inputs[0])
+    nt.links.new(magic.outputs["Fac"], product.inputs[1])
+    nt.links.new(product.outputs["Value"], product2.inputs[0])
+    nt.links.new(speckle.outputs["Value"], product2.inputs[1])
+    _into_density(nt, pv, out, product2.outputs["Value"], 6.0)
+    return m
+
+
+def test_wave_magic_and_white_noise_cube_against_cycles(addon, tmp_path):
+    """The Wave, Magic and White Noise Textures (stop 67; against Geometry Nodes in
+    tests/blender_math.rs: White Noise equal to the bit, Wave within 1e-5 and Magic
+    within its derived bound, Geometry Nodes computing those two in another order) in a
+    cube's density (textures_material), against Cycles 5.0.1 as above."""
+    scene = _cube_scene("textures cube", textures_material())
+    _graph_cube_against_cycles(scene, tmp_path, ['"ShaderNodeTexWave"', '"ShaderNodeTexMagic"',
+                                                 '"ShaderNodeTexWhiteNoise"', '"SPHERICAL"'],
+                               "wave, magic and white noise cube")

@@ -490,3 +490,36 @@ pub fn clamp(
     let hi = bl.binary(Binary::Max, min, max)?;
     bl.clamp(value, lo, hi)
 }
+
+/// Cycles' Gamma node (`svm_math_gamma_color`): each channel above 0 raised to
+/// `gamma` (powf), the others kept; white wherever `gamma` is 0. The power's base is
+/// chosen as 1 where the channel is not above 0, so the branch not taken is finite and
+/// [`select`] exact.
+pub fn gamma(bl: &mut Builder, c: Reg, gamma: Reg) -> Result<Reg, GraphError> {
+    let c = bl.splat3(c)?;
+    let (zero, one) = (bl.constant(0.0)?, bl.constant(1.0)?);
+    let above = bl.binary(Binary::Greater, c, zero)?;
+    let base = select(bl, above, c, one)?;
+    let raised = bl.binary(Binary::Pow, base, gamma)?;
+    let v = select(bl, above, raised, c)?;
+    let white = equal(bl, gamma, zero)?;
+    select(bl, white, one, v)
+}
+
+/// Cycles' Brightness/Contrast node (`svm_brightness_contrast`): each channel
+/// max((1 + contrast)·c + (brightness − contrast·0.5), 0).
+pub fn brightness_contrast(
+    bl: &mut Builder,
+    c: Reg,
+    brightness: Reg,
+    contrast: Reg,
+) -> Result<Reg, GraphError> {
+    let c = bl.splat3(c)?;
+    let (zero, one, half) = (bl.constant(0.0)?, bl.constant(1.0)?, bl.constant(0.5)?);
+    let a = bl.binary(Binary::Add, one, contrast)?;
+    let b = bl.binary(Binary::Mul, contrast, half)?;
+    let b = bl.binary(Binary::Sub, brightness, b)?;
+    let v = bl.binary(Binary::Mul, a, c)?;
+    let v = bl.binary(Binary::Add, v, b)?;
+    bl.binary(Binary::Max, v, zero)
+}

@@ -19,8 +19,8 @@
 
 use super::attrs::{prim_error_str, SceneError};
 use super::blender_color::{
-    clamp, hsl_to_rgb, hsv_to_rgb, hue_saturation_value, invert, mix_color, mix_linear, rgb_to_hsl,
-    rgb_to_hsv, saturate, select,
+    brightness_contrast, clamp, gamma, hsl_to_rgb, hsv_to_rgb, hue_saturation_value, invert,
+    mix_color, mix_linear, rgb_to_hsl, rgb_to_hsv, saturate, select,
 };
 use super::materialx_graph::{colour, number, usd_network};
 use super::shader_network::{Input, ParamValue, ShaderNetwork, ShaderNode};
@@ -55,6 +55,14 @@ pub const NODES: &[&str] = &[
     "ShaderNodeSeparateColor",
     "ShaderNodeCombineColor",
     "ShaderNodeHueSaturation",
+    "ShaderNodeRGBCurve",
+    "ShaderNodeVectorCurve",
+    "ShaderNodeGamma",
+    "ShaderNodeBrightContrast",
+    "ShaderNodeTexWhiteNoise",
+    "ShaderNodeBlackbody",
+    "ShaderNodeTexWave",
+    "ShaderNodeTexMagic",
 ];
 
 /// A density graph read from Blender nodes.
@@ -459,6 +467,243 @@ pub fn float_curve(
         v = select(bl, z, below, v)?;
     }
     bl.mix(value, v, fac)
+}
+
+/// Blender's RGB Curves and Vector Curves (Cycles' `svm_node_curves`): each channel of
+/// `c` through its own table, as [`float_curve`] does one value, over the range
+/// (min, max) the tables share (the x extent of every curve), then mixed with `c` by
+/// `fac`. The add-on writes the tables as Cycles bakes them
+/// (`curvemapping_color_to_array`): RGB Curves' combined curve is applied first.
+pub fn curves(
+    bl: &mut Builder,
+    tables: [Vec<f32>; 3],
+    range: (f32, f32),
+    extrapolate: bool,
+    fac: Reg,
+    c: Reg,
+) -> Result<Reg, GraphError> {
+    let c = bl.splat3(c)?;
+    let [r, g, b] = tables;
+    let mut out = Vec::with_capacity(3);
+    for (k, table) in [r, g, b].into_iter().enumerate() {
+        let x = bl.component(c, k as u16)?;
+        out.push(float_curve(bl, table, range, extrapolate, fac, x)?);
+    }
+    bl.combine3(out[0], out[1], out[2])
+}
+
+/// Blender's Wave Texture (Cycles' `svm_wave`) at `co` scaled by `scale`: bands along
+/// an axis or the diagonal, or rings around an axis or a point, 20 per unit, shifted by
+/// `phase` and by `distortion` × (2·fBM − 1) (`detail`, the fBM of the Noise Texture at
+/// Scale `detail_scale`, Lacunarity 2, normalized; skipped where `distortion` is the
+/// constant 0, where it adds 0), through a sine, saw or triangle profile in [0, 1].
+/// Each operation rounded on its own, in Cycles' order (its SSE4.2 kernel; the AVX2
+/// kernel fuses the scaling and the profile's multiply-adds).
+#[allow(clippy::too_many_arguments)]
+pub fn wave(
+    bl: &mut Builder,
+    co: Reg,
+    scale: Reg,
+    (kind, direction, profile): (&str, &str, &str),
+    distortion: Option<Reg>,
+    detail: NoiseTexture,
+    phase: Reg,
+) -> Result<Option<Reg>, GraphError> {
+    let co = bl.splat3(co)?;
+    // Cycles' guard against precision issues on unit coordinates.
+    let p = bl.binary(Binary::Mul, co, scale)?;
+    let tiny = bl.constant(1e-6)?;
+    let p = bl.binary(Binary::Add, p, tiny)?;
+    let shrink = bl.constant(0.999_999)?;
+    let p = bl.binary(Binary::Mul, p, shrink)?;
+    let axis = |d: &str| match d {
+        "X" => Some(0u16),
+        "Y" => Some(1),
+        "Z" => Some(2),
+        _ => None,
+    };
+    let n = match (kind, direction) {
+        ("BANDS", "DIAGONAL") => {
+            let [x, y, z] = [0, 1, 2].map(|k| bl.component(p, k));
+            let s = bl.binary(Binary::Add, x?, y?)?;
+            let s = bl.binary(Binary::Add, s, z?)?;
+            let ten = bl.constant(10.0)?;
+            bl.binary(Binary::Mul, s, ten)?
+        }
+        ("BANDS", d) => {
+            let Some(k) = axis(d) else { return Ok(None) };
+            let v = bl.component(p, k)?;
+            let twenty = bl.constant(20.0)?;
+            bl.binary(Binary::Mul, v, twenty)?
+        }
+        ("RINGS", d) => {
+            // The ring's axis component multiplied by 0 (so ±0), as Cycles does.
+            let keep = match (d, axis(d)) {
+                ("SPHERICAL", _) => [1.0; 3],
+                (_, Some(k)) => std::array::from_fn(|a| if a == k as usize { 0.0 } else { 1.0 }),
+                _ => return Ok(None),
+            };
+            let keep = bl.vector3(keep)?;
+            let rp = bl.binary(Binary::Mul, p, keep)?;
+            let sq = bl.binary(Binary::Mul, rp, rp)?;
+            let [x, y, z] = [0, 1, 2].map(|k| bl.component(sq, k));
+            let s = bl.binary(Binary::Add, x?, y?)?;
+            let s = bl.binary(Binary::Add, s, z?)?;
+            let len = bl.unary(Unary::Sqrt, s)?;
+            let twenty = bl.constant(20.0)?;
+            bl.binary(Binary::Mul, len, twenty)?
+        }
+        _ => return Ok(None),
+    };
+    let mut n = bl.binary(Binary::Add, n, phase)?;
+    if let Some(d) = distortion {
+        let w = bl.constant(0.0)?;
+        let fb = bl.blender_noise(p, w, detail)?;
+        let t = bl.binary(Binary::Add, fb, fb)?;
+        let one = bl.constant(1.0)?;
+        let t = bl.binary(Binary::Sub, t, one)?;
+        let t = bl.binary(Binary::Mul, d, t)?;
+        n = bl.binary(Binary::Add, n, t)?;
+    }
+    let half = bl.constant(0.5)?;
+    let inv_two_pi = bl.constant(0.159_154_94)?;
+    Ok(Some(match profile {
+        "SIN" => {
+            let quarter = bl.constant(std::f32::consts::FRAC_PI_2)?;
+            let a = bl.binary(Binary::Sub, n, quarter)?;
+            let s = bl.unary(Unary::Sin, a)?;
+            let s = bl.binary(Binary::Mul, s, half)?;
+            bl.binary(Binary::Add, s, half)?
+        }
+        "SAW" => {
+            let m = bl.binary(Binary::Mul, n, inv_two_pi)?;
+            let f = bl.unary(Unary::Floor, m)?;
+            bl.binary(Binary::Sub, m, f)?
+        }
+        "TRI" => {
+            let m = bl.binary(Binary::Mul, n, inv_two_pi)?;
+            let mh = bl.binary(Binary::Add, m, half)?;
+            let f = bl.unary(Unary::Floor, mh)?;
+            let d = bl.binary(Binary::Sub, m, f)?;
+            let d = bl.unary(Unary::Abs, d)?;
+            let two = bl.constant(2.0)?;
+            bl.binary(Binary::Mul, d, two)?
+        }
+        _ => return Ok(None),
+    }))
+}
+
+/// Blender's Magic Texture (Cycles' `svm_magic`) at `co` (each component taken modulo
+/// 2π first (fmodf), against the loss of precision of sin and cos far out), scaled by `scale` inside the first
+/// sines: three trigonometric waves, then `depth` (0 to 10) rounds of turbulence, each
+/// multiplied by `distortion`, divided by 2·distortion unless it is 0: the Color (0.5 −
+/// x, 0.5 − y, 0.5 − z). Each operation rounded on its own, in Cycles' order (its
+/// SSE4.2 kernel, which multiplies by 0.5 / distortion where the source divides).
+pub fn magic(bl: &mut Builder, co: Reg, scale: Reg, depth: u32, d: Reg) -> Result<Reg, GraphError> {
+    let co = bl.splat3(co)?;
+    let period = bl.constant(6.283_185_5)?;
+    let p = bl.binary(Binary::Mod, co, period)?;
+    let [px, py, pz] = [0, 1, 2].map(|k| bl.component(p, k));
+    let (px, py, pz) = (px?, py?, pz?);
+    let five = bl.constant(5.0)?;
+    // One argument of the first waves: ((a + b) + c) · 5 · scale.
+    let wave = |bl: &mut Builder, a: Reg, b: Reg, c: Reg, op: Unary, negate: bool| {
+        let s = bl.binary(Binary::Add, a, b)?;
+        let s = bl.binary(Binary::Add, s, c)?;
+        let s = bl.binary(Binary::Mul, s, five)?;
+        let s = bl.binary(Binary::Mul, s, scale)?;
+        let v = bl.unary(op, s)?;
+        match negate {
+            true => bl.unary(Unary::Neg, v),
+            false => Ok(v),
+        }
+    };
+    let (npx, npz) = (bl.unary(Unary::Neg, px)?, bl.unary(Unary::Neg, pz)?);
+    let mut x = wave(bl, px, py, pz, Unary::Sin, false)?;
+    // (py − px) − pz and (−px − py) + pz as sums of negated terms: the same roundings.
+    let mut y = wave(bl, py, npx, npz, Unary::Cos, false)?;
+    let npy = bl.unary(Unary::Neg, py)?;
+    let mut z = wave(bl, npx, npy, pz, Unary::Cos, true)?;
+    // One round: f(±a ± b ± c) · d, the signs of x, y, z in `signs`.
+    let round = |bl: &mut Builder,
+                 [x, y, z]: [Reg; 3],
+                 order: [usize; 3],
+                 signs: [bool; 3],
+                 op: Unary,
+                 negate: bool|
+     -> Result<Reg, GraphError> {
+        let v = [x, y, z];
+        let term = |bl: &mut Builder, k: usize| match signs[k] {
+            true => Ok(v[order[k]]),
+            false => bl.unary(Unary::Neg, v[order[k]]),
+        };
+        let a = term(bl, 0)?;
+        let b = term(bl, 1)?;
+        let c = term(bl, 2)?;
+        let s = bl.binary(Binary::Add, a, b)?;
+        let s = bl.binary(Binary::Add, s, c)?;
+        let f = bl.unary(op, s)?;
+        let f = match negate {
+            true => bl.unary(Unary::Neg, f)?,
+            false => f,
+        };
+        bl.binary(Binary::Mul, f, d)
+    };
+    if depth > 0 {
+        let x1 = bl.binary(Binary::Mul, x, d)?;
+        let z1 = bl.binary(Binary::Mul, z, d)?;
+        let yd = bl.binary(Binary::Mul, y, d)?;
+        let arg = bl.binary(Binary::Sub, x1, yd)?;
+        let arg = bl.binary(Binary::Add, arg, z1)?;
+        let c = bl.unary(Unary::Cos, arg)?;
+        let c = bl.unary(Unary::Neg, c)?;
+        y = bl.binary(Binary::Mul, c, d)?;
+        (x, z) = (x1, z1);
+    }
+    // Rounds 2 to 10: (which of x, y, z it writes; the terms' order and signs; cos or
+    // sin; negated).
+    const ROUNDS: [(usize, [usize; 3], [bool; 3], bool, bool); 9] = [
+        (0, [0, 1, 2], [true, false, false], true, false),
+        (2, [0, 1, 2], [false, false, false], false, false),
+        (0, [1, 0, 2], [true, false, false], true, true),
+        (1, [1, 0, 2], [true, false, true], false, true),
+        (1, [1, 0, 2], [true, false, true], true, true),
+        (0, [0, 1, 2], [true, true, true], true, false),
+        (2, [0, 1, 2], [true, true, false], false, false),
+        (0, [0, 1, 2], [false, false, true], true, true),
+        (1, [0, 1, 2], [true, false, true], false, true),
+    ];
+    for &(out, order, signs, cos, negate) in ROUNDS.iter().take(depth.saturating_sub(1) as usize) {
+        let op = if cos { Unary::Cos } else { Unary::Sin };
+        let v = round(bl, [x, y, z], order, signs, op, negate)?;
+        match out {
+            0 => x = v,
+            1 => y = v,
+            _ => z = v,
+        }
+    }
+    // Divided by 2·d where d ≠ 0 (at every depth), as 0.5 / d times each: r is 1
+    // where d is 0, so the branch not taken stays finite and the select exact.
+    let (zero, one, half) = (bl.constant(0.0)?, bl.constant(1.0)?, bl.constant(0.5)?);
+    let above = bl.binary(Binary::Less, zero, d)?;
+    let below = bl.binary(Binary::Less, d, zero)?;
+    let nonzero = bl.binary(Binary::Add, above, below)?;
+    let r = bl.binary(Binary::SafeDiv, half, d)?;
+    let r = select(bl, nonzero, r, one)?;
+    x = bl.binary(Binary::Mul, x, r)?;
+    y = bl.binary(Binary::Mul, y, r)?;
+    z = bl.binary(Binary::Mul, z, r)?;
+    let v = bl.combine3(x, y, z)?;
+    bl.binary(Binary::Sub, half, v)
+}
+
+/// The Magic Texture's Fac: ((r + g) + b) · 0.33333334 of its Color.
+pub fn magic_fac(bl: &mut Builder, color: Reg) -> Result<Reg, GraphError> {
+    let [r, g, b] = [0, 1, 2].map(|k| bl.component(color, k));
+    let s = bl.binary(Binary::Add, r?, g?)?;
+    let s = bl.binary(Binary::Add, s, b?)?;
+    let third = bl.constant(0.333_333_34)?;
+    bl.binary(Binary::Mul, s, third)
 }
 
 /// Blender's Map Range on floats with interpolation `kind` (its identifier) of `x` from
@@ -1375,6 +1620,170 @@ impl<'a> Reader<'a> {
                 let c = self.vector(node, "Color", Some([0.8; 3]))?;
                 self.builder.node(&at);
                 hue_saturation_value(&mut self.builder, [hue, sat, val, fac], c).map_err(&err)?
+            }
+            // The add-on writes each channel's table as Cycles bakes it (257 entries,
+            // `red_table`, `green_table`, `blue_table`), the x range every curve shares
+            // (`min_x`, `max_x`) and `extrapolate`.
+            "ShaderNodeRGBCurve" | "ShaderNodeVectorCurve" => {
+                let rgb = node.id == "ShaderNodeRGBCurve";
+                let (input, default) = match rgb {
+                    true => ("Color", [1.0; 3]),
+                    false => ("Vector", [0.0; 3]),
+                };
+                if output != input {
+                    return Err(wrong_output());
+                }
+                let tables = [
+                    Self::table(node, "red_table")?,
+                    Self::table(node, "green_table")?,
+                    Self::table(node, "blue_table")?,
+                ];
+                let min = self.constant(node, "min_x", 0.0)? as f32;
+                let max = self.constant(node, "max_x", 1.0)? as f32;
+                if !(max - min > 0.0 && (max - min).is_finite()) {
+                    return Err(prim_error_str(
+                        &node.path,
+                        format!("the curves' points span no x range ({min} .. {max})"),
+                    ));
+                }
+                if tables.iter().any(|t| t.len() < 2) {
+                    return Err(prim_error_str(
+                        &node.path,
+                        "a curve's table has fewer than 2 entries".to_string(),
+                    ));
+                }
+                let extrapolate = self.constant(node, "extrapolate", 1.0)? != 0.0;
+                let fac = self.float(node, "Fac", 1.0)?;
+                let c = self.vector(node, input, Some(default))?;
+                self.builder.node(&at);
+                curves(&mut self.builder, tables, (min, max), extrapolate, fac, c).map_err(&err)?
+            }
+            "ShaderNodeGamma" => {
+                if output != "Color" {
+                    return Err(wrong_output());
+                }
+                let c = self.vector(node, "Color", Some([1.0; 3]))?;
+                let g = self.float(node, "Gamma", 1.0)?;
+                self.builder.node(&at);
+                gamma(&mut self.builder, c, g).map_err(&err)?
+            }
+            "ShaderNodeBrightContrast" => {
+                if output != "Color" {
+                    return Err(wrong_output());
+                }
+                let c = self.vector(node, "Color", Some([1.0; 3]))?;
+                let bright = self.float(node, "Bright", 0.0)?;
+                let contrast = self.float(node, "Contrast", 0.0)?;
+                self.builder.node(&at);
+                brightness_contrast(&mut self.builder, c, bright, contrast).map_err(&err)?
+            }
+            // Cycles' White Noise: an unlinked Vector is (0, 0, 0) (not a texture
+            // space: the node has none), as the add-on writes it.
+            "ShaderNodeTexWhiteNoise" => {
+                let color = match output {
+                    "Value" => false,
+                    "Color" => true,
+                    _ => return Err(wrong_output()),
+                };
+                let dims = Self::text(node, "noise_dimensions", "3D")?;
+                let dims = match dims.as_str() {
+                    "1D" => 1,
+                    "2D" => 2,
+                    "3D" => 3,
+                    "4D" => 4,
+                    _ => return Err(Self::refuse(node, "noise_dimensions", &dims)),
+                };
+                let p = self.vector(node, "Vector", Some([0.0; 3]))?;
+                let w = self.float(node, "W", 0.0)?;
+                self.builder.node(&at);
+                self.builder.white_noise(p, w, dims, color).map_err(&err)?
+            }
+            "ShaderNodeBlackbody" => {
+                if output != "Color" {
+                    return Err(wrong_output());
+                }
+                let t = self.float(node, "Temperature", 6500.0)?;
+                self.builder.node(&at);
+                self.builder.blackbody(t).map_err(&err)?
+            }
+            // Scale, Distortion and Phase Offset may be linked; the fBM's Detail,
+            // Detail Scale and Detail Roughness shape the noise and must be constants.
+            "ShaderNodeTexWave" => {
+                if output != "Fac" && output != "Color" {
+                    return Err(wrong_output());
+                }
+                let kind = Self::text(node, "wave_type", "BANDS")?;
+                let direction = match kind.as_str() {
+                    "RINGS" => Self::text(node, "rings_direction", "X")?,
+                    _ => Self::text(node, "bands_direction", "X")?,
+                };
+                let profile = Self::text(node, "wave_profile", "SIN")?;
+                let detail = self.constant(node, "Detail", 2.0)? as f32;
+                let roughness = self.constant(node, "Detail_Roughness", 0.5)? as f32;
+                if !(0.0..=15.0).contains(&detail) || !(roughness >= 0.0) {
+                    return Err(prim_error_str(
+                        &node.path,
+                        format!("Detail {detail} (Nimbus compiles 0 to 15) or Detail Roughness {roughness} (from 0)"),
+                    ));
+                }
+                let texture = NoiseTexture {
+                    dimensions: Dimensions::D3,
+                    kind: NoiseType::Fbm,
+                    normalize: true,
+                    scale: self.constant(node, "Detail_Scale", 1.0)? as f32,
+                    detail,
+                    roughness,
+                    lacunarity: 2.0,
+                    distortion: 0.0,
+                    ..NoiseTexture::default()
+                };
+                let distortion = match Self::source(node, "Distortion") {
+                    None => None,
+                    Some(Err(_)) if self.constant(node, "Distortion", 0.0)? == 0.0 => None,
+                    Some(_) => Some(self.float(node, "Distortion", 0.0)?),
+                };
+                let co = self.vector(node, "Vector", None)?;
+                let scale = self.float(node, "Scale", 5.0)?;
+                let phase = self.float(node, "Phase_Offset", 0.0)?;
+                self.builder.node(&at);
+                let Some(v) = wave(
+                    &mut self.builder,
+                    co,
+                    scale,
+                    (kind.as_str(), direction.as_str(), profile.as_str()),
+                    distortion,
+                    texture,
+                    phase,
+                )
+                .map_err(&err)?
+                else {
+                    return Err(prim_error_str(
+                        &node.path,
+                        format!("a Wave Texture of type {kind}, direction {direction}, profile {profile}: not one Nimbus compiles"),
+                    ));
+                };
+                match output {
+                    "Color" => self.builder.splat3(v).map_err(&err)?,
+                    _ => v,
+                }
+            }
+            "ShaderNodeTexMagic" => {
+                if output != "Fac" && output != "Color" {
+                    return Err(wrong_output());
+                }
+                let depth = self.constant(node, "turbulence_depth", 2.0)?;
+                if !(0.0..=10.0).contains(&depth) {
+                    return Err(Self::refuse(node, "turbulence_depth", &depth.to_string()));
+                }
+                let co = self.vector(node, "Vector", None)?;
+                let scale = self.float(node, "Scale", 5.0)?;
+                let d = self.float(node, "Distortion", 1.0)?;
+                self.builder.node(&at);
+                let c = magic(&mut self.builder, co, scale, depth as u32, d).map_err(&err)?;
+                match output {
+                    "Fac" => magic_fac(&mut self.builder, c).map_err(&err)?,
+                    _ => c,
+                }
             }
             "ShaderNodeInvert" => {
                 if output != "Color" {

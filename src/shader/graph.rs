@@ -20,7 +20,7 @@ use super::interval::{
 };
 use super::materialx_noise::{cell_noise_3d, perlin_noise_3d};
 use super::math;
-use super::noise::NoiseTexture;
+use super::noise::{white_noise_color, white_noise_value, NoiseTexture};
 use super::voronoi::{VoronoiOutput, VoronoiTexture, VoronoiValues};
 
 /// A register index.
@@ -135,6 +135,21 @@ pub enum Instr {
         dst: Reg,
         a: Reg,
         b: Reg,
+        t: Reg,
+    },
+    /// Blender's White Noise Texture of `dims` (1 to 4) coordinates read from `at`
+    /// (x, y, z, w; 1D reads w only): its Value, or with `color` its Color in three
+    /// registers.
+    WhiteNoise {
+        dst: Reg,
+        at: [Reg; 4],
+        dims: u8,
+        color: bool,
+    },
+    /// Blender's Blackbody node: Cycles' Rec.709 colour of the temperature `t` (kelvin)
+    /// in three registers.
+    Blackbody {
+        dst: Reg,
         t: Reg,
     },
     /// MaterialX `cellnoise3d` (float): the hash of the cell `floor(p)` in [0, 1].
@@ -511,6 +526,42 @@ impl Builder {
         let dst = self.alloc(1)?;
         self.push(Instr::Mix { dst, a, b, t });
         Ok(Value::Float(dst))
+    }
+
+    /// Blender's White Noise Texture of `dims` coordinates: `p`'s x, y, z and `w`
+    /// (1D reads `w` only, 2D x and y, 3D x, y and z); its Value, or with `color` its
+    /// Color.
+    pub fn white_noise(
+        &mut self,
+        p: Value,
+        w: Value,
+        dims: u8,
+        color: bool,
+    ) -> Result<Value, GraphError> {
+        let p = self.position3(p)?;
+        let w = self.float(w, "White Noise's W")?;
+        if !(1..=4).contains(&dims) {
+            return Err(self.error(format!("White Noise of {dims} dimensions")));
+        }
+        let dst = self.alloc(if color { 3 } else { 1 })?;
+        self.push(Instr::WhiteNoise {
+            dst,
+            at: [p, p + 1, p + 2, w],
+            dims,
+            color,
+        });
+        Ok(match color {
+            true => Value::Vector3(dst),
+            false => Value::Float(dst),
+        })
+    }
+
+    /// Blender's Blackbody colour of the temperature `t` (kelvin).
+    pub fn blackbody(&mut self, t: Value) -> Result<Value, GraphError> {
+        let t = self.float(t, "Blackbody's temperature")?;
+        let dst = self.alloc(3)?;
+        self.push(Instr::Blackbody { dst, t });
+        Ok(Value::Vector3(dst))
     }
 
     /// MaterialX `cellnoise3d` (float) at `p`.
@@ -897,6 +948,27 @@ impl Program {
                     let t = r[t as usize];
                     r[dst as usize] = r[a as usize] * (1.0 - t) + r[b as usize] * t;
                 }
+                Instr::WhiteNoise {
+                    dst,
+                    at,
+                    dims,
+                    color,
+                } => {
+                    let k = at.map(|a| r[a as usize]);
+                    let dst = dst as usize;
+                    match color {
+                        true => {
+                            let c = white_noise_color(k, dims);
+                            r[dst..dst + 3].copy_from_slice(&c)
+                        }
+                        false => r[dst] = white_noise_value(k, dims),
+                    }
+                }
+                Instr::Blackbody { dst, t } => {
+                    let dst = dst as usize;
+                    let c = math::blackbody(r[t as usize]);
+                    r[dst..dst + 3].copy_from_slice(&c);
+                }
                 Instr::MxCellNoise3d { dst, p } => {
                     let p = p as usize;
                     r[dst as usize] = cell_noise_3d([r[p], r[p + 1], r[p + 2]]);
@@ -1100,6 +1172,23 @@ impl Program {
                         a.mul(Interval::point(1.0).sub(t)).add(b.mul(t))
                     };
                 }
+                // Hashes: anywhere in [0, 1].
+                Instr::WhiteNoise { dst, color, .. } => {
+                    let n = if color { 3 } else { 1 };
+                    for k in 0..n {
+                        r[dst as usize + k] = Interval::new(0.0, 1.0);
+                    }
+                }
+                Instr::Blackbody { dst, t } => {
+                    let t = r[t as usize];
+                    for (k, &(lo, hi)) in math::BLACKBODY_RANGE.iter().enumerate() {
+                        r[dst as usize + k] = if t.lo == t.hi {
+                            Interval::point(math::blackbody(t.lo)[k])
+                        } else {
+                            Interval::new(lo, hi)
+                        };
+                    }
+                }
                 Instr::MxCellNoise3d { dst, p } => {
                     let p = p as usize;
                     r[dst as usize] = cell_noise_3d_bound(
@@ -1286,6 +1375,29 @@ mod tests {
                 let v = prog.eval([next(), next(), next()], 0.0);
                 assert!(!vanishes || v.max(0.0) == 0.0, "{name}: {v} at attribute 0");
             }
+        }
+    }
+
+    /// The blackbody's range bounds it at every temperature from 0 to 13,000 K in
+    /// steps of 1/512 K (every piece of the fit, both constant ends), and is tight to
+    /// within 2e-4 of what those values reach.
+    #[test]
+    fn the_blackbody_range_bounds_every_temperature() {
+        let mut seen = [(f32::INFINITY, f32::NEG_INFINITY); 3];
+        for i in 0..13_000 * 512 {
+            let c = math::blackbody(i as f32 / 512.0);
+            for k in 0..3 {
+                let (lo, hi) = math::BLACKBODY_RANGE[k];
+                assert!(c[k] >= lo && c[k] <= hi, "{c:?} at {} K", i as f32 / 512.0);
+                seen[k] = (seen[k].0.min(c[k]), seen[k].1.max(c[k]));
+            }
+        }
+        for k in 0..3 {
+            let (lo, hi) = math::BLACKBODY_RANGE[k];
+            assert!(
+                seen[k].0 - lo < 1e-4 && hi - seen[k].1 < 1e-4,
+                "{k}: {seen:?}"
+            );
         }
     }
 

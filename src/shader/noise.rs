@@ -91,6 +91,13 @@ const fn lookup3_init(n: u32) -> u32 {
     0xdeadbeef_u32.wrapping_add(n << 2).wrapping_add(13)
 }
 
+/// Hash of one word (Blender's White Noise in 1D).
+#[inline(always)]
+pub const fn hash_uint(kx: u32) -> u32 {
+    let init = lookup3_init(1);
+    lookup3_final(init.wrapping_add(kx), init, init)
+}
+
 /// Hash of two words (the seeds of the random offsets are hashed as two floats' bits).
 #[inline(always)]
 pub const fn hash_uint2(kx: u32, ky: u32) -> u32 {
@@ -131,6 +138,47 @@ const fn uint_to_unit_float(n: u32) -> f32 {
 /// Two floats hashed by their bit patterns to [0, 1].
 pub const fn hash_float2_to_float(x: f32, y: f32) -> f32 {
     uint_to_unit_float(hash_uint2(x.to_bits(), y.to_bits()))
+}
+
+/// Up to four floats hashed by their bit patterns to [0, 1] (Cycles'
+/// `hash_float*_to_float`).
+#[inline(always)]
+fn hash_floats_to_float(words: &[f32]) -> f32 {
+    uint_to_unit_float(match *words {
+        [a] => hash_uint(a.to_bits()),
+        [a, b] => hash_uint2(a.to_bits(), b.to_bits()),
+        [a, b, c] => hash_uint3(a.to_bits(), b.to_bits(), c.to_bits()),
+        [a, b, c, d] => hash_uint4(a.to_bits(), b.to_bits(), c.to_bits(), d.to_bits()),
+        _ => 0,
+    })
+}
+
+/// Blender's White Noise Texture's Value (Cycles' `svm_node_tex_white_noise`): the bit
+/// patterns of the first `dims` coordinates hashed to [0, 1] — 1D `w`; 2D `x y`; 3D
+/// `x y z`; 4D `x y z w` of `k = [x, y, z, w]`.
+#[inline]
+pub fn white_noise_value(k: [f32; 4], dims: u8) -> f32 {
+    let [x, y, z, w] = k;
+    match dims {
+        1 => hash_floats_to_float(&[w]),
+        2 => hash_floats_to_float(&[x, y]),
+        3 => hash_floats_to_float(&[x, y, z]),
+        _ => hash_floats_to_float(&[x, y, z, w]),
+    }
+}
+
+/// The White Noise Texture's Color: the Value, then the same words with 1 and with 2
+/// appended (1D to 3D), or permuted (4D: z x w y, then w z y x).
+#[inline]
+pub fn white_noise_color(k: [f32; 4], dims: u8) -> [f32; 3] {
+    let h = hash_floats_to_float;
+    let [x, y, z, w] = k;
+    match dims {
+        1 => [h(&[w]), h(&[w, 1.0]), h(&[w, 2.0])],
+        2 => [h(&[x, y]), h(&[x, y, 1.0]), h(&[x, y, 2.0])],
+        3 => [h(&[x, y, z]), h(&[x, y, z, 1.0]), h(&[x, y, z, 2.0])],
+        _ => [h(&[x, y, z, w]), h(&[z, x, w, y]), h(&[w, z, y, x])],
+    }
 }
 
 // ---------------------------------------------------------------------------------------
