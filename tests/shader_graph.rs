@@ -787,9 +787,9 @@ fn a_blender_node_tree_on_densityscale_is_the_fog_density() {
         assert!(max_seen > varies, "the graph varies: largest {max_seen}");
     }
 
-    let wave = blender_cube_stage(dir.path(), "ShaderNodeTexWave");
-    let e = render_refused(dir.path(), &wave, "/Graphs/noise");
-    assert!(e.contains("ShaderNodeTexWave"), "{}", e);
+    let gabor = blender_cube_stage(dir.path(), "ShaderNodeTexGabor");
+    let e = render_refused(dir.path(), &gabor, "/Graphs/noise");
+    assert!(e.contains("ShaderNodeTexGabor"), "{}", e);
 }
 
 /// A material whose density is MaterialX's `cellnoise3d` and ramps (no texcoord on a
