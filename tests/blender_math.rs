@@ -105,6 +105,76 @@ fn read_rows<const W: usize>(dir: &std::path::Path, op: &str) -> Vec<[f32; W]> {
         .collect()
 }
 
+/// A curve fixture's `<name>.table.f32` in `dir`: (min_x, max_x, extrapolate, the
+/// table entries that follow).
+fn read_curve_table(dir: &std::path::Path, name: &str) -> (f32, f32, bool, Vec<f32>) {
+    let path = dir.join(format!("{name}.table.f32"));
+    let raw = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let head: Vec<f32> = raw
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes(b.try_into().unwrap()))
+        .collect();
+    (head[0], head[1], head[2] != 0.0, head[3..].to_vec())
+}
+
+/// The largest difference of a 257-entry curve table over [min, max] from the exact
+/// `points` (straight segments) at its sample positions; 0 without points.
+fn table_error(table: &[f32], (min, max): (f32, f32), points: &[(f64, f64)]) -> f64 {
+    if points.is_empty() {
+        return 0.0;
+    }
+    table
+        .iter()
+        .enumerate()
+        .map(|(i, v)| {
+            let x = min as f64 + i as f64 / 256.0 * (max - min) as f64;
+            (*v as f64 - polyline(points, x)).abs()
+        })
+        .fold(0.0, f64::max)
+}
+
+/// A curve lookup's error against Geometry Nodes over what the curve tests allow, at
+/// input `x` (Factor `fac`) of a curve over [min, max] whose table is `eps` off the
+/// exact curve: `MIX_ROUNDING` inside the range, plus beyond it, extrapolated, the
+/// table's error amplified by the distance d in range units, (ε + 2ε·d·256)·|fac|; all
+/// relative to max(1, |reference|). NaN counts as infinite.
+fn curve_error(
+    (ours, reference): (f32, f32),
+    (x, fac): (f32, f32),
+    (min, max): (f32, f32),
+    extrapolate: bool,
+    eps: f64,
+) -> f64 {
+    let d = ((min as f64 - x as f64).max(x as f64 - max as f64) / (max - min) as f64).max(0.0);
+    let scale = (reference.abs() as f64).max(1.0);
+    let allowed = MIX_ROUNDING
+        + match extrapolate && d > 0.0 {
+            true => (eps + 2.0 * eps * d * 256.0) * fac.abs() as f64 / scale,
+            false => 0.0,
+        };
+    let e = (ours as f64 - reference as f64).abs() / scale / allowed;
+    if e.is_nan() {
+        f64::INFINITY
+    } else {
+        e
+    }
+}
+
+/// `v` as a program: its component `k`, or the whole colour when `None`.
+fn finish_component(
+    mut bl: Builder,
+    v: nimbus::shader::graph::Value,
+    component: Option<u16>,
+) -> Program {
+    match component {
+        Some(k) => {
+            let c = bl.component(v, k).unwrap();
+            bl.finish(c).unwrap()
+        }
+        None => bl.finish_rgb(v).unwrap(),
+    }
+}
+
 #[test]
 fn math_operations_match_blender() {
     let Some(python) = common::data::bpy_python("bpy, numpy") else {
@@ -484,13 +554,7 @@ fn mapping_program(ty: &str, set: usize, component: Option<u16>) -> Program {
     let v = mapping(&mut bl, ty, p, l, rotation, s)
         .unwrap()
         .expect("compiled");
-    match component {
-        None => bl.finish_rgb(v).unwrap(),
-        Some(k) => {
-            let c = bl.component(v, k).unwrap();
-            bl.finish(c).unwrap()
-        }
-    }
+    finish_component(bl, v, component)
 }
 
 /// Every Mapping type (Point, Texture, Vector, Normal) with three parameter sets
@@ -832,26 +896,9 @@ fn float_curves_match_blender() {
     let mut uniform = xorshift(0x2545_f491_4f6c_dd1d);
     let mut failed = Vec::new();
     for (name, points) in FLOAT_CURVES {
-        let path = dir.path().join(format!("{name}.table.f32"));
-        let raw = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-        let head: Vec<f32> = raw
-            .chunks_exact(4)
-            .map(|b| f32::from_le_bytes(b.try_into().unwrap()))
-            .collect();
-        let (min, max, extrapolate) = (head[0], head[1], head[2] != 0.0);
-        let table = head[3..].to_vec();
+        let (min, max, extrapolate, table) = read_curve_table(dir.path(), name);
         assert_eq!(table.len(), 257, "{name}: table entries");
-        let eps = match points.is_empty() {
-            true => 0.0,
-            false => table
-                .iter()
-                .enumerate()
-                .map(|(i, v)| {
-                    let x = min as f64 + i as f64 / 256.0 * (max - min) as f64;
-                    (*v as f64 - polyline(points, x)).abs()
-                })
-                .fold(0.0, f64::max),
-        };
+        let eps = table_error(&table, (min, max), points);
         let mut bl = Builder::default();
         let p = bl.position();
         let value = bl.component(p, 0).unwrap();
@@ -861,9 +908,7 @@ fn float_curves_match_blender() {
         let (mut equal, mut worst, mut beyond, mut skipped) = (0, 0f64, 0, 0);
         for r in read_rows::<5>(dir.path(), name) {
             let ours = prog.eval([r[0], r[1], r[2]], r[3]);
-            let d = ((min as f64 - r[0] as f64).max(r[0] as f64 - max as f64) / (max - min) as f64)
-                .max(0.0);
-            if d > 0.0 {
+            if r[0] < min || r[0] > max {
                 beyond += 1;
                 if extrapolate && points.is_empty() {
                     skipped += 1;
@@ -874,18 +919,8 @@ fn float_curves_match_blender() {
                 equal += 1;
                 continue;
             }
-            let scale = (r[4].abs() as f64).max(1.0);
-            let allowed = MIX_ROUNDING
-                + match extrapolate && d > 0.0 {
-                    true => (eps + 2.0 * eps * d * 256.0) * r[3].abs() as f64 / scale,
-                    false => 0.0,
-                };
-            let e = (ours as f64 - r[4] as f64).abs() / scale;
-            worst = worst.max(if e.is_nan() {
-                f64::INFINITY
-            } else {
-                e / allowed
-            });
+            let e = curve_error((ours, r[4]), (r[0], r[3]), (min, max), extrapolate, eps);
+            worst = worst.max(e);
         }
         assert_bounds_hold_with_factor(name, &prog, &mut uniform);
         println!(
@@ -953,38 +988,18 @@ fn rgb_and_vector_curves_match_blender() {
     let mut uniform = xorshift(0x2545_f491_4f6c_dd1d);
     let mut failed = Vec::new();
     for (name, polylines) in CURVES {
-        let path = dir.path().join(format!("{name}.table.f32"));
-        let raw = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-        let head: Vec<f32> = raw
-            .chunks_exact(4)
-            .map(|b| f32::from_le_bytes(b.try_into().unwrap()))
-            .collect();
-        assert_eq!(head.len(), 3 + 3 * 257, "{name}: table entries");
-        let (min, max, extrapolate) = (head[0], head[1], head[2] != 0.0);
+        let (min, max, extrapolate, entries) = read_curve_table(dir.path(), name);
+        assert_eq!(entries.len(), 3 * 257, "{name}: table entries");
         let tables: [Vec<f32>; 3] =
-            std::array::from_fn(|k| head[3 + 257 * k..3 + 257 * (k + 1)].to_vec());
-        let eps: [f64; 3] = std::array::from_fn(|k| {
-            tables[k]
-                .iter()
-                .enumerate()
-                .map(|(i, v)| {
-                    let x = min as f64 + i as f64 / 256.0 * (max - min) as f64;
-                    (*v as f64 - polyline(polylines[k], x)).abs()
-                })
-                .fold(0.0, f64::max)
-        });
+            std::array::from_fn(|k| entries[257 * k..257 * (k + 1)].to_vec());
+        let eps: [f64; 3] =
+            std::array::from_fn(|k| table_error(&tables[k], (min, max), polylines[k]));
         let program = |component: Option<u16>| {
             let mut bl = Builder::default();
             let p = bl.position();
             let fac = bl.attribute();
             let v = curves(&mut bl, tables.clone(), (min, max), extrapolate, fac, p).unwrap();
-            match component {
-                Some(k) => {
-                    let c = bl.component(v, k).unwrap();
-                    bl.finish(c).unwrap()
-                }
-                None => bl.finish_rgb(v).unwrap(),
-            }
+            finish_component(bl, v, component)
         };
         let prog = program(None);
         let (mut equal, mut worst) = (0, 0f64);
@@ -995,22 +1010,8 @@ fn rgb_and_vector_curves_match_blender() {
                 continue;
             }
             for k in 0..3 {
-                let reference = r[4 + k];
-                let d = ((min as f64 - r[k] as f64).max(r[k] as f64 - max as f64)
-                    / (max - min) as f64)
-                    .max(0.0);
-                let scale = (reference.abs() as f64).max(1.0);
-                let allowed = MIX_ROUNDING
-                    + match extrapolate && d > 0.0 {
-                        true => (eps[k] + 2.0 * eps[k] * d * 256.0) * r[3].abs() as f64 / scale,
-                        false => 0.0,
-                    };
-                let e = (ours[k] as f64 - reference as f64).abs() / scale;
-                worst = worst.max(if e.is_nan() {
-                    f64::INFINITY
-                } else {
-                    e / allowed
-                });
+                let rows = ((ours[k], r[4 + k]), (r[k], r[3]));
+                worst = worst.max(curve_error(rows.0, rows.1, (min, max), extrapolate, eps[k]));
             }
         }
         for k in 0..3 {
@@ -1057,13 +1058,7 @@ fn gamma_matches_blender() {
             .binary(nimbus::shader::graph::Binary::Add, g, minus_one)
             .unwrap();
         let v = blender_color::gamma(&mut bl, p, g).unwrap();
-        match component {
-            Some(k) => {
-                let c = bl.component(v, k).unwrap();
-                bl.finish(c).unwrap()
-            }
-            None => bl.finish_rgb(v).unwrap(),
-        }
+        finish_component(bl, v, component)
     };
     let prog = program(None);
     let (mut equal, mut worst, mut white) = (0, 0f64, 0);
@@ -1130,11 +1125,7 @@ fn white_noise_and_blackbody_match_blender() {
         };
         match output {
             Some(3) => bl.finish(v).unwrap(),
-            Some(k) => {
-                let c = bl.component(v, k).unwrap();
-                bl.finish(c).unwrap()
-            }
-            None => bl.finish_rgb(v).unwrap(),
+            k => finish_component(bl, v, k),
         }
     };
     let mut uniform = xorshift(0x9e37_79b9_7f4a_7c15);
@@ -1299,13 +1290,7 @@ fn magic_textures_match_blender() {
                 .binary(nimbus::shader::graph::Binary::Add, d, minus_half)
                 .unwrap();
             let c = magic(&mut bl, p, scale, depth, d).unwrap();
-            match component {
-                Some(k) => {
-                    let v = bl.component(c, k).unwrap();
-                    bl.finish(v).unwrap()
-                }
-                None => bl.finish_rgb(c).unwrap(),
-            }
+            finish_component(bl, c, component)
         };
         let prog = program(None);
         let (mut equal, mut worst, mut skipped) = (0, 0f64, 0);
