@@ -1044,32 +1044,6 @@ impl Program {
     /// in `attribute`, widened for rounding. Unbounded (a division by an interval
     /// holding 0, say) comes back with infinite ends.
     pub fn bounds(&self, lo: [f32; 3], hi: [f32; 3], attribute: Interval) -> Interval {
-        // Room for f32 rounding of the evaluation: a relative 2⁻¹² of the largest value
-        // and an absolute 2⁻²⁰ (both far above the few ulps a short program loses).
-        self.interval(lo, hi, attribute)
-            .widened(1.0 / 4096.0, 1.0 / 1_048_576.0)
-    }
-
-    /// Whether the graph is 0 (or below) wherever its attribute is exactly 0, at any
-    /// position: a density that scales its grid (the smoke's density × a noise). A
-    /// lookup whose grid value is 0 then needs no evaluation ([`Medium::density`]).
-    /// The interval arithmetic is exact on the point 0 (0 × a bounded factor is 0, and
-    /// 0 × ∞ is taken as 0, where the evaluation's NaN is a density of 0 too), so an
-    /// unwidened `[≤0, ≤0]` is the graph's own value, not a rounding of it.
-    ///
-    /// [`Medium::density`]: crate::volume::medium::Medium::density
-    pub fn vanishes_with_attribute(&self) -> bool {
-        if !self.reads_attribute {
-            return false;
-        }
-        let everywhere = [f32::NEG_INFINITY; 3];
-        let v = self.interval(everywhere, [f32::INFINITY; 3], Interval::point(0.0));
-        v.hi <= 0.0
-    }
-
-    /// The program's interval over the box `[lo, hi]` with the attribute in
-    /// `attribute`, before the widening for rounding that [`bounds`](Self::bounds) adds.
-    fn interval(&self, lo: [f32; 3], hi: [f32; 3], attribute: Interval) -> Interval {
         let mut r = vec![Interval::point(0.0); self.registers.max(INPUTS as usize)];
         for a in 0..3 {
             r[a] = Interval::new(lo[a], hi[a]);
@@ -1258,7 +1232,9 @@ impl Program {
                 }
             }
         }
-        r[self.output as usize]
+        // Room for f32 rounding of the evaluation: a relative 2⁻¹² of the largest value
+        // and an absolute 2⁻²⁰ (both far above the few ulps a short program loses).
+        r[self.output as usize].widened(1.0 / 4096.0, 1.0 / 1_048_576.0)
     }
 
     /// The node that made the instruction computing the output (for messages).
@@ -1313,71 +1289,6 @@ mod tests {
         assert!(matches!(chain(511), Err(GraphError::TooLarge)));
     }
 
-    /// A graph that scales its attribute by a position-only factor vanishes with it
-    /// (the skip is taken), and one that adds to it, floors it or never reads it does
-    /// not; where it is taken, the graph's own value at attribute 0 is 0 at every one
-    /// of 10,000 points.
-    #[test]
-    fn graphs_that_vanish_with_their_attribute_are_found() {
-        type Tail = fn(&mut Builder, Value, Value) -> Value;
-        let cases: [(&str, Tail, bool); 5] = [
-            (
-                "attribute x fractal",
-                |b, f, d| b.binary(Binary::Mul, f, d).unwrap(),
-                true,
-            ),
-            (
-                "(attribute x fractal) / 2",
-                |b, f, d| {
-                    let m = b.binary(Binary::Mul, d, f).unwrap();
-                    let two = b.constant(2.0).unwrap();
-                    b.binary(Binary::Div, m, two).unwrap()
-                },
-                true,
-            ),
-            (
-                "attribute x fractal + 0.1",
-                |b, f, d| {
-                    let m = b.binary(Binary::Mul, f, d).unwrap();
-                    let c = b.constant(0.1).unwrap();
-                    b.binary(Binary::Add, m, c).unwrap()
-                },
-                false,
-            ),
-            (
-                "max(attribute x fractal, 0.3)",
-                |b, f, d| {
-                    let m = b.binary(Binary::Mul, f, d).unwrap();
-                    let c = b.constant(0.3).unwrap();
-                    b.binary(Binary::Max, m, c).unwrap()
-                },
-                false,
-            ),
-            ("fractal alone", |_, f, _| f, false),
-        ];
-        for (name, tail, vanishes) in cases {
-            let mut b = Builder::default();
-            let p = b.position();
-            let amp = b.constant(1.0).unwrap();
-            let f = b.mx_fractal3d(p, amp, 3, 2.0, 0.5).unwrap();
-            let d = b.attribute();
-            let out = tail(&mut b, f, d);
-            let prog = b.finish(out).unwrap();
-            assert_eq!(prog.vanishes_with_attribute(), vanishes, "{name}");
-            let mut state = 0x9e37_79b9_7f4a_7c15u64;
-            let mut next = || {
-                state ^= state << 13;
-                state ^= state >> 7;
-                state ^= state << 17;
-                (state >> 40) as f32 / (1u64 << 24) as f32 * 200.0 - 100.0
-            };
-            for _ in 0..10_000 {
-                let v = prog.eval([next(), next(), next()], 0.0);
-                assert!(!vanishes || v.max(0.0) == 0.0, "{name}: {v} at attribute 0");
-            }
-        }
-    }
-
     /// The blackbody's range bounds it at every temperature from 0 to 13,000 K in
     /// steps of 1/512 K (every piece of the fit, both constant ends), and is tight to
     /// within 2e-4 of what those values reach.
@@ -1395,7 +1306,7 @@ mod tests {
         for k in 0..3 {
             let (lo, hi) = math::BLACKBODY_RANGE[k];
             assert!(
-                seen[k].0 - lo < 1e-4 && hi - seen[k].1 < 1e-4,
+                seen[k].0 - lo < 2e-4 && hi - seen[k].1 < 2e-4,
                 "{k}: {seen:?}"
             );
         }

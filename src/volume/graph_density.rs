@@ -22,9 +22,6 @@ pub struct DensityShader {
     /// Index space → the graph's position space (object space).
     index_to_shading: Affine3A,
     index_to_shading_f64: DMat4,
-    /// Whether a grid value of 0 makes the density 0 wherever it is
-    /// ([`Program::vanishes_with_attribute`]): such lookups skip the graph.
-    pub vanishes_with_grid: bool,
     /// The shader (node or material) it was read from, for messages and `nimbus info`.
     pub source: String,
 }
@@ -32,7 +29,6 @@ pub struct DensityShader {
 impl DensityShader {
     pub fn new(program: Program, index_to_shading: DMat4, source: &str) -> DensityShader {
         DensityShader {
-            vanishes_with_grid: program.vanishes_with_attribute(),
             program,
             index_to_shading: Affine3A::from_mat4(index_to_shading.as_mat4()),
             index_to_shading_f64: index_to_shading,

@@ -791,19 +791,13 @@ impl Medium {
 
     /// The density through the graph `s` at `p`. A graph that never reads its
     /// attribute (a fog box's noise) gets no grid read: its value does not depend on
-    /// it. One that vanishes with its attribute (the smoke's density × a noise) is not
-    /// evaluated where the grid reads 0: outside the smoke, the lookups a cell's
-    /// majorant spends on its empty voxels cost a grid read only.
+    /// it.
     #[inline(always)]
     fn shaded(&self, s: &DensityShader, p: Vec3) -> f32 {
-        if !s.program.reads_attribute() {
-            return s.density(p, 0.0);
+        match s.program.reads_attribute() {
+            true => s.density(p, self.density.sample_trilinear(p.to_array())),
+            false => s.density(p, 0.0),
         }
-        let grid = self.density.sample_trilinear(p.to_array());
-        if grid == 0.0 && s.vanishes_with_grid {
-            return 0.0;
-        }
-        s.density(p, grid)
     }
 
     /// [`density`](Self::density) at a world-space point at frame-relative `time`
