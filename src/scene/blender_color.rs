@@ -250,7 +250,7 @@ fn blend_weights(bl: &mut Builder, u: Reg, x: Reg, w: Reg, y: Reg) -> Result<Reg
 }
 
 /// 1 where `a` ≠ 0, else 0 (NaN counts as 0).
-fn nonzero(bl: &mut Builder, a: Reg) -> Result<Reg, GraphError> {
+pub fn nonzero(bl: &mut Builder, a: Reg) -> Result<Reg, GraphError> {
     let zero = bl.constant(0.0)?;
     let size = bl.unary(Unary::Abs, a)?;
     bl.binary(Binary::Greater, size, zero)

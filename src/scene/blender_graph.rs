@@ -20,7 +20,7 @@
 use super::attrs::{prim_error_str, SceneError};
 use super::blender_color::{
     brightness_contrast, clamp, gamma, hsl_to_rgb, hsv_to_rgb, hue_saturation_value, invert,
-    mix_color, mix_linear, rgb_to_hsl, rgb_to_hsv, saturate, select,
+    mix_color, mix_linear, nonzero, rgb_to_hsl, rgb_to_hsv, saturate, select,
 };
 use super::materialx_graph::{colour, number, usd_network};
 use super::shader_network::{Input, ParamValue, ShaderNetwork, ShaderNode};
@@ -684,16 +684,12 @@ pub fn magic(bl: &mut Builder, co: Reg, scale: Reg, depth: u32, d: Reg) -> Resul
     }
     // Divided by 2·d where d ≠ 0 (at every depth), as 0.5 / d times each: r is 1
     // where d is 0, so the branch not taken stays finite and the select exact.
-    let (zero, one, half) = (bl.constant(0.0)?, bl.constant(1.0)?, bl.constant(0.5)?);
-    let above = bl.binary(Binary::Less, zero, d)?;
-    let below = bl.binary(Binary::Less, d, zero)?;
-    let nonzero = bl.binary(Binary::Add, above, below)?;
+    let (one, half) = (bl.constant(1.0)?, bl.constant(0.5)?);
+    let divides = nonzero(bl, d)?;
     let r = bl.binary(Binary::SafeDiv, half, d)?;
-    let r = select(bl, nonzero, r, one)?;
-    x = bl.binary(Binary::Mul, x, r)?;
-    y = bl.binary(Binary::Mul, y, r)?;
-    z = bl.binary(Binary::Mul, z, r)?;
+    let r = select(bl, divides, r, one)?;
     let v = bl.combine3(x, y, z)?;
+    let v = bl.binary(Binary::Mul, v, r)?;
     bl.binary(Binary::Sub, half, v)
 }
 
