@@ -662,7 +662,8 @@ pub fn magic(bl: &mut Builder, co: Reg, scale: Reg, depth: u32, d: Reg) -> Resul
     }
     // Rounds 2 to 10: (which of x, y, z it writes; the terms' order and signs; cos or
     // sin; negated).
-    const ROUNDS: [(usize, [usize; 3], [bool; 3], bool, bool); 9] = [
+    type Round = (usize, [usize; 3], [bool; 3], bool, bool);
+    const ROUNDS: [Round; 9] = [
         (0, [0, 1, 2], [true, false, false], true, false),
         (2, [0, 1, 2], [false, false, false], false, false),
         (0, [1, 0, 2], [true, false, false], true, true),
@@ -1716,7 +1717,7 @@ impl<'a> Reader<'a> {
                 let profile = Self::text(node, "wave_profile", "SIN")?;
                 let detail = self.constant(node, "Detail", 2.0)? as f32;
                 let roughness = self.constant(node, "Detail_Roughness", 0.5)? as f32;
-                if !(0.0..=15.0).contains(&detail) || !(roughness >= 0.0) {
+                if !(0.0..=15.0).contains(&detail) || roughness.is_nan() || roughness < 0.0 {
                     return Err(prim_error_str(
                         &node.path,
                         format!("Detail {detail} (Nimbus compiles 0 to 15) or Detail Roughness {roughness} (from 0)"),

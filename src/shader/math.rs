@@ -274,9 +274,9 @@ pub fn cosh_bound(a: Interval) -> Interval {
 /// kernel fuses some and differs in the last bits).
 pub fn blackbody(t: f32) -> [f32; 3] {
     let rgb = if t >= 12000.0 {
-        [0.8262954810464208, 0.9945080501520986, 1.566307710274283]
+        [0.826_295_5, 0.994_508, 1.566_307_7]
     } else if t < 800.0 {
-        [5.413294490189271, -0.20319390035873933, -0.0822535242887164]
+        [5.413_294_3, -0.203_193_9, -0.082_253_52]
     } else {
         let i = BLACKBODY_BOUNDS.iter().filter(|&&b| t >= b).count();
         let (r, g, b) = (BLACKBODY_R[i], BLACKBODY_G[i], BLACKBODY_B[i]);
