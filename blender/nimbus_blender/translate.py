@@ -235,7 +235,7 @@ _COMPILED = {
         "REFLECT", "REFRACT", "FACEFORWARD", "DOT_PRODUCT", "DISTANCE", "LENGTH", "SCALE",
         "NORMALIZE", "SNAP", "FLOOR", "CEIL", "MODULO", "WRAP", "FRACTION", "ABSOLUTE",
         "POWER", "SIGN", "MINIMUM", "MAXIMUM", "SINE", "COSINE", "TANGENT"},
-    ("ShaderNodeTexNoise", "noise_dimensions"): {"3D", "4D"},
+    ("ShaderNodeTexNoise", "noise_dimensions"): {"1D", "2D", "3D", "4D"},
     ("ShaderNodeTexVoronoi", "voronoi_dimensions"): {"3D"},
     ("ShaderNodeTexVoronoi", "feature"): {"F1", "F2", "SMOOTH_F1", "DISTANCE_TO_EDGE",
                                           "N_SPHERE_RADIUS"},

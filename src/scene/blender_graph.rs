@@ -1198,6 +1198,8 @@ impl<'a> Reader<'a> {
                 }
                 let dims = Self::text(node, "noise_dimensions", "3D")?;
                 let dimensions = match dims.as_str() {
+                    "1D" => Dimensions::D1,
+                    "2D" => Dimensions::D2,
                     "3D" => Dimensions::D3,
                     "4D" => Dimensions::D4,
                     d => return Err(Self::refuse(node, "noise_dimensions", d)),

@@ -1439,6 +1439,28 @@ mod tests {
                 gain: 3.0,
                 ..NoiseTexture::default()
             },
+            // 1D (W = the position's x) and 2D: the global bounds per octave.
+            NoiseTexture {
+                dimensions: Dimensions::D1,
+                scale: 3.0,
+                detail: 2.5,
+                distortion: 0.6,
+                ..NoiseTexture::default()
+            },
+            NoiseTexture {
+                dimensions: Dimensions::D2,
+                scale: 2.0,
+                detail: 3.0,
+                distortion: 0.4,
+                ..NoiseTexture::default()
+            },
+            NoiseTexture {
+                kind: NoiseType::HeteroTerrain,
+                dimensions: Dimensions::D2,
+                detail: 2.5,
+                offset: 0.3,
+                ..NoiseTexture::default()
+            },
         ];
         let mut s = 17u32;
         let mut next = || {
@@ -1446,9 +1468,13 @@ mod tests {
             s as f32 / u32::MAX as f32
         };
         for node in nodes {
+            let w_of = |b: &mut Builder, p| match node.dimensions {
+                Dimensions::D1 => b.component(p, 0).unwrap(),
+                _ => b.constant(0.37).unwrap(),
+            };
             let mut b = Builder::default();
             let p = b.position();
-            let w = b.constant(0.37).unwrap();
+            let w = w_of(&mut b, p);
             let f = b.blender_noise(p, w, node).unwrap();
             let prog = b.finish(f).unwrap();
             // The Color output: three channels, each bounded per channel. The program
@@ -1457,7 +1483,7 @@ mod tests {
             let channel = |k: u16| {
                 let mut b = Builder::default();
                 let p = b.position();
-                let w = b.constant(0.37).unwrap();
+                let w = w_of(&mut b, p);
                 let c = b.blender_noise_color(p, w, node).unwrap();
                 let v = b.component(c, k).unwrap();
                 b.finish(v).unwrap()
@@ -1474,13 +1500,17 @@ mod tests {
                     .map(|c| c.bounds(lo, hi, Interval::point(0.0)));
                 for _ in 0..50 {
                     let q: [f32; 3] = std::array::from_fn(|a| lo[a] + (hi[a] - lo[a]) * next());
+                    let w = match node.dimensions {
+                        Dimensions::D1 => q[0],
+                        _ => 0.37,
+                    };
                     let v = prog.eval(q, 0.0);
-                    assert_eq!(v, node.fac(q, 0.37));
+                    assert_eq!(v, node.fac(q, w));
                     assert!(
                         v >= bound.lo && v <= bound.hi,
                         "{node:?}: {v} outside {bound:?}"
                     );
-                    let (_, rgb) = node.eval(q, 0.37);
+                    let (_, rgb) = node.eval(q, w);
                     for k in 0..3 {
                         let c = colour[k].eval(q, 0.0);
                         let cb = colour_bounds[k];

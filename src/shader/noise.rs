@@ -209,6 +209,22 @@ const fn offset4(seed: f32) -> [f32; 4] {
     ]
 }
 
+/// The 1D offset of `seed`: one word hashed (Cycles' `random_float_offset`), not the
+/// pair (seed, axis) of the other dimensions.
+const fn offset1(seed: f32) -> [f32; 1] {
+    [100.0 + uint_to_unit_float(hash_uint(seed.to_bits())) * 100.0]
+}
+
+const fn offset2(seed: f32) -> [f32; 2] {
+    [random_offset(seed, 0.0), random_offset(seed, 1.0)]
+}
+
+/// 1D offsets: seed 0 distorts W; seeds 1 and 2 give Color's green and blue.
+const OFFSETS_1D: [[f32; 1]; 3] = [offset1(0.0), offset1(1.0), offset1(2.0)];
+
+/// 2D offsets: seeds 0 and 1 distort x and y; seeds 2 and 3 give Color's green and blue.
+const OFFSETS_2D: [[f32; 2]; 4] = [offset2(0.0), offset2(1.0), offset2(2.0), offset2(3.0)];
+
 /// 3D offsets: seeds 0, 1, 2 distort x, y, z; seeds 3 and 4 give Color's green and blue.
 const OFFSETS_3D: [[f32; 3]; 5] = [
     offset3(0.0),
@@ -239,8 +255,32 @@ const OFFSETS_4D: [[f32; 4]; 6] = [
 pub trait Arithmetic: Copy {
     /// Perlin's quintic fade 6t^5 - 15t^4 + 10t^3.
     fn fade(t: f32) -> f32;
+    /// The fade of 1D noise, which Cycles computes in scalar code as
+    /// `t t t (t (6t - 15) + 10)`: the same polynomial grouped as blenlib groups it.
+    #[inline(always)]
+    fn fade1(t: f32) -> f32 {
+        Self::fade(t)
+    }
     /// Linear interpolation from `a` (t = 0) to `b` (t = 1).
     fn lerp(a: f32, b: f32, t: f32) -> f32;
+    /// 1D noise's interpolation of the two corners' terms `s0·f` and `s1·f1` (slopes
+    /// `s0`, `s1`; `f1 = f − 1`) at `u`: by default the products, then [`lerp`](Self::lerp).
+    #[inline(always)]
+    fn lerp1(s0: f32, s1: f32, f: f32, f1: f32, u: f32) -> f32 {
+        Self::lerp(s0 * f, s1 * f1, u)
+    }
+    /// A 1D coordinate `p` moved by Distortion: `p + s·d` for the noise `s` and the
+    /// strength `d` (Cycles computes it in scalar code).
+    #[inline(always)]
+    fn distort(p: f32, s: f32, d: f32) -> f32 {
+        p + s * d
+    }
+    /// Interpolation of a 2D cell's corner values, ordered (x, y) = (0,0), (0,1), (1,0),
+    /// (1,1): along x, then y (Cycles' SSE `bi_mix`).
+    #[inline(always)]
+    fn bilerp(c: [f32; 4], u: f32, v: f32) -> f32 {
+        Self::lerp(Self::lerp(c[0], c[2], u), Self::lerp(c[1], c[3], u), v)
+    }
     /// Interpolation of a cell's corner values, `lo` on its x = 0 face and `hi` on its
     /// x = 1 face, each ordered (y, z) = (0,0), (0,1), (1,0), (1,1).
     fn trilerp(lo: [f32; 4], hi: [f32; 4], u: f32, v: f32, w: f32) -> f32;
@@ -311,6 +351,13 @@ impl Arithmetic for CyclesSse {
     }
 
     #[inline(always)]
+    fn fade1(t: f32) -> f32 {
+        let a = t * 6.0 + -15.0;
+        let b = t * a + 10.0;
+        ((t * t) * t) * b
+    }
+
+    #[inline(always)]
     fn lerp(a: f32, b: f32, t: f32) -> f32 {
         a + t * (b - a)
     }
@@ -351,6 +398,13 @@ impl Arithmetic for CyclesAvx2 {
     }
 
     #[inline(always)]
+    fn fade1(t: f32) -> f32 {
+        let a = t.mul_add(6.0, -15.0);
+        let b = t.mul_add(a, 10.0);
+        ((t * t) * t) * b
+    }
+
+    #[inline(always)]
     fn lerp(a: f32, b: f32, t: f32) -> f32 {
         t.mul_add(b - a, a)
     }
@@ -359,6 +413,20 @@ impl Arithmetic for CyclesAvx2 {
     fn trilerp(lo: [f32; 4], hi: [f32; 4], u: f32, v: f32, w: f32) -> f32 {
         let s = lerp4::<Self>(lo, hi, u);
         Self::lerp(Self::lerp(s[0], s[2], v), Self::lerp(s[1], s[3], v), w)
+    }
+
+    /// The scalar 1D code as the AVX2 build contracts it (checked against Cycles' renders,
+    /// `tests/blender_noise.rs`): `a + u (b − a)` with `a = s0 f` becomes
+    /// `fma(s0, f, u · fma(−s0, f, s1 f1))`.
+    #[inline(always)]
+    fn lerp1(s0: f32, s1: f32, f: f32, f1: f32, u: f32) -> f32 {
+        let d = (-s0).mul_add(f, s1 * f1);
+        s0.mul_add(f, u * d)
+    }
+
+    #[inline(always)]
+    fn distort(p: f32, s: f32, d: f32) -> f32 {
+        s.mul_add(d, p)
     }
 
     #[inline(always)]
@@ -404,6 +472,16 @@ impl Arithmetic for Blenlib {
     #[inline(always)]
     fn lerp(a: f32, b: f32, t: f32) -> f32 {
         (1.0 - t) * a + t * b
+    }
+
+    /// blenlib's bilinear `mix`: `(1.0 - y)` is a double, so the y = 0 row's product
+    /// and the sum are taken in double and rounded to float once, on return.
+    #[inline(always)]
+    fn bilerp(c: [f32; 4], u: f32, v: f32) -> f32 {
+        let u1 = 1.0 - u;
+        let row0 = c[0] * u1 + c[2] * u;
+        let row1 = c[1] * u1 + c[3] * u;
+        ((1.0 - v as f64) * row0 as f64 + (v * row1) as f64) as f32
     }
 
     #[inline(always)]
@@ -457,6 +535,23 @@ fn negate_if(v: f32, bit: u32) -> f32 {
 fn select(c: bool, a: f32, b: f32) -> f32 {
     let m = 0u32.wrapping_sub(c as u32);
     f32::from_bits((a.to_bits() & m) | (b.to_bits() & !m))
+}
+
+/// The 1D gradient: a slope of ±1 to ±8 picked by 4 hash bits (the noise is the slope
+/// times the offset from the corner).
+#[inline(always)]
+fn slope1(hash: u32) -> f32 {
+    let h = hash & 15;
+    negate_if((1 + (h & 7)) as f32, (h >> 3) & 1)
+}
+
+/// The 2D gradient dotted with the offset (x, y): (±1, ±2) or (±2, ±1), by 3 hash bits.
+#[inline(always)]
+fn grad2(hash: u32, x: f32, y: f32) -> f32 {
+    let h = hash & 7;
+    let u = select(h < 4, x, y);
+    let v = 2.0 * select(h < 4, y, x);
+    negate_if(u, h & 1) + negate_if(v, (h >> 1) & 1)
 }
 
 /// Dot product of the offset (x, y, z) from a corner with the corner's gradient: one of
@@ -712,8 +807,24 @@ impl<A: Arithmetic> Arithmetic for Wide<A> {
         A::fade(t)
     }
     #[inline(always)]
+    fn fade1(t: f32) -> f32 {
+        A::fade1(t)
+    }
+    #[inline(always)]
     fn lerp(a: f32, b: f32, t: f32) -> f32 {
         A::lerp(a, b, t)
+    }
+    #[inline(always)]
+    fn bilerp(c: [f32; 4], u: f32, v: f32) -> f32 {
+        A::bilerp(c, u, v)
+    }
+    #[inline(always)]
+    fn lerp1(s0: f32, s1: f32, f: f32, f1: f32, u: f32) -> f32 {
+        A::lerp1(s0, s1, f, f1, u)
+    }
+    #[inline(always)]
+    fn distort(p: f32, s: f32, d: f32) -> f32 {
+        A::distort(p, s, d)
     }
     #[inline(always)]
     fn trilerp(lo: [f32; 4], hi: [f32; 4], u: f32, v: f32, w: f32) -> f32 {
@@ -752,6 +863,31 @@ impl<A: Arithmetic> Arithmetic for Wide<A> {
         #[cfg(not(target_arch = "x86_64"))]
         gradients4_scalar(lattice, f)
     }
+}
+
+/// Unscaled 1D Perlin noise (0 at every integer).
+#[inline(always)]
+pub fn perlin_1d<A: Arithmetic>(x: f32) -> f32 {
+    let (xi, fx) = floor_frac(x);
+    let s0 = slope1(hash_uint(xi as u32));
+    let s1 = slope1(hash_uint((xi as u32).wrapping_add(1)));
+    A::lerp1(s0, s1, fx, fx - 1.0, A::fade1(fx))
+}
+
+/// Unscaled 2D Perlin noise (0 at every lattice point).
+#[inline(always)]
+pub fn perlin_2d<A: Arithmetic>(x: f32, y: f32) -> f32 {
+    let (xi, fx) = floor_frac(x);
+    let (yi, fy) = floor_frac(y);
+    let (x0, y0) = (xi as u32, yi as u32);
+    let (x1, y1) = (x0.wrapping_add(1), y0.wrapping_add(1));
+    let c = [
+        grad2(hash_uint2(x0, y0), fx, fy),
+        grad2(hash_uint2(x0, y1), fx, fy - 1.0),
+        grad2(hash_uint2(x1, y0), fx - 1.0, fy),
+        grad2(hash_uint2(x1, y1), fx - 1.0, fy - 1.0),
+    ];
+    A::bilerp(c, A::fade(fx), A::fade(fy))
 }
 
 /// Unscaled 3D Perlin noise (0 at every lattice point).
@@ -822,8 +958,19 @@ fn fold<A: Arithmetic>(a: f32) -> f32 {
     A::remainder(a) + correction
 }
 
+/// [`fold`] with C's exact `fmodf`: Cycles folds 1D and 2D coordinates one float at a
+/// time (its `float2` has no vector `fmod`), so every kernel takes the exact remainder.
+#[inline(always)]
+fn fold_exact(a: f32) -> f32 {
+    let correction = if a.abs() >= CORRECTION_FROM { 0.5 } else { 0.0 };
+    a % PERIOD + correction
+}
+
 /// Range constants that map Perlin noise to about [-1, 1], measured by Open Shading
-/// Language's authors for these gradient sets (Cycles' `noise_scale3`, `noise_scale4`).
+/// Language's authors for these gradient sets (Cycles' `noise_scale1` to
+/// `noise_scale4`).
+pub const SCALE_1D: f32 = 0.2500;
+pub const SCALE_2D: f32 = 0.6616;
 const SCALE_3D: f32 = 0.9820;
 const SCALE_4D: f32 = 0.8344;
 
@@ -899,6 +1046,34 @@ pub trait SignedNoise: Copy + Add<Output = Self> + Mul<f32, Output = Self> {
     /// `snoise + offset`, the range constant's product fused into the sum where the
     /// reference fuses it (Cycles' AVX2 kernel inlines the scaling into the sum).
     fn snoise_plus<A: Arithmetic>(self, offset: f32) -> f32;
+}
+
+impl SignedNoise for Pt<1> {
+    #[inline(always)]
+    fn snoise<A: Arithmetic>(self) -> f32 {
+        SCALE_1D * perlin_1d::<A>(fold_exact(self.0[0]))
+    }
+    #[inline(always)]
+    fn snoise_plus<A: Arithmetic>(self, offset: f32) -> f32 {
+        A::madd(SCALE_1D, perlin_1d::<A>(fold_exact(self.0[0])), offset)
+    }
+}
+
+impl SignedNoise for Pt<2> {
+    #[inline(always)]
+    fn snoise<A: Arithmetic>(self) -> f32 {
+        let [x, y] = self.0;
+        SCALE_2D * perlin_2d::<A>(fold_exact(x), fold_exact(y))
+    }
+    #[inline(always)]
+    fn snoise_plus<A: Arithmetic>(self, offset: f32) -> f32 {
+        let [x, y] = self.0;
+        A::madd(
+            SCALE_2D,
+            perlin_2d::<A>(fold_exact(x), fold_exact(y)),
+            offset,
+        )
+    }
 }
 
 impl SignedNoise for Pt<3> {
@@ -1114,10 +1289,13 @@ pub fn ridged_multifractal<A: Arithmetic, P: SignedNoise>(
 // The node.
 // ---------------------------------------------------------------------------------------
 
-/// The Noise Texture's Dimensions (1D and 2D are not implemented: a volume's density is
-/// a function of 3D position, and W adds the fourth).
+/// The Noise Texture's Dimensions.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum Dimensions {
+    /// W alone (the Vector is ignored).
+    D1,
+    /// The Vector's x and y.
+    D2,
     #[default]
     D3,
     /// 3D position plus W (e.g. animated over time).
@@ -1229,6 +1407,8 @@ impl NoiseTexture {
     /// distorted) plus these offsets (the fourth component is W's, used in 4D only).
     pub fn color_offsets(&self) -> [[f32; 4]; 2] {
         match self.dimensions {
+            Dimensions::D1 => [OFFSETS_1D[1], OFFSETS_1D[2]].map(|o| [0.0, 0.0, 0.0, o[0]]),
+            Dimensions::D2 => [OFFSETS_2D[2], OFFSETS_2D[3]].map(|o| [o[0], o[1], 0.0, 0.0]),
             Dimensions::D3 => [OFFSETS_3D[3], OFFSETS_3D[4]].map(|o| [o[0], o[1], o[2], 0.0]),
             Dimensions::D4 => [OFFSETS_4D[4], OFFSETS_4D[5]],
         }
@@ -1290,6 +1470,15 @@ impl NoiseTexture {
     fn eval_impl<A: Arithmetic, const COLOR: bool>(&self, p: [f32; 3], w: f32) -> (f32, [f32; 3]) {
         let oct = self.octaves();
         match self.dimensions {
+            Dimensions::D1 => {
+                let p = Pt([w * self.scale]);
+                texture::<A, 1, 3, COLOR>(p, self.distortion, &oct, &OFFSETS_1D)
+            }
+            Dimensions::D2 => {
+                let s = self.scale;
+                let p = Pt([p[0] * s, p[1] * s]);
+                texture::<A, 2, 4, COLOR>(p, self.distortion, &oct, &OFFSETS_2D)
+            }
             Dimensions::D3 => {
                 let p = Pt(p) * self.scale;
                 texture::<A, 3, 5, COLOR>(p, self.distortion, &oct, &OFFSETS_3D)
@@ -1318,11 +1507,22 @@ where
 {
     if distortion != 0.0 {
         // A loop, not `array::from_fn`: its closure could escape the FMA build.
-        let mut shift = [0.0f32; N];
-        for (shift, offset) in shift.iter_mut().zip(offsets) {
-            *shift = (p + Pt(*offset)).snoise::<A>() * distortion;
+        if N == 1 {
+            // Scalar code in Cycles, whose AVX2 build fuses the product into the sum.
+            let mut s = [0.0f32; N];
+            for (s, offset) in s.iter_mut().zip(offsets) {
+                *s = (p + Pt(*offset)).snoise::<A>();
+            }
+            for (p, s) in p.0.iter_mut().zip(s) {
+                *p = A::distort(*p, s, distortion);
+            }
+        } else {
+            let mut shift = [0.0f32; N];
+            for (shift, offset) in shift.iter_mut().zip(offsets) {
+                *shift = (p + Pt(*offset)).snoise::<A>() * distortion;
+            }
+            p = p + Pt(shift);
         }
-        p = p + Pt(shift);
     }
     let fac = oct.eval::<A, _>(p);
     if !COLOR {
@@ -1485,7 +1685,12 @@ mod tests {
     #[test]
     fn colour_red_is_fac_and_fac_skips_colour() {
         for kind in [NoiseType::Fbm, NoiseType::RidgedMultifractal] {
-            for dimensions in [Dimensions::D3, Dimensions::D4] {
+            for dimensions in [
+                Dimensions::D1,
+                Dimensions::D2,
+                Dimensions::D3,
+                Dimensions::D4,
+            ] {
                 let tex = NoiseTexture {
                     kind,
                     dimensions,
@@ -1506,6 +1711,8 @@ mod tests {
             .iter()
             .flatten()
             .chain(OFFSETS_4D.iter().flatten())
+            .chain(OFFSETS_1D.iter().flatten())
+            .chain(OFFSETS_2D.iter().flatten())
         {
             assert!((100.0..=200.0).contains(o), "{o}");
         }
