@@ -269,8 +269,9 @@ pub trait Arithmetic: Copy {
     fn lerp1(s0: f32, s1: f32, f: f32, f1: f32, u: f32) -> f32 {
         Self::lerp(s0 * f, s1 * f1, u)
     }
-    /// A 1D coordinate `p` moved by Distortion: `p + s·d` for the noise `s` and the
-    /// strength `d` (Cycles computes it in scalar code).
+    /// The first coordinate `p` of a 1D or 2D position moved by Distortion: `p + s·d`
+    /// for the noise `s` and the strength `d` (Cycles computes these in scalar code; its
+    /// AVX2 build fuses this one, and in 2D not the second: found against its renders).
     #[inline(always)]
     fn distort(p: f32, s: f32, d: f32) -> f32 {
         p + s * d
@@ -1507,14 +1508,18 @@ where
 {
     if distortion != 0.0 {
         // A loop, not `array::from_fn`: its closure could escape the FMA build.
-        if N == 1 {
-            // Scalar code in Cycles, whose AVX2 build fuses the product into the sum.
+        if N <= 2 {
+            // Scalar code in Cycles: its AVX2 build fuses the first coordinate's product
+            // into the sum, not the second's ([`Arithmetic::distort`]).
             let mut s = [0.0f32; N];
             for (s, offset) in s.iter_mut().zip(offsets) {
                 *s = (p + Pt(*offset)).snoise::<A>();
             }
-            for (p, s) in p.0.iter_mut().zip(s) {
-                *p = A::distort(*p, s, distortion);
+            for (axis, (p, s)) in p.0.iter_mut().zip(s).enumerate() {
+                *p = match axis {
+                    0 => A::distort(*p, s, distortion),
+                    _ => *p + s * distortion,
+                };
             }
         } else {
             let mut shift = [0.0f32; N];
