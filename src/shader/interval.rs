@@ -609,7 +609,7 @@ fn weighted_extremes(flo: [f32; 3], fhi: [f32; 3], g_lo: &[f32; 8], g_hi: &[f32;
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::shader::noise::{hash_uint2, perlin_1d, perlin_2d, Blenlib, CyclesAvx2};
+    use crate::shader::noise::{hash_uint2, perlin_1d, perlin_2d, perlin_3d, Blenlib, CyclesAvx2};
 
     /// 1D and 2D noise: 0 at every lattice point, continuous across cells (a slope is at
     /// most |g| + fade′·|g₀f − g₁(f − 1)| ≤ 8 + 1.875·8 = 23 in 1D, less in 2D: a step
@@ -665,8 +665,6 @@ mod tests {
             "bounds loose: {m1}/{b1}, {m2}/{b2}"
         );
     }
-
-    use crate::shader::noise::perlin_3d;
 
     fn next(state: &mut u32) -> f32 {
         *state = hash_uint2(*state, 0x9e37_79b9);

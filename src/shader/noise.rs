@@ -192,21 +192,15 @@ const fn random_offset(seed: f32, axis: f32) -> f32 {
     100.0 + hash_float2_to_float(seed, axis) * 100.0
 }
 
-const fn offset3(seed: f32) -> [f32; 3] {
-    [
-        random_offset(seed, 0.0),
-        random_offset(seed, 1.0),
-        random_offset(seed, 2.0),
-    ]
-}
-
-const fn offset4(seed: f32) -> [f32; 4] {
-    [
-        random_offset(seed, 0.0),
-        random_offset(seed, 1.0),
-        random_offset(seed, 2.0),
-        random_offset(seed, 3.0),
-    ]
+/// The offset number `seed` in 2 to 4 dimensions: component `axis` hashes (seed, axis).
+const fn offset<const N: usize>(seed: f32) -> [f32; N] {
+    let mut o = [0.0f32; N];
+    let mut axis = 0;
+    while axis < N {
+        o[axis] = random_offset(seed, axis as f32);
+        axis += 1;
+    }
+    o
 }
 
 /// The 1D offset of `seed`: one word hashed (Cycles' `random_float_offset`), not the
@@ -215,33 +209,34 @@ const fn offset1(seed: f32) -> [f32; 1] {
     [100.0 + uint_to_unit_float(hash_uint(seed.to_bits())) * 100.0]
 }
 
-const fn offset2(seed: f32) -> [f32; 2] {
-    [random_offset(seed, 0.0), random_offset(seed, 1.0)]
-}
-
 /// 1D offsets: seed 0 distorts W; seeds 1 and 2 give Color's green and blue.
 const OFFSETS_1D: [[f32; 1]; 3] = [offset1(0.0), offset1(1.0), offset1(2.0)];
 
 /// 2D offsets: seeds 0 and 1 distort x and y; seeds 2 and 3 give Color's green and blue.
-const OFFSETS_2D: [[f32; 2]; 4] = [offset2(0.0), offset2(1.0), offset2(2.0), offset2(3.0)];
+const OFFSETS_2D: [[f32; 2]; 4] = [
+    offset::<2>(0.0),
+    offset::<2>(1.0),
+    offset::<2>(2.0),
+    offset::<2>(3.0),
+];
 
 /// 3D offsets: seeds 0, 1, 2 distort x, y, z; seeds 3 and 4 give Color's green and blue.
 const OFFSETS_3D: [[f32; 3]; 5] = [
-    offset3(0.0),
-    offset3(1.0),
-    offset3(2.0),
-    offset3(3.0),
-    offset3(4.0),
+    offset::<3>(0.0),
+    offset::<3>(1.0),
+    offset::<3>(2.0),
+    offset::<3>(3.0),
+    offset::<3>(4.0),
 ];
 
 /// 4D offsets: seeds 0 to 3 distort x, y, z, w; seeds 4 and 5 give Color's green and blue.
 const OFFSETS_4D: [[f32; 4]; 6] = [
-    offset4(0.0),
-    offset4(1.0),
-    offset4(2.0),
-    offset4(3.0),
-    offset4(4.0),
-    offset4(5.0),
+    offset::<4>(0.0),
+    offset::<4>(1.0),
+    offset::<4>(2.0),
+    offset::<4>(3.0),
+    offset::<4>(4.0),
+    offset::<4>(5.0),
 ];
 
 // ---------------------------------------------------------------------------------------
@@ -1508,25 +1503,17 @@ where
 {
     if distortion != 0.0 {
         // A loop, not `array::from_fn`: its closure could escape the FMA build.
-        if N <= 2 {
-            // Scalar code in Cycles: its AVX2 build fuses the first coordinate's product
-            // into the sum, not the second's ([`Arithmetic::distort`]).
-            let mut s = [0.0f32; N];
-            for (s, offset) in s.iter_mut().zip(offsets) {
-                *s = (p + Pt(*offset)).snoise::<A>();
-            }
-            for (axis, (p, s)) in p.0.iter_mut().zip(s).enumerate() {
-                *p = match axis {
-                    0 => A::distort(*p, s, distortion),
-                    _ => *p + s * distortion,
-                };
-            }
-        } else {
-            let mut shift = [0.0f32; N];
-            for (shift, offset) in shift.iter_mut().zip(offsets) {
-                *shift = (p + Pt(*offset)).snoise::<A>() * distortion;
-            }
-            p = p + Pt(shift);
+        let mut noise = [0.0f32; N];
+        for (noise, offset) in noise.iter_mut().zip(offsets) {
+            *noise = (p + Pt(*offset)).snoise::<A>();
+        }
+        for (axis, (p, noise)) in p.0.iter_mut().zip(noise).enumerate() {
+            // Cycles computes 1D and 2D in scalar code, and its AVX2 build fuses the
+            // first coordinate's product into the sum ([`Arithmetic::distort`]).
+            *p = match N <= 2 && axis == 0 {
+                true => A::distort(*p, noise, distortion),
+                false => *p + noise * distortion,
+            };
         }
     }
     let fac = oct.eval::<A, _>(p);
