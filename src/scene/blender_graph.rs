@@ -1223,7 +1223,6 @@ impl<'a> Reader<'a> {
                     roughness: self.constant(node, "Roughness", 0.5)? as f32,
                     lacunarity: self.constant(node, "Lacunarity", 2.0)? as f32,
                     distortion: self.constant(node, "Distortion", 0.0)? as f32,
-                    ..NoiseTexture::default()
                 };
                 let p = self.vector(node, "Vector", None)?;
                 let w = self.float(node, "W", 0.0)?;
