@@ -944,12 +944,7 @@ def _low_dimensional_noise_scene(dimensions):
         noise.inputs["Scale"].default_value = 2.0
         noise.inputs["Detail"].default_value = 3.0
         noise.inputs["Distortion"].default_value = 0.3
-    times = nt.nodes.new("ShaderNodeMath")
-    times.operation = "MULTIPLY"
-    times.inputs[1].default_value = 3.0
-    nt.links.new(noise.outputs["Fac"], times.inputs[0])
-    nt.links.new(times.outputs["Value"], pv.inputs["Density"])
-    nt.links.new(pv.outputs["Volume"], out.inputs["Volume"])
+    _into_density(nt, pv, out, noise.outputs["Fac"], 3.0)
     return _cube_scene(f"noise {dimensions} cube", m)
 
 

@@ -579,16 +579,16 @@ impl Medium {
         let mut tree = MajorantTree::build_widened(&self.density, spec, w, &|lo, hi| {
             let lo = [0, 1, 2].map(|a| lo[a].saturating_sub(w[a]));
             let hi = [0, 1, 2].map(|a| hi[a].saturating_add(w[a]));
-            let grid = match &self.shader {
-                // The graph's range analysis does not read an attribute it never uses
-                // (a fog box's noise): skip the grid's range there (8 % of the load of a
-                // stage of such boxes, `perf`).
-                Some(s) if !s.program.reads_attribute() => (0.0, 0.0),
-                _ => self.density.value_range(lo, hi),
-            };
             match &self.shader {
-                None => grid,
+                None => self.density.value_range(lo, hi),
                 Some(s) => {
+                    // The range analysis does not read an attribute the graph never
+                    // uses (a fog box's noise): no grid range there (8 % of the load of
+                    // a stage of such boxes, `perf`).
+                    let grid = match s.program.reads_attribute() {
+                        true => self.density.value_range(lo, hi),
+                        false => (0.0, 0.0),
+                    };
                     let [lo, hi] =
                         [lo, hi].map(|v| DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64));
                     let at = |p: Vec3| self.density.sample_trilinear(p.to_array());
