@@ -201,6 +201,7 @@ fn full_path(c: &mut Criterion) {
             select_segments: SelectSegments::Off,
             locals: Vec::new(),
             shutter: None,
+            guide: None,
         };
         let mut rng = pixel_sampler(5, 6);
         let mut counters = Counters::default();

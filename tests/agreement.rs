@@ -250,13 +250,15 @@ fn decomposition_saves_lookups_on_the_scenes() {
 /// (intensity 3) at the centre of its grid's box and a 40° spot (intensity 6) above
 /// it aimed down through the cloud, added to the scene's sun and sky. Equiangular
 /// sampling with MIS renders the same image as the collisions alone, under delta,
-/// spectral decomposition and ratio-select: each at 1024 spp against the delta
-/// reference at 4096 spp (collisions), the image-mean z and the squared-error ratio
-/// S of [`agreement`] (bounds as in `trackers_agree_with_delta_reference`).
+/// spectral decomposition and ratio-select, the last two with scattered directions
+/// guided towards the lights (`--scatter-guiding lights`): each at 1024 spp against
+/// the delta reference at 4096 spp (collisions, phase sampling), the image-mean z and
+/// the squared-error ratio S of [`agreement`] (bounds as in
+/// `trackers_agree_with_delta_reference`).
 #[test]
 fn equiangular_mis_agrees_with_delta_reference_in_a_cloud() {
     use nimbus::render::lights::{Shaping, SphereEmitter};
-    use nimbus::track::select::LightSampling;
+    use nimbus::track::select::{LightSampling, ScatterGuiding};
     use SchemeKind::*;
     use TrackerKind::*;
     let mut s = setup("cloud");
@@ -279,29 +281,33 @@ fn equiangular_mis_agrees_with_delta_reference_in_a_cloud() {
             ..Default::default()
         });
     }
-    let with = |light_sampling, t: TrackerSettings| TrackerSettings {
+    let with = |light_sampling, scatter_guiding, t: TrackerSettings| TrackerSettings {
         light_sampling,
+        scatter_guiding,
         ..t
     };
+    use ScatterGuiding::{Lights, Phase};
     let reference = pixels(&render(
         &s,
-        with(LightSampling::Collisions, settings(Delta, Avg)),
+        with(LightSampling::Collisions, Phase, settings(Delta, Avg)),
         4096,
         3000 + seed_offset(),
     ));
     let configs = [
-        ("delta", settings(Delta, Avg)),
+        ("delta", Phase, settings(Delta, Avg)),
         (
             "spectral-decomposition hist-avg",
+            Lights,
             settings(SpectralDecomposition, HistAvg),
         ),
-        ("ratio-select", settings(RatioSelect, Avg)),
+        ("ratio-select", Lights, settings(RatioSelect, Avg)),
     ];
-    for (i, (name, t)) in configs.into_iter().enumerate() {
-        let t = with(LightSampling::EquiangularMis, t);
+    for (i, (name, guiding, t)) in configs.into_iter().enumerate() {
+        let t = with(LightSampling::EquiangularMis, guiding, t);
         let film = render(&s, t, 1024, 3100 + i as u64 + seed_offset());
         let (z, ratio, bound) = agreement(&pixels(&film), &reference);
-        eprintln!("cloud + local lights, {name} equiangular-mis: image-mean z = {z:.2}, S = {ratio:.3} (bound {bound:.3})");
+        let guiding = guiding.name();
+        eprintln!("cloud + local lights, {name} equiangular-mis, scatter guiding {guiding}: image-mean z = {z:.2}, S = {ratio:.3} (bound {bound:.3})");
         assert!(
             z.abs() < 4.5,
             "{name}: image mean differs from the reference, z = {z:.2}"

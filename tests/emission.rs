@@ -1016,6 +1016,7 @@ fn check_grey_emission<F: FreePathSampler, E: TransmittanceEstimator>(
         select_segments,
         locals: Vec::new(),
         shutter: None,
+        guide: None,
     };
     let mut rng = pixel_sampler(5, 0);
     let mut c = Counters::default();

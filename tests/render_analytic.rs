@@ -80,6 +80,7 @@ fn integrator_with<'a, F: FreePathSampler>(
         select_segments: SelectSegments::Off,
         locals: Vec::new(),
         shutter: None,
+        guide: None,
     }
 }
 

@@ -188,6 +188,8 @@ impl Slab {
             select_segments: SelectSegments::Off,
             locals,
             shutter: None,
+            // Single scattering: no vertex continues, so no direction is guided.
+            guide: None,
         };
         let mut rng = pixel_sampler(seed, 40);
         let mut c = Counters::default();

@@ -13,7 +13,7 @@ use crate::render::progressive::{render_progressive, Budget, Clock};
 use crate::render::session::Session;
 use crate::track::select::Choice;
 use crate::track::select::{
-    LightSampling, SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind,
+    LightSampling, ScatterGuiding, SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind,
 };
 use anyhow::{bail, Result};
 use std::sync::atomic::AtomicBool;
@@ -79,10 +79,16 @@ pub fn parse_tracker(item: &str) -> Result<TrackerSpec> {
         ..TrackerSettings::default()
     };
     let (mut scheme, mut transmittance, mut lights) = (None, None, None);
+    let mut guiding = None;
     for p in parts.map(str::trim) {
         if let Some(k) = LightSampling::from_name(p) {
             if lights.replace(k).is_some() {
                 bail!("'{item}' names two ways of sampling near local lights");
+            }
+        } else if let Some(k) = ScatterGuiding::from_name(p) {
+            // `auto` is taken by the light sampling above: `lights` or `phase` here.
+            if guiding.replace(k).is_some() {
+                bail!("'{item}' names two ways of guiding scattered directions");
             }
         } else if let Some(k) = SchemeKind::from_name(p) {
             if !tracker.uses_scheme() {
@@ -112,7 +118,7 @@ pub fn parse_tracker(item: &str) -> Result<TrackerSpec> {
             }
         } else {
             bail!(
-                "'{p}' in '{item}' is neither a scheme ({}), a shadow-ray estimator ({}), a light sampling ({}) nor an option ({NO_ABSORPTION_EVENTS}, {REDUCED_TERMINATION})",
+                "'{p}' in '{item}' is neither a scheme ({}), a shadow-ray estimator ({}), a light sampling ({}), a scatter guiding (lights, phase) nor an option ({NO_ABSORPTION_EVENTS}, {REDUCED_TERMINATION})",
                 SchemeKind::names(),
                 TransmittanceKind::names(),
                 LightSampling::names()
@@ -122,6 +128,7 @@ pub fn parse_tracker(item: &str) -> Result<TrackerSpec> {
     s.scheme = scheme.unwrap_or(s.scheme);
     s.transmittance = transmittance.unwrap_or(s.transmittance);
     s.light_sampling = lights.unwrap_or(s.light_sampling);
+    s.scatter_guiding = guiding.unwrap_or(s.scatter_guiding);
     Ok(TrackerSpec {
         label: label_of(&s),
         settings: s,
@@ -147,6 +154,9 @@ pub fn label_of(s: &TrackerSettings) -> String {
     }
     if s.light_sampling != LightSampling::Auto {
         label = format!("{label}:{}", s.light_sampling.name());
+    }
+    if s.scatter_guiding != ScatterGuiding::Auto {
+        label = format!("{label}:{}", s.scatter_guiding.name());
     }
     label
 }
@@ -303,6 +313,12 @@ mod tests {
         assert!(t.settings.options.no_absorption_events);
         assert!(parse_tracker("spectral-mis:reduced-termination").is_err());
         assert!(parse_tracker("spectral-mis:hist-avg").is_err());
+        let t = parse_tracker("ratio-select:phase:collisions").unwrap();
+        assert_eq!(t.label, "ratio-select:collisions:phase");
+        assert_eq!(t.settings.scatter_guiding, ScatterGuiding::Phase);
+        assert_eq!(t.settings.light_sampling, LightSampling::Collisions);
+        assert_eq!(parse_tracker("delta:lights").unwrap().label, "delta:lights");
+        assert!(parse_tracker("delta:lights:phase").is_err());
         for bad in [
             "",
             "deltaa",

@@ -25,9 +25,11 @@ pub struct ErrorArgs {
     /// The USD stage.
     pub stage: PathBuf,
     /// Trackers to compare (comma-separated), each TRACKER[:SCHEME][:TRANSMITTANCE]
-    /// [:no-absorption-events][:reduced-termination], e.g.
-    /// `spectral-decomposition:hist-avg` or `decomposition:residual-ratio`. Scheme default
-    /// hist-avg, shadow rays default ratio tracking; the options as the `render` flags.
+    /// [:no-absorption-events][:reduced-termination][:LIGHT-SAMPLING][:lights|:phase],
+    /// e.g. `spectral-decomposition:hist-avg`, `decomposition:residual-ratio` or
+    /// `ratio-select:collisions:phase`. Scheme default hist-avg, shadow rays default
+    /// ratio tracking, light sampling and scatter guiding default auto; the options as
+    /// the `render` flags.
     /// `auto` is what `render --tracker auto` picks for the stage.
     #[arg(
         long,

@@ -10,7 +10,9 @@ use crate::render::progressive::Clock;
 use crate::render::sampler::SamplerKind;
 use crate::render::session::{Overrides, Session};
 use crate::render::tiles::{parse_region, Tile};
-use crate::track::select::{LightSampling, SchemeKind, TrackerKind, TransmittanceKind};
+use crate::track::select::{
+    LightSampling, ScatterGuiding, SchemeKind, TrackerKind, TransmittanceKind,
+};
 use anyhow::{bail, Result};
 use clap::Args;
 use std::path::PathBuf;
@@ -112,6 +114,12 @@ pub struct RenderArgs {
     /// render the same either way.
     #[arg(long, value_parser = choice::parser::<LightSampling>())]
     pub light_sampling: Option<LightSampling>,
+    /// Where a path goes after a scattering vertex: the phase function alone, or half
+    /// the time a lobe towards a local light, weighted as one mixture; `auto`
+    /// (default) guides towards point, sphere and spot lights (docs/trackers.md).
+    /// Stages with only distant and dome lights render the same either way.
+    #[arg(long, value_parser = choice::parser::<ScatterGuiding>())]
+    pub scatter_guiding: Option<ScatterGuiding>,
     /// Time density lookups, majorant traversal and the rest of the trackers (stats
     /// keys lookup_seconds, traversal_seconds, other_tracker_seconds). Costs a clock
     /// read pair per lookup and per cell, which `nimbus bench octree` measures.
@@ -285,6 +293,7 @@ impl RenderArgs {
             no_absorption_events: self.no_absorption_events,
             majorant_scale: Some(self.majorant_scale),
             light_sampling: self.light_sampling,
+            scatter_guiding: self.scatter_guiding,
             profile: self.profile,
             no_specialise: self.no_specialise,
             time_limit: self.time_limit,

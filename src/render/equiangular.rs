@@ -45,6 +45,10 @@ pub struct LocalLight {
     /// Emitted power (W, mean over channels; for a spot, the share its cone's solid
     /// angle passes).
     pub power: f64,
+    /// How far its emitting surface reaches from the centre (a sphere's radius, half
+    /// a rect's diagonal): scattered directions guided towards it never weigh it as
+    /// nearer ([`crate::render::guiding`]).
+    pub radius: f64,
     pub cone: Option<Cone>,
 }
 

@@ -12,6 +12,7 @@ use crate::render::adaptive::Adaptive;
 use crate::render::camera::CameraRays;
 use crate::render::equiangular::{balance, tracker_density, LocalLight};
 use crate::render::film::{DepthBins, Film, Pixel};
+use crate::render::guiding::LightLobes;
 use crate::render::holdouts::Holdouts;
 use crate::render::lights::in_mask;
 use crate::render::lights::{HoldoutSet, LightSample, Lights, Link};
@@ -77,6 +78,10 @@ struct PathState {
     g: f64,
     /// Cosine of the last phase-sampled turn, for the MIS weight of an escaping ray.
     last_cos: f64,
+    /// The density the last turn was drawn from where it was guided towards the
+    /// local lights (the mixture's; unused without guiding, where it is the phase
+    /// function's, computed from `last_cos` only when an escaping ray needs it).
+    last_pdf: f64,
     /// The camera sample's frame-relative time: where moving media and the camera are.
     time: f64,
 }
@@ -183,6 +188,9 @@ pub struct Integrator<'a, F: FreePathSampler, E: TransmittanceEstimator> {
     /// every sample is at the frame and draws no time (renders without motion are
     /// unchanged).
     pub shutter: Option<(f64, f64)>,
+    /// The lobes towards the local lights scattered directions are partly drawn from
+    /// ([`crate::render::guiding`]); `None`: the phase function alone.
+    pub guide: Option<LightLobes>,
 }
 
 /// A path segment's equiangular side: its unit-speed line `o + s·ω` (s = t·speed),
@@ -437,6 +445,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             depth: 0,
             g: 0.0,
             last_cos: 1.0,
+            last_pdf: 0.0,
             time,
         };
         let mut radiance = Radiance {
@@ -583,7 +592,18 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                         }
                         path.throughput = path.throughput.map(|v| v / q);
                     }
-                    let new_dir = sample_hg(path.g, dir, rng.gen(), rng.gen());
+                    let new_dir = match &self.guide {
+                        None => sample_hg(path.g, dir, rng.gen(), rng.gen()),
+                        Some(lobes) => {
+                            let u = [rng.gen(), rng.gen(), rng.gen()];
+                            let (omega, weight, pdf) = lobes.sample(p, dir, path.g, u);
+                            for w in path.throughput.iter_mut() {
+                                *w *= weight as f32;
+                            }
+                            path.last_pdf = pdf;
+                            omega
+                        }
+                    };
                     path.last_cos = dir.dot(new_dir);
                     origin = p;
                     dir = new_dir;
@@ -693,7 +713,11 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         if path.depth == 0 || !self.lights.environment_nee() {
             return 1.0;
         }
-        power_heuristic(hg(path.g, path.last_cos), self.lights.environment_pdf(dir))
+        let continuation = match self.guide {
+            None => hg(path.g, path.last_cos),
+            Some(_) => path.last_pdf,
+        };
+        power_heuristic(continuation, self.lights.environment_pdf(dir))
     }
 
     /// Adds environment light arriving along `dir` with MIS weight `w`; the split
@@ -831,10 +855,12 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             let (wi, le, pdf) = self.lights.sample_environment(rng.gen(), rng.gen());
             if pdf > 0.0 {
                 let f = hg(g, dir.dot(wi));
-                let w = if nee && !last {
-                    power_heuristic(pdf, f)
-                } else {
-                    1.0
+                // Against the density the continuation is drawn from: the phase
+                // function, or the mixture where it is guided.
+                let w = match (nee && !last, &self.guide) {
+                    (false, _) => 1.0,
+                    (true, None) => power_heuristic(pdf, f),
+                    (true, Some(lobes)) => power_heuristic(pdf, lobes.pdf(p, dir, g, wi)),
                 };
                 let tr = self.shadow(
                     p,

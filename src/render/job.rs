@@ -5,6 +5,7 @@ use crate::render::analysis::CodePaths;
 use crate::render::camera::CameraRays;
 use crate::render::equiangular::LocalLight;
 use crate::render::film::{Film, Region};
+use crate::render::guiding::LightLobes;
 use crate::render::holdouts::Holdouts;
 use crate::render::integrator::{Extras, Integrator, SelectSegments};
 use crate::render::lights::Lights;
@@ -12,7 +13,7 @@ use crate::render::sampler::{pixel_sampler, SamplerKind};
 use crate::scene::schema::tokens;
 use crate::scene::{Field, FogMesh, Scene, Volume, VolumeShape};
 use crate::track::free_path::{FreePathSampler, TransmittanceEstimator};
-use crate::track::select::{Dispatch, LightSampling, TrackerKind, TrackerSettings};
+use crate::track::select::{Dispatch, LightSampling, ScatterGuiding, TrackerKind, TrackerSettings};
 use crate::volume::albedo::Albedo;
 use crate::volume::boundary::{Boundary, InsideRule, MediumRegion};
 use crate::volume::color_graph::ColorGraph;
@@ -93,6 +94,22 @@ impl RenderJob<'_> {
         locals
     }
 
+    /// The lobes scattered directions are guided towards (`--scatter-guiding`):
+    /// every local light under `lights`; under `auto` the point, sphere and spot lights
+    /// (a large rect beside a thin cloud lost: its lobe sends paths out of the
+    /// medium; docs/trackers.md); none under `phase` or on a stage without them
+    /// (whose renders are then unchanged).
+    pub fn light_lobes(&self) -> Option<LightLobes> {
+        let mut locals = self.lights.locals();
+        match self.tracking.scatter_guiding {
+            ScatterGuiding::Phase => return None,
+            ScatterGuiding::Lights => {}
+            // `locals` lists the sphere lights (spots among them) first.
+            ScatterGuiding::Auto => locals.truncate(self.lights.spheres.len()),
+        }
+        LightLobes::new(&locals)
+    }
+
     /// Whether every medium is homogeneous (fog boxes, world fog): where `auto`
     /// samples every local light equiangularly.
     fn every_medium_constant(&self) -> bool {
@@ -117,8 +134,12 @@ impl RenderJob<'_> {
                 "auto: in a heterogeneous medium only spots, whose cones the collisions' light samples mostly miss; the others lose there and are left to the collisions (docs/trackers.md)"
             }
         };
+        let guided = match self.light_lobes() {
+            Some(_) => "; scattered directions guided towards the local lights",
+            None => "; scattered directions from the phase function",
+        };
         format!(
-            "{} {sampled} of {total} local light{} sampled equiangularly with MIS ({why})",
+            "{} {sampled} of {total} local light{} sampled equiangularly with MIS ({why}){guided}",
             if sampled > 0 {
                 "equiangular-mis:"
             } else {
@@ -236,6 +257,7 @@ impl RenderJob<'_> {
             },
             locals: self.local_lights(),
             shutter: self.shutter(),
+            guide: self.light_lobes(),
         }
     }
 }

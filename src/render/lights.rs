@@ -834,6 +834,7 @@ impl Lights {
             LocalLight {
                 center,
                 power: power * share,
+                radius,
                 cone,
             }
         };

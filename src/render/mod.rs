@@ -8,6 +8,7 @@ pub mod camera;
 pub mod dome;
 pub mod equiangular;
 pub mod film;
+pub mod guiding;
 pub mod holdouts;
 pub mod integrator;
 pub mod job;

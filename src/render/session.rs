@@ -26,7 +26,8 @@ use crate::scene::{
 use crate::track::race::MAX_MEDIA;
 use crate::track::scheme::SchemeOptions;
 use crate::track::select::{
-    Choice, LightSampling, SchemeKind, TrackerKind, TrackerSettings, TransmittanceKind,
+    Choice, LightSampling, ScatterGuiding, SchemeKind, TrackerKind, TrackerSettings,
+    TransmittanceKind,
 };
 use crate::volume::asset::AssetLocation;
 use crate::volume::grid::Grid;
@@ -105,6 +106,8 @@ pub struct Overrides {
     pub majorant_scale: Option<f32>,
     /// Scattering points towards local lights (default `auto`).
     pub light_sampling: Option<LightSampling>,
+    /// Where paths go after scattering (default `auto`).
+    pub scatter_guiding: Option<ScatterGuiding>,
     /// Adaptive sampling's noise threshold (`nimbus:noiseThreshold`; 0: off).
     pub noise_threshold: Option<f64>,
     /// Samples every pixel takes before adaptive sampling may stop it
@@ -770,6 +773,7 @@ fn tracker_request(o: &Overrides, stage: &RenderSettings) -> Result<TrackerReque
         majorant_scale,
         profile: o.profile,
         light_sampling: o.light_sampling.unwrap_or(d.light_sampling),
+        scatter_guiding: o.scatter_guiding.unwrap_or(d.scatter_guiding),
     };
     Ok(TrackerRequest {
         settings,

@@ -253,6 +253,52 @@ impl LightSampling {
     }
 }
 
+/// Where a path goes after a scattering vertex (`--scatter-guiding`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ScatterGuiding {
+    /// `lights` towards the point, sphere and spot lights of a stage (measured to
+    /// pay on every such issue-44 stage; a large rect beside a thin cloud lost:
+    /// docs/trackers.md), `phase` on stages without them.
+    Auto,
+    /// Half the continuations drawn from lobes towards the local lights, combined
+    /// with the phase function as one mixture ([`crate::render::guiding`]).
+    Lights,
+    /// The phase function alone.
+    Phase,
+}
+
+impl Choice for ScatterGuiding {
+    const ALL: &'static [Self] = &[
+        ScatterGuiding::Auto,
+        ScatterGuiding::Lights,
+        ScatterGuiding::Phase,
+    ];
+
+    fn help(self) -> &'static str {
+        match self {
+            ScatterGuiding::Auto => "lights towards the point, sphere and spot lights of a stage; phase on stages without them (the default)",
+            ScatterGuiding::Lights => "Half the scattered directions drawn from lobes towards the local lights (von Mises-Fisher, chosen by power over squared distance), weighted against the phase function as one mixture",
+            ScatterGuiding::Phase => "Scattered directions from the phase function alone",
+        }
+    }
+
+    fn name(self) -> &'static str {
+        ScatterGuiding::name(self)
+    }
+}
+
+impl ScatterGuiding {
+    /// The option's name (a CLI value, a stats string).
+    pub fn name(self) -> &'static str {
+        match self {
+            ScatterGuiding::Auto => "auto",
+            ScatterGuiding::Lights => "lights",
+            ScatterGuiding::Phase => "phase",
+        }
+    }
+}
+
 impl TrackerKind {
     /// Whether the tracker stays unbiased where the density exceeds the majorant
     /// (signed weights; ratio-select's fallback where volumes overlap too, off the
@@ -281,6 +327,9 @@ pub struct TrackerSettings {
     /// Scattering points towards local lights (only stages with local lights differ;
     /// default `auto`).
     pub light_sampling: LightSampling,
+    /// Where paths go after scattering (only stages with local lights differ;
+    /// default `auto`).
+    pub scatter_guiding: ScatterGuiding,
 }
 
 impl TrackerSettings {
@@ -310,6 +359,7 @@ impl Default for TrackerSettings {
             majorant_scale: 1.0,
             profile: false,
             light_sampling: LightSampling::Auto,
+            scatter_guiding: ScatterGuiding::Auto,
         }
     }
 }
