@@ -202,6 +202,7 @@ fn full_path(c: &mut Criterion) {
             locals: Vec::new(),
             shutter: None,
             guide: None,
+            light_choice: None,
         };
         let mut rng = pixel_sampler(5, 6);
         let mut counters = Counters::default();

@@ -1017,6 +1017,7 @@ fn check_grey_emission<F: FreePathSampler, E: TransmittanceEstimator>(
         locals: Vec::new(),
         shutter: None,
         guide: None,
+        light_choice: None,
     };
     let mut rng = pixel_sampler(5, 0);
     let mut c = Counters::default();

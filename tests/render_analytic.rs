@@ -81,6 +81,7 @@ fn integrator_with<'a, F: FreePathSampler>(
         locals: Vec::new(),
         shutter: None,
         guide: None,
+        light_choice: None,
     }
 }
 

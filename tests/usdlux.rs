@@ -190,6 +190,7 @@ impl Slab {
             shutter: None,
             // Single scattering: no vertex continues, so no direction is guided.
             guide: None,
+            light_choice: None,
         };
         let mut rng = pixel_sampler(seed, 40);
         let mut c = Counters::default();

@@ -59,7 +59,7 @@ impl LightLobes {
             .map(|l| Lobe {
                 center: l.center,
                 power: l.power,
-                min_distance2: (l.radius * l.radius).max(1e-12),
+                min_distance2: l.radius * l.radius,
             })
             .collect();
         (!lobes.is_empty()).then_some(LightLobes { lobes })
@@ -71,7 +71,7 @@ impl LightLobes {
     fn lobe_at(l: &Lobe, p: DVec3) -> Option<(f64, DVec3)> {
         let to = l.center - p;
         let d2 = to.length_squared();
-        (d2 > 0.0).then(|| (l.power / d2.max(l.min_distance2), to / d2.sqrt()))
+        (d2 > 0.0).then(|| (importance(l.power, d2, l.min_distance2), to / d2.sqrt()))
     }
 
     /// Σ_ℓ P_ℓ(p) vMF(ω; ω_ℓ, κ): the lobes' part of the mixture at `omega`.
@@ -134,6 +134,15 @@ impl LightLobes {
         let q = self.pdf(p, dir, g, omega);
         (omega, hg(g, dir.dot(omega)) / q, q)
     }
+}
+
+/// A light's unnormalised importance at a point `d2` (squared distance) from its
+/// centre: its power over the squared distance, never nearer than its radius
+/// (`radius2`, squared) nor than 10⁻⁶ (a point light's centre). Lobes and the choice
+/// among many lights ([`crate::render::light_choice`]) both weigh lights by it.
+#[inline]
+pub fn importance(power: f64, d2: f64, radius2: f64) -> f64 {
+    power / d2.max(radius2).max(1e-12)
 }
 
 /// The von Mises–Fisher density on the sphere at cosine `cos` from its axis,

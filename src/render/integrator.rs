@@ -14,6 +14,7 @@ use crate::render::equiangular::{balance, tracker_density, LocalLight};
 use crate::render::film::{DepthBins, Film, Pixel};
 use crate::render::guiding::LightLobes;
 use crate::render::holdouts::Holdouts;
+use crate::render::light_choice::LightChoice;
 use crate::render::lights::in_mask;
 use crate::render::lights::{HoldoutSet, LightSample, Lights, Link};
 use crate::render::media_index::MediaIndex;
@@ -191,6 +192,9 @@ pub struct Integrator<'a, F: FreePathSampler, E: TransmittanceEstimator> {
     /// The lobes towards the local lights scattered directions are partly drawn from
     /// ([`crate::render::guiding`]); `None`: the phase function alone.
     pub guide: Option<LightLobes>,
+    /// Past [`crate::render::light_choice::MANY_LIGHTS`] local lights, the one light
+    /// each vertex's next event samples is chosen by it; `None`: every light.
+    pub light_choice: Option<LightChoice>,
 }
 
 /// A path segment's equiangular side: its unit-speed line `o + s·ω` (s = t·speed),
@@ -783,6 +787,18 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             }
             None => 1.0,
         };
+        // Many local lights: one, chosen by power over squared distance, stands for
+        // all of them, its estimate divided by its probability (`scale(k)`: `None`
+        // for the lights not chosen).
+        let chosen = self
+            .light_choice
+            .as_ref()
+            .map(|c| c.pick(p, rng.gen::<f64>()));
+        let scale = |k: usize| match chosen {
+            None => Some(1.0),
+            Some(Some((c, prob))) if c == k => Some(1.0 / prob),
+            Some(_) => None,
+        };
         let mut k = 0;
         for (i, sun) in self.lights.suns.iter().enumerate() {
             if !sun.link.lights(id) {
@@ -812,38 +828,38 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             radiance.add(sources.sun(i), events, v);
         }
         for (i, sphere) in self.lights.spheres.iter().enumerate() {
-            if !sphere.link.lights(id) {
+            let Some(scale) = scale(k + i).filter(|_| sphere.link.lights(id)) else {
                 continue;
-            }
+            };
             let s = sphere.sample_at(p, path.time, rng.gen(), rng.gen());
-            let light = (sources.sphere(i), &sphere.link, weight(k + i));
+            let light = (sources.sphere(i), &sphere.link, weight(k + i) * scale);
             self.add_light_sample(s, light, p, dir, path, radiance, rng, counters);
         }
         k += self.lights.spheres.len();
         for (i, rect) in self.lights.rects.iter().enumerate() {
-            if !rect.link.lights(id) {
+            let Some(scale) = scale(k + i).filter(|_| rect.link.lights(id)) else {
                 continue;
-            }
+            };
             let s = rect.sample_at(p, path.time, rng.gen(), rng.gen());
-            let light = (sources.rect(i), &rect.link, weight(k + i));
+            let light = (sources.rect(i), &rect.link, weight(k + i) * scale);
             self.add_light_sample(s, light, p, dir, path, radiance, rng, counters);
         }
         k += self.lights.rects.len();
         for (i, disk) in self.lights.disks.iter().enumerate() {
-            if !disk.link.lights(id) {
+            let Some(scale) = scale(k + i).filter(|_| disk.link.lights(id)) else {
                 continue;
-            }
+            };
             let s = disk.sample_at(p, path.time, rng.gen(), rng.gen());
-            let light = (sources.disk(i), &disk.link, weight(k + i));
+            let light = (sources.disk(i), &disk.link, weight(k + i) * scale);
             self.add_light_sample(s, light, p, dir, path, radiance, rng, counters);
         }
         k += self.lights.disks.len();
         for (i, cylinder) in self.lights.cylinders.iter().enumerate() {
-            if !cylinder.link.lights(id) {
+            let Some(scale) = scale(k + i).filter(|_| cylinder.link.lights(id)) else {
                 continue;
-            }
+            };
             let s = cylinder.sample_at(p, path.time, rng.gen(), rng.gen());
-            let light = (sources.cylinder(i), &cylinder.link, weight(k + i));
+            let light = (sources.cylinder(i), &cylinder.link, weight(k + i) * scale);
             self.add_light_sample(s, light, p, dir, path, radiance, rng, counters);
         }
         // A constant environment is reached by the phase-sampled continuation, whose

@@ -8,6 +8,7 @@ use crate::render::film::{Film, Region};
 use crate::render::guiding::LightLobes;
 use crate::render::holdouts::Holdouts;
 use crate::render::integrator::{Extras, Integrator, SelectSegments};
+use crate::render::light_choice::LightChoice;
 use crate::render::lights::Lights;
 use crate::render::sampler::{pixel_sampler, SamplerKind};
 use crate::scene::schema::tokens;
@@ -138,8 +139,12 @@ impl RenderJob<'_> {
             Some(_) => "; scattered directions guided towards the local lights",
             None => "; scattered directions from the phase function",
         };
+        let chosen = match total > crate::render::light_choice::MANY_LIGHTS {
+            true => "; each vertex's next event samples one of them, chosen by power over squared distance",
+            false => "",
+        };
         format!(
-            "{} {sampled} of {total} local light{} sampled equiangularly with MIS ({why}){guided}",
+            "{} {sampled} of {total} local light{} sampled equiangularly with MIS ({why}){guided}{chosen}",
             if sampled > 0 {
                 "equiangular-mis:"
             } else {
@@ -258,6 +263,7 @@ impl RenderJob<'_> {
             locals: self.local_lights(),
             shutter: self.shutter(),
             guide: self.light_lobes(),
+            light_choice: LightChoice::new(&self.lights.locals()),
         }
     }
 }

@@ -12,6 +12,7 @@ pub mod guiding;
 pub mod holdouts;
 pub mod integrator;
 pub mod job;
+pub mod light_choice;
 pub mod light_motion;
 pub mod lights;
 pub mod media_index;
