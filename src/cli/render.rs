@@ -116,7 +116,8 @@ pub struct RenderArgs {
     pub light_sampling: Option<LightSampling>,
     /// Where a path goes after a scattering vertex: the phase function alone, or half
     /// the time a lobe towards a local light, weighted as one mixture; `auto`
-    /// (default) guides towards point, sphere and spot lights (docs/trackers.md).
+    /// (default) guides towards point, sphere and spot lights on stages with no sun or
+    /// dome (docs/trackers.md).
     /// Stages with only distant and dome lights render the same either way.
     #[arg(long, value_parser = choice::parser::<ScatterGuiding>())]
     pub scatter_guiding: Option<ScatterGuiding>,

@@ -97,14 +97,16 @@ impl RenderJob<'_> {
 
     /// The lobes scattered directions are guided towards (`--scatter-guiding`):
     /// every local light under `lights`; under `auto` the point, sphere and spot lights
-    /// (a large rect beside a thin cloud lost: its lobe sends paths out of the
-    /// medium; docs/trackers.md); none under `phase` or on a stage without them
-    /// (whose renders are then unchanged).
+    /// of a stage lit by nothing else (a large rect beside a thin cloud lost: its lobe
+    /// sends paths out of the medium; and lobes towards a spot take half the paths
+    /// from the sun that lights most of a cloud: docs/trackers.md); none under
+    /// `phase` or on a stage without them (whose renders are then unchanged).
     pub fn light_lobes(&self) -> Option<LightLobes> {
         let mut locals = self.lights.locals();
         match self.tracking.scatter_guiding {
             ScatterGuiding::Phase => return None,
             ScatterGuiding::Lights => {}
+            ScatterGuiding::Auto if self.lights.has_distant_light() => return None,
             // `locals` lists the sphere lights (spots among them) first.
             ScatterGuiding::Auto => locals.truncate(self.lights.spheres.len()),
         }

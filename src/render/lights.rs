@@ -936,6 +936,14 @@ impl Lights {
         nonzero(&self.environment) || !self.env_maps.is_empty()
     }
 
+    /// Whether any light comes from afar: a sun with irradiance, the environment, a
+    /// linked dome.
+    pub fn has_distant_light(&self) -> bool {
+        self.has_environment()
+            || !self.linked_domes.is_empty()
+            || self.suns.iter().any(|s| nonzero(&s.irradiance))
+    }
+
     /// Whether scattering vertices sample the environment (next-event estimation,
     /// combined with phase sampling by MIS): only a textured dome needs it. A constant
     /// environment is left to the phase-sampled ray that continues the path, whose

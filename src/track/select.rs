@@ -257,9 +257,10 @@ impl LightSampling {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum ScatterGuiding {
-    /// `lights` towards the point, sphere and spot lights of a stage (measured to
-    /// pay on every such issue-44 stage; a large rect beside a thin cloud lost:
-    /// docs/trackers.md), `phase` on stages without them.
+    /// `lights` towards the point, sphere and spot lights of a stage with no sun or
+    /// dome (measured to pay on every such issue-44 stage; a large rect beside a thin
+    /// cloud lost, and so did a sun-lit cloud with a spot: docs/trackers.md), `phase`
+    /// on the rest.
     Auto,
     /// Half the continuations drawn from lobes towards the local lights, combined
     /// with the phase function as one mixture ([`crate::render::guiding`]).
@@ -277,7 +278,7 @@ impl Choice for ScatterGuiding {
 
     fn help(self) -> &'static str {
         match self {
-            ScatterGuiding::Auto => "lights towards the point, sphere and spot lights of a stage; phase on stages without them (the default)",
+            ScatterGuiding::Auto => "lights towards the point, sphere and spot lights of a stage lit by no sun or dome; phase on the rest (the default)",
             ScatterGuiding::Lights => "Half the scattered directions drawn from lobes towards the local lights (von Mises-Fisher, chosen by power over squared distance), weighted against the phase function as one mixture",
             ScatterGuiding::Phase => "Scattered directions from the phase function alone",
         }
