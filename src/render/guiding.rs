@@ -93,7 +93,11 @@ impl LightLobes {
     /// The mixture's density q(`omega`) at vertex `p` for a path that arrived along
     /// `dir` through a medium of anisotropy `g`.
     pub fn pdf(&self, p: DVec3, dir: DVec3, g: f64, omega: DVec3) -> f64 {
-        let phase = hg(g, dir.dot(omega));
+        self.mixture(p, hg(g, dir.dot(omega)), omega)
+    }
+
+    /// q(`omega`) at `p` given the phase function's density there.
+    fn mixture(&self, p: DVec3, phase: f64, omega: DVec3) -> f64 {
         match self.lobes_pdf(p, omega) {
             0.0 => phase,
             lobes => (1.0 - LOBE_SHARE) * phase + LOBE_SHARE * lobes,
@@ -131,8 +135,9 @@ impl LightLobes {
         } else {
             sample_hg(g, dir, u[1], u[2])
         };
-        let q = self.pdf(p, dir, g, omega);
-        (omega, hg(g, dir.dot(omega)) / q, q)
+        let phase = hg(g, dir.dot(omega));
+        let q = self.mixture(p, phase, omega);
+        (omega, phase / q, q)
     }
 }
 
