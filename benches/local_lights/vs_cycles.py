@@ -21,6 +21,10 @@ either renderer's mean alpha > 0.01 of (a - b)^2 / (m^2 + 0.01), m the mean of a
 renders of both renderers), seconds the whole F12 (export and translation, or Cycles'
 scene sync, included) or the sampling time (F12 minus the round's 1-spp F12).
 
+CYCLES_NEE_ONLY=1 renders Cycles with every light's Multiple Importance off (next-event
+estimation alone), the configuration whose means are unbiased when a light's sphere
+holds smoke (benches/local_lights/README.md, "The light's interior").
+
 Bias: conftest.compare_stacks over all the seeds (image and 8 x 8-block means of alpha,
 R, G, B; se from each pixel's variance over the seeds), |N - C| <= Z sqrt(se_N^2 +
 se_C^2) + 0.5 % of C (Cycles' null-scattering volumes measured 0.2-0.5 % bright,
@@ -58,6 +62,7 @@ ROUNDS = int(os.environ.get("ROUNDS", "3"))
 Z = float(os.environ.get("Z", "4"))
 CYCLES_BIAS = 0.005
 MAX_DEPTH = int(os.environ.get("MAX_DEPTH", "8"))
+CYCLES_NEE_ONLY = os.environ.get("CYCLES_NEE_ONLY", "0") == "1"
 
 
 def smoke(density):
@@ -133,6 +138,11 @@ def setup(builder):
 
 
 def run_cycles(scene, out, spp, seed):
+    if CYCLES_NEE_ONLY:
+        # Cycles' Multiple Importance on a light whose sphere holds medium loses light
+        # (measured: README, "The light's interior"); next events alone do not.
+        for light in bpy.data.lights:
+            light.cycles.use_multiple_importance_sampling = False
     transparent = scene.render.film_transparent
     scene.render.image_settings.media_type = "IMAGE"  # as conftest.against_cycles
     bex.set_cycles((RES, RES), MAX_DEPTH, transparent)

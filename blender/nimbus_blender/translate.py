@@ -942,6 +942,10 @@ def light_lines(obj, warnings):
         warnings.append(
             f"light '{obj.name}': Soft Falloff is on; Nimbus renders a true sphere light "
             "(turn it off to match Cycles)")
+    elif light.type in ("POINT", "SPOT") and light.shadow_soft_size > 0:
+        # Cycles' sphere lights what lies inside it (smoke around a fire's bulb) with
+        # its radiance from every direction; UsdLux's sphere emits outwards only.
+        lines.append("bool nimbus:lightsInterior = 1")
     if light.type == "SPOT" and light.spot_blend > 0:
         warnings.append(
             f"light '{obj.name}': spot blend {light.spot_blend:.2f}: UsdLux's cone softness "

@@ -224,6 +224,7 @@ void HdNimbusLight::Sync(HdSceneDelegate *delegate, HdRenderParam *param,
     d.angle = N(t.angle, 0.53);
     d.treat_as_point = B(TfToken("treatAsPoint"), false);
     d.treat_as_line = B(TfToken("treatAsLine"), false);
+    d.lights_interior = B(TfToken("nimbus:lightsInterior"), false);
     d.diffuse = N(t.diffuse, 1.0);
     d.texture_file = HdNimbusText(P(t.textureFile));
     d.texture_format = HdNimbusText(P(t.textureFormat));

@@ -298,8 +298,10 @@ fn print_light(l: &LightDescription) {
             color,
             normalize,
             treat_as_point,
+            lights_interior,
         } => println!(
-            "sphere light: {p} position {position:?} radius {radius} intensity {intensity} exposure {exposure} color {color:?} normalize {normalize} treatAsPoint {treat_as_point}"
+            "sphere light: {p} position {position:?} radius {radius} intensity {intensity} exposure {exposure} color {color:?} normalize {normalize} treatAsPoint {treat_as_point}{}",
+            if *lights_interior { " lightsInterior" } else { "" }
         ),
         LightParams::Rect {
             position,

@@ -154,6 +154,7 @@ pub enum LightParams {
         color: [f64; 3],
         normalize: bool,
         treat_as_point: bool,
+        lights_interior: bool,
     },
     Rect {
         position: [f64; 3],
@@ -551,6 +552,7 @@ fn light_params(scene: &Scene, prim_path: &str) -> LightParams {
             color: l.color,
             normalize: l.normalize,
             treat_as_point: l.treat_as_point,
+            lights_interior: l.lights_interior,
         };
     }
     if let Some(l) = scene.rect_lights.iter().find(|l| l.prim_path == prim_path) {

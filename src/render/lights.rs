@@ -75,6 +75,9 @@ pub struct SphereEmitter {
     pub radius: f64,
     /// Radiance of the surface; for a point, the radiant intensity (per steradian).
     pub radiance: [f64; 3],
+    /// Whether points inside the sphere see its radiance (`nimbus:lightsInterior`):
+    /// from every direction, as if its surface also emitted inwards.
+    pub interior: bool,
     pub shaping: Option<Shaping>,
     pub link: Link,
     /// How it moves over the shutter, when it does.
@@ -675,6 +678,7 @@ impl Lights {
                 center: m.transform_point3(DVec3::ZERO),
                 radius: if point { 0.0 } else { r },
                 radiance,
+                interior: l.lights_interior && !point,
                 shaping: shaping(&l.controls, &m),
                 link: linker.link(&l.controls),
                 motion: light_motion(&l.motion, &m),
@@ -1065,13 +1069,13 @@ pub struct LightSample {
 impl SphereEmitter {
     /// Samples the sphere from `p`: uniform over the cone it subtends (exact for the
     /// radiance a uniform sphere sends), or the point itself. Points inside the
-    /// sphere see no emission (it emits outwards).
+    /// sphere see no emission (it emits outwards), unless it lights its interior.
     pub fn sample(&self, p: DVec3, u1: f64, u2: f64) -> Option<LightSample> {
         let to_c = self.center - p;
         let d2 = to_c.length_squared();
         let d = d2.sqrt();
         if d <= self.radius || d == 0.0 {
-            return None;
+            return self.sample_inside(to_c, d2, u1, u2);
         }
         let axis = to_c / d;
         if self.radius == 0.0 {
@@ -1095,6 +1099,28 @@ impl SphereEmitter {
                 wi,
                 distance,
                 weight: self.radiance.map(|v| v * solid_angle),
+            },
+            &self.shaping,
+        )
+    }
+
+    /// From a point inside a sphere that lights its interior (`to_c` = centre − p):
+    /// a direction uniform over the sphere of directions, every one of which meets
+    /// the surface (radiance L, pdf 1/4π), at the far root of |p + t·wi − c| = r.
+    /// Uniform rather than by the phase function: the interior is lit evenly, and
+    /// the sample stays the light's own, whatever the medium.
+    fn sample_inside(&self, to_c: DVec3, d2: f64, u1: f64, u2: f64) -> Option<LightSample> {
+        if !self.interior || self.radius == 0.0 {
+            return None;
+        }
+        let wi = sample_sphere(u1, u2);
+        let b = to_c.dot(wi);
+        let distance = b + (b * b + self.radius * self.radius - d2).max(0.0).sqrt();
+        shaped(
+            LightSample {
+                wi,
+                distance,
+                weight: self.radiance.map(|v| v * 4.0 * PI),
             },
             &self.shaping,
         )

@@ -174,6 +174,10 @@ pub struct SphereLight {
     pub radius: f64,
     /// `treatAsPoint`.
     pub treat_as_point: bool,
+    /// `nimbus:lightsInterior`: the sphere also lights what lies inside it, its
+    /// radiance arriving from every direction there (Cycles' point, spot and sphere
+    /// lights; UsdLux's sphere emits outwards only, the default).
+    pub lights_interior: bool,
 }
 
 /// UsdLuxRectLight: a `width` × `height` rectangle in the light's local XY plane,

@@ -557,6 +557,7 @@ impl Reader<'_> {
             color_temperature: c.color_temperature,
             radius: self.length("inputs:radius", 0.5)?,
             treat_as_point: self.bool("treatAsPoint")?.unwrap_or(false),
+            lights_interior: self.bool(tokens::LIGHTS_INTERIOR)?.unwrap_or(false),
             controls: c.controls,
         })
     }

@@ -69,6 +69,7 @@ pub mod tokens {
     pub const STRICT: &str = "nimbus:strict";
     pub const PREVIEW_NAME: &str = "nimbus:previewName";
     pub const LIGHT_GROUP: &str = "nimbus:lightGroup";
+    pub const LIGHTS_INTERIOR: &str = "nimbus:lightsInterior";
     pub const HOLDOUT: &str = "nimbus:holdout";
     pub const FILL: &str = "nimbus:fill";
 }

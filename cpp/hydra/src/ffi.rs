@@ -51,6 +51,8 @@ pub mod bridge {
         angle: f64,
         treat_as_point: bool,
         treat_as_line: bool,
+        /// `nimbus:lightsInterior` (a sphere light's).
+        lights_interior: bool,
         diffuse: f64,
         /// `texture:file` of a dome, resolved ("" when none).
         texture_file: String,

@@ -345,6 +345,7 @@ fn add_light(
             color_temperature: temperature,
             radius: l.radius,
             treat_as_point: l.treat_as_point,
+            lights_interior: l.lights_interior,
         }),
         "rectLight" => scene.rect_lights.push(RectLight {
             prim_path: path,

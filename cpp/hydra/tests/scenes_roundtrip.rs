@@ -149,6 +149,7 @@ fn desc_of(scene: &Scene) -> SceneDesc {
         ld.normalize = l.normalize;
         ld.radius = l.radius;
         ld.treat_as_point = l.treat_as_point;
+        ld.lights_interior = l.lights_interior;
         d.lights.push(ld);
     }
     for l in &scene.rect_lights {
