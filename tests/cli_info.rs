@@ -257,7 +257,8 @@ fn a_light_description_is_flat_json_with_its_type() {
 
 /// `nimbus info` says what `--light-sampling auto` does with the local lights (issue
 /// 44), in the text and the JSON: none in the example cloud (a sun and a sky); in its
-/// grid, of a spot and a point light, only the spot (docs/trackers.md: equiangular
+/// grid, of a spot, a point light and a point light that lights its interior, the
+/// spot and, on the chord through its ball, the last (docs/trackers.md: equiangular
 /// points towards unshaped lights were measured to lose in grids).
 #[test]
 fn info_says_which_local_lights_auto_samples_equiangularly() {
@@ -296,6 +297,13 @@ over "World"
         float inputs:intensity = 100
         float inputs:radius = 0.1
     }}
+
+    def SphereLight "Bulb"
+    {{
+        float inputs:intensity = 100
+        float inputs:radius = 0.1
+        bool nimbus:lightsInterior = 1
+    }}
 }}
 "#,
             cloud.display()
@@ -306,8 +314,9 @@ over "World"
     let j = info_json(&[stage]);
     let summary = j["auto"]["light_sampling"].as_str().unwrap();
     assert!(
-        summary.starts_with("equiangular-mis: 1 of 2 local lights sampled equiangularly")
-            && summary.contains("heterogeneous medium only spots"),
+        summary.starts_with("equiangular-mis: 2 of 3 local lights sampled equiangularly")
+            && summary.contains("heterogeneous medium spots")
+            && summary.contains("sphere lights that light their interior"),
         "{summary}"
     );
     let o = nimbus(&["info", stage]);

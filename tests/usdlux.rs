@@ -717,7 +717,8 @@ fn light_and_shadow_linking_exclude_exactly_the_named_volume() {
 /// direction (2π L ∫₀^π e^{−σt s(θ)} sin θ dθ, s the far root), as Cycles' sphere
 /// lights do; without it they see nothing and only the ray's stretches outside are
 /// lit (the cone it subtends). Quadrature split at the sphere's crossings; both
-/// estimators (collisions, equiangular MIS), N = 1,000,000, seeds 45 and 46; |z| < 4.
+/// estimators (collisions, equiangular MIS; and equiangular MIS on the chord through
+/// the ball only), N = 1,000,000, seeds 45–47; |z| < 4.
 /// The interior is 0.79 of the lit image here: the samples with it are checked to be
 /// far (|z| > 20) from the quadrature without it.
 #[test]
@@ -785,6 +786,12 @@ fn a_sphere_light_lights_its_interior_when_asked() {
     for s in setup.samples_each(&lights(false), 1_000_000, 46) {
         assert_z(&s, without);
     }
+    // Equiangular points on the chord through the ball alone (what `auto` does in a
+    // grid), the collisions keeping the rest of the ray: the same integral.
+    let mut chord = lights(true).locals();
+    chord[0].chord_only = true;
+    let s = setup.samples_located(&lights(true), Extras::default(), 1_000_000, 47, chord);
+    assert_z(&s, with);
 }
 
 /// Shadow linking over holdouts, from the stage: a light whose `collection:shadowLink`

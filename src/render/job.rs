@@ -77,16 +77,25 @@ impl RenderJob<'_> {
     /// (`--light-sampling`), in [`Lights::locals`]' order; a light left to the
     /// collisions has power 0, and none at all is an empty list (nothing is drawn).
     /// `auto`: every local light where every medium is homogeneous (fog boxes, world
-    /// fog); in a heterogeneous medium only spots, whose cones the collisions' light
-    /// samples mostly miss (measured: docs/trackers.md).
+    /// fog); in a heterogeneous medium spots, whose cones the collisions' light
+    /// samples mostly miss (measured: docs/trackers.md), and sphere lights that light
+    /// their interior, on the chord through their ball only (the collisions rarely
+    /// land in it, and carry its whole radiance when they do).
     pub fn local_lights(&self) -> Vec<LocalLight> {
         let mut locals = match self.tracking.light_sampling {
             LightSampling::Collisions => return Vec::new(),
             _ => self.lights.locals(),
         };
         if self.tracking.light_sampling == LightSampling::Auto && !self.every_medium_constant() {
-            for l in locals.iter_mut().filter(|l| l.cone.is_none()) {
-                l.power = 0.0;
+            // `locals` lists the sphere lights first.
+            let spheres = &self.lights.spheres;
+            for (i, l) in locals.iter_mut().enumerate() {
+                let lit_inside = spheres.get(i).is_some_and(|s| s.interior && s.radius > 0.0);
+                if l.cone.is_none() && lit_inside {
+                    l.chord_only = true;
+                } else if l.cone.is_none() {
+                    l.power = 0.0;
+                }
             }
         }
         if locals.iter().all(|l| l.power <= 0.0) {
@@ -134,7 +143,7 @@ impl RenderJob<'_> {
                 "auto: every medium is homogeneous"
             }
             LightSampling::Auto => {
-                "auto: in a heterogeneous medium only spots, whose cones the collisions' light samples mostly miss; the others lose there and are left to the collisions (docs/trackers.md)"
+                "auto: in a heterogeneous medium spots, whose cones the collisions' light samples mostly miss, and sphere lights that light their interior, on the chord through it; the others lose there and are left to the collisions (docs/trackers.md)"
             }
         };
         let guided = match self.light_lobes() {

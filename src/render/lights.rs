@@ -840,6 +840,7 @@ impl Lights {
                 power: power * share,
                 radius,
                 cone,
+                chord_only: false,
             }
         };
         let mut out = Vec::new();
