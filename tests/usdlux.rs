@@ -219,6 +219,36 @@ fn assert_z(s: &[[f64; 3]], expected: [f64; 3]) {
     );
 }
 
+/// The radiance a sphere light (centre `c`, radius `r`, surface radiance `radiance`)
+/// sends to `x` through a medium of extinction `sigma`, integrated over directions:
+/// 2π L ∫ e^{−σ s(θ)} sin θ dθ over the cone it subtends (s the near root), or from
+/// inside, with `interior`, over every direction (s the far root; 0 without it);
+/// Simpson with `n` intervals.
+fn sphere_fluence(
+    c: DVec3,
+    r: f64,
+    radiance: [f64; 3],
+    sigma: f64,
+    interior: bool,
+    x: DVec3,
+    n: usize,
+) -> [f64; 3] {
+    let d = (c - x).length();
+    let chord = |t: f64| (r * r - d * d * t.sin().powi(2)).max(0.0).sqrt();
+    let integral = if d > r {
+        simpson(0.0, (r / d).asin(), n, |t| {
+            (-sigma * (d * t.cos() - chord(t))).exp() * t.sin()
+        })
+    } else if interior {
+        simpson(0.0, PI, n, |t| {
+            (-sigma * (d * t.cos() + chord(t))).exp() * t.sin()
+        })
+    } else {
+        0.0
+    };
+    radiance.map(|l| l * 2.0 * PI * integral)
+}
+
 /// Composite Simpson over [a, b] with `n` (even) intervals.
 fn simpson(a: f64, b: f64, n: usize, f: impl Fn(f64) -> f64) -> f64 {
     let h = (b - a) / n as f64;
@@ -672,18 +702,9 @@ fn light_and_shadow_linking_exclude_exactly_the_named_volume() {
         }],
         ..Default::default()
     };
-    // In-scattered radiance from the sphere through optical depth σ per unit length.
-    let sphere = |sigma: f64| {
-        move |x: DVec3| {
-            let d = (c - x).length();
-            let theta_max = (r / d).asin();
-            let integral = simpson(0.0, theta_max, 200, |t| {
-                let s = d * t.cos() - (r * r - d * d * t.sin().powi(2)).max(0.0).sqrt();
-                (-sigma * s).exp() * t.sin()
-            });
-            radiance.map(|l| l * 2.0 * PI * integral)
-        }
-    };
+    // In-scattered radiance from the sphere through optical depth σ per unit length
+    // (the ray stays outside it).
+    let sphere = |sigma: f64| move |x: DVec3| sphere_fluence(c, r, radiance, sigma, false, x, 200);
 
     let only_0 = Link {
         lit: 0b01,
@@ -727,26 +748,8 @@ fn a_sphere_light_lights_its_interior_when_asked() {
     let c = DVec3::new(0.3, 0.0, -4.0);
     let r: f64 = 0.8;
     let radiance = [1.5, 1.0, 3.0];
-    let fluence = |interior: bool| {
-        move |x: DVec3| {
-            let d = (c - x).length();
-            let integral = if d > r {
-                let theta_max = (r / d).asin();
-                simpson(0.0, theta_max, 400, |t| {
-                    let s = d * t.cos() - (r * r - d * d * t.sin().powi(2)).max(0.0).sqrt();
-                    (-SIGMA_T * s).exp() * t.sin()
-                })
-            } else if interior {
-                simpson(0.0, PI, 400, |t| {
-                    let s = d * t.cos() + (r * r - d * d * t.sin().powi(2)).max(0.0).sqrt();
-                    (-SIGMA_T * s).exp() * t.sin()
-                })
-            } else {
-                0.0
-            };
-            radiance.map(|l| l * 2.0 * PI * integral)
-        }
-    };
+    let fluence =
+        |interior: bool| move |x: DVec3| sphere_fluence(c, r, radiance, SIGMA_T, interior, x, 400);
     // The ray (0, 0, −t) is inside for |t − 4| < h.
     let h = (r * r - c.x * c.x).sqrt();
     let expected = |interior: bool| {

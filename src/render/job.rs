@@ -88,13 +88,15 @@ impl RenderJob<'_> {
         };
         if self.tracking.light_sampling == LightSampling::Auto && !self.every_medium_constant() {
             // `locals` lists the sphere lights first.
-            let spheres = &self.lights.spheres;
-            for (i, l) in locals.iter_mut().enumerate() {
-                let lit_inside = spheres.get(i).is_some_and(|s| s.interior && s.radius > 0.0);
-                if l.cone.is_none() && lit_inside {
-                    l.chord_only = true;
-                } else if l.cone.is_none() {
-                    l.power = 0.0;
+            let lit_inside = |i: usize| self.lights.spheres.get(i).is_some_and(|s| s.interior);
+            for (i, l) in locals
+                .iter_mut()
+                .enumerate()
+                .filter(|(_, l)| l.cone.is_none())
+            {
+                match lit_inside(i) {
+                    true => l.chord_only = true,
+                    false => l.power = 0.0,
                 }
             }
         }

@@ -76,7 +76,7 @@ pub struct SphereEmitter {
     /// Radiance of the surface; for a point, the radiant intensity (per steradian).
     pub radiance: [f64; 3],
     /// Whether points inside the sphere see its radiance (`nimbus:lightsInterior`):
-    /// from every direction, as if its surface also emitted inwards.
+    /// from every direction, as if its surface also emitted inwards (never a point's).
     pub interior: bool,
     pub shaping: Option<Shaping>,
     pub link: Link,
