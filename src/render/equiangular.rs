@@ -33,9 +33,11 @@
 //! A spot light's integral runs only over the stretch of [a, b] inside its cone
 //! ([`Cone`]): equiangular points are drawn there, and outside it the collisions keep
 //! their whole weight, so the partition of unity holds at every s. A sphere light
-//! that lights its interior can likewise be sampled on the chord through its ball
-//! alone ([`LocalLight::chord_only`]): there the few collisions that land carry its
-//! whole radiance from every direction, and elsewhere the collisions keep it all.
+//! can likewise be sampled on the chord through a ball around it alone
+//! ([`LocalLight::chord`]): near the light, where a collision's next-event estimate
+//! grows as 1/r² and the rare collisions there are a render's fireflies, equiangular
+//! points take most of the weight; farther out the collisions keep it all, and no
+//! transmittance is estimated for points the light barely reaches.
 
 use glam::DVec3;
 
@@ -53,29 +55,29 @@ pub struct LocalLight {
     /// nearer ([`crate::render::guiding`]).
     pub radius: f64,
     pub cone: Option<Cone>,
-    /// Equiangular points only on the chord of a segment through the ball of
-    /// `radius` (a sphere light lighting its interior, in a grid: the rest of the
-    /// segment is left to the collisions).
-    pub chord_only: bool,
+    /// Equiangular points only on the chord of a segment through the ball of this
+    /// radius around `center` (in a grid, where the collisions keep the rest of the
+    /// segment: [`crate::render::job`]); `None`: on the whole stretch.
+    pub chord: Option<f64>,
 }
 
 impl LocalLight {
     /// The stretch of `[a, b]` on the unit-speed line `o + s·ω` this light's
-    /// equiangular points are drawn on (all of it, the part inside its cone, and for a
-    /// [`Self::chord_only`] light the part inside its ball).
+    /// equiangular points are drawn on (all of it, the part inside its cone, and with a
+    /// [`Self::chord`] the part inside that ball).
     #[inline]
     pub fn stretch(&self, o: DVec3, omega: DVec3, a: f64, b: f64) -> Option<(f64, f64)> {
         let (a, b) = match &self.cone {
             None => (a < b).then_some((a, b)),
             Some(cone) => cone.clip(o, omega, a, b),
         }?;
-        if !self.chord_only {
+        let Some(radius) = self.chord else {
             return Some((a, b));
-        }
+        };
         // |o + sω − c|² = r²: s = f ± √(r² − h²), f the foot of the perpendicular.
         let f = (self.center - o).dot(omega);
         let h2 = (o + omega * f - self.center).length_squared();
-        let half = (self.radius * self.radius - h2).max(0.0).sqrt();
+        let half = (radius * radius - h2).max(0.0).sqrt();
         let (lo, hi) = (a.max(f - half), b.min(f + half));
         (half > 0.0 && lo < hi).then_some((lo, hi))
     }
@@ -293,18 +295,18 @@ pub fn balance(p: f64, q: f64) -> f64 {
 
 #[cfg(test)]
 mod tests {
-    /// A chord-only light's stretch is the segment's part inside its ball: the line
+    /// A chord light's stretch is the segment's part inside its ball: the line
     /// y = 0.6 through a ball of radius 1 at the origin crosses it on x ∈ [−0.8, 0.8];
     /// a segment from −0.5 keeps [−0.5, 0.8]; one that misses the ball, or a line
     /// farther than the radius, has none.
     #[test]
-    fn a_chord_only_stretch_is_the_segment_inside_the_ball() {
+    fn a_chord_stretch_is_the_segment_inside_the_ball() {
         let light = LocalLight {
             center: DVec3::ZERO,
             power: 1.0,
-            radius: 1.0,
+            radius: 0.1,
             cone: None,
-            chord_only: true,
+            chord: Some(1.0),
         };
         let o = DVec3::new(-3.0, 0.6, 0.0);
         let (a, b) = light.stretch(o, DVec3::X, 0.0, 10.0).unwrap();
@@ -322,7 +324,7 @@ mod tests {
             .stretch(DVec3::new(-3.0, 1.2, 0.0), DVec3::X, 0.0, 10.0)
             .is_none());
         let whole = LocalLight {
-            chord_only: false,
+            chord: None,
             ..light
         };
         assert_eq!(whole.stretch(o, DVec3::X, 0.0, 10.0), Some((0.0, 10.0)));

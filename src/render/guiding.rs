@@ -179,7 +179,7 @@ mod tests {
             power,
             radius,
             cone: None,
-            chord_only: false,
+            chord: None,
         }
     }
 

@@ -831,8 +831,15 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
             let Some(scale) = scale(k + i).filter(|_| sphere.link.lights(id)) else {
                 continue;
             };
+            let Some(survival) = self.far_roulette(k + i, p, throughput, rng) else {
+                continue;
+            };
             let s = sphere.sample_at(p, path.time, rng.gen(), rng.gen());
-            let light = (sources.sphere(i), &sphere.link, weight(k + i) * scale);
+            let light = (
+                sources.sphere(i),
+                &sphere.link,
+                weight(k + i) * scale / survival,
+            );
             self.add_light_sample(s, light, p, dir, path, radiance, rng, counters);
         }
         k += self.lights.spheres.len();
@@ -920,6 +927,39 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                 radiance.add(sources.linked_dome(i), events, v);
             }
         }
+    }
+
+    /// Russian roulette on the next event towards local light `k` from a vertex `p`
+    /// beyond the ball of its [`LocalLight::chord`]: the event survives with
+    /// probability q = (R / d)² · max throughput (R the ball's radius, d the distance
+    /// to the light), when that is below 1, and its estimate is divided by q; `None`
+    /// when it is killed. Unbiased for any q; a light without a chord keeps every
+    /// event, with no random number drawn. A light's next-event estimate falls as
+    /// 1/d², so past the ball a survivor weighs what an event on the ball's surface
+    /// would: those far events are a small part of the light that reaches a pixel
+    /// (the ones near the light make it), and each costs a shadow ray through the
+    /// medium towards the light, the dearest part of a vertex.
+    #[inline]
+    fn far_roulette(
+        &self,
+        k: usize,
+        p: DVec3,
+        throughput: Spectrum,
+        rng: &mut Sampler,
+    ) -> Option<f64> {
+        let Some(light) = self.locals.get(k).filter(|l| l.power > 0.0) else {
+            return Some(1.0);
+        };
+        let Some(radius) = light.chord else {
+            return Some(1.0);
+        };
+        let d2 = (p - light.center).length_squared();
+        let beta = crate::track::free_path::max3(throughput.map(f32::abs)) as f64;
+        let q = radius * radius / d2 * beta;
+        if !(q < 1.0) {
+            return Some(1.0);
+        }
+        (rng.gen::<f64>() < q).then_some(q)
     }
 
     /// Adds a sphere, rect, disk or cylinder light sample (scattered rays never hit

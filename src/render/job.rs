@@ -31,6 +31,12 @@ use anyhow::{bail, Context};
 use glam::DVec3;
 use std::sync::Arc;
 
+/// How many mean free paths (at the largest extinction) the ball around a sphere light
+/// in a grid reaches, whose chords `auto` samples equiangularly
+/// ([`RenderJob::local_lights`]). A measured choice (docs/trackers.md, "Equiangular
+/// points on the chord through a ball around the light"), not a derived optimum.
+pub const CHORD_FREE_PATHS: f64 = 3.0;
+
 pub struct RenderJob<'a> {
     /// The stage's volumes, one medium each (at least one).
     pub media: &'a [Medium],
@@ -79,14 +85,19 @@ impl RenderJob<'_> {
     /// `auto`: every local light where every medium is homogeneous (fog boxes, world
     /// fog); in a heterogeneous medium spots, whose cones the collisions' light
     /// samples mostly miss (measured: docs/trackers.md), and sphere lights that light
-    /// their interior, on the chord through their ball only (the collisions rarely
-    /// land in it, and carry its whole radiance when they do).
+    /// their interior, on the chord through a ball around them alone
+    /// ([`Self::chord_radius`]): near such a light a collision's next-event estimate
+    /// grows as 1/r² up to the light's whole radiance from every direction, and the
+    /// few collisions that land there are the render's fireflies; farther out the
+    /// collisions do as well for less. The other unshaped lights lose there and are
+    /// left to the collisions.
     pub fn local_lights(&self) -> Vec<LocalLight> {
         let mut locals = match self.tracking.light_sampling {
             LightSampling::Collisions => return Vec::new(),
             _ => self.lights.locals(),
         };
         if self.tracking.light_sampling == LightSampling::Auto && !self.every_medium_constant() {
+            let ball = self.chord_radius();
             // `locals` lists the sphere lights first.
             let lit_inside = |i: usize| self.lights.spheres.get(i).is_some_and(|s| s.interior);
             for (i, l) in locals
@@ -95,7 +106,7 @@ impl RenderJob<'_> {
                 .filter(|(_, l)| l.cone.is_none())
             {
                 match lit_inside(i) {
-                    true => l.chord_only = true,
+                    true => l.chord = Some(ball.max(l.radius)),
                     false => l.power = 0.0,
                 }
             }
@@ -104,6 +115,24 @@ impl RenderJob<'_> {
             locals.clear();
         }
         locals
+    }
+
+    /// The radius of the ball around a sphere light in a grid whose chords get
+    /// equiangular points under `auto` (never less than the light's own): [`CHORD_FREE_PATHS`] mean free paths at the
+    /// densest medium's largest extinction. A collision's light estimate at distance r
+    /// has a second moment ∝ ∫ (1/r²)² r² dr past the ball, ∝ 1/radius; inside it the
+    /// equiangular points bound it, at the price of a transmittance estimate per
+    /// segment that crosses the ball.
+    fn chord_radius(&self) -> f64 {
+        let densest = self
+            .media
+            .iter()
+            .map(Medium::max_extinction)
+            .fold(0.0, f64::max);
+        match densest > 0.0 {
+            true => CHORD_FREE_PATHS / densest,
+            false => 0.0,
+        }
     }
 
     /// The lobes scattered directions are guided towards (`--scatter-guiding`):
@@ -139,14 +168,14 @@ impl RenderJob<'_> {
         }
         let sampled = self.local_lights().iter().filter(|l| l.power > 0.0).count();
         let why = match self.tracking.light_sampling {
-            LightSampling::Collisions => "--light-sampling collisions",
-            LightSampling::EquiangularMis => "--light-sampling equiangular-mis",
+            LightSampling::Collisions => "--light-sampling collisions".to_string(),
+            LightSampling::EquiangularMis => "--light-sampling equiangular-mis".to_string(),
             LightSampling::Auto if self.every_medium_constant() => {
-                "auto: every medium is homogeneous"
+                "auto: every medium is homogeneous".to_string()
             }
-            LightSampling::Auto => {
-                "auto: in a heterogeneous medium spots, whose cones the collisions' light samples mostly miss, and sphere lights that light their interior, on the chord through it; the others lose there and are left to the collisions (docs/trackers.md)"
-            }
+            LightSampling::Auto => format!(
+                "auto: in a heterogeneous medium spots, whose cones the collisions' light samples mostly miss, and sphere lights that light their interior, on the chord through a ball of {CHORD_FREE_PATHS} mean free paths around them; the others lose there and are left to the collisions (docs/trackers.md)"
+            ),
         };
         let guided = match self.light_lobes() {
             Some(_) => "; scattered directions guided towards the local lights",

@@ -80,7 +80,7 @@ mod tests {
             power,
             radius: 0.1,
             cone: None,
-            chord_only: false,
+            chord: None,
         }
     }
 

@@ -840,7 +840,7 @@ impl Lights {
                 power: power * share,
                 radius,
                 cone,
-                chord_only: false,
+                chord: None,
             }
         };
         let mut out = Vec::new();

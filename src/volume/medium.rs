@@ -416,6 +416,12 @@ impl Medium {
         }
     }
 
+    /// The largest extinction anywhere in the medium (per world unit, the largest of
+    /// the channels): the inverse of its shortest mean free path.
+    pub fn max_extinction(&self) -> f64 {
+        self.majorants.max_density() as f64 * self.sigma.t_max as f64
+    }
+
     /// The optical depth of one voxel at unit density, κ = σt_max × voxel length (the
     /// cube root of a voxel's world volume, for the cost model of
     /// [`MajorantTree::prune`]).
