@@ -930,10 +930,11 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
     }
 
     /// Russian roulette on the next event towards local light `k` from a vertex `p`
-    /// beyond the ball of its [`LocalLight::chord`]: the event survives with
-    /// probability q = (R / d)² · max throughput (R the ball's radius, d the distance
-    /// to the light), when that is below 1, and its estimate is divided by q; `None`
-    /// when it is killed. Unbiased for any q; a light without a chord keeps every
+    /// beyond the ball of its [`LocalLight::chord`] (or nearer, on a path whose
+    /// throughput has fallen): the event survives with probability
+    /// q = (R / d)² · max throughput (R the ball's radius, d the distance to the
+    /// light), when that is below 1, and its estimate is divided by q; `None` when it
+    /// is killed. Unbiased for any q; a light without a chord keeps every
     /// event, with no random number drawn. A light's next-event estimate falls as
     /// 1/d², so past the ball a survivor weighs what an event on the ball's surface
     /// would: those far events are a small part of the light that reaches a pixel

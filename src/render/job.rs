@@ -33,8 +33,8 @@ use std::sync::Arc;
 
 /// How many mean free paths (at the largest extinction) the ball around a sphere light
 /// in a grid reaches, whose chords `auto` samples equiangularly
-/// ([`RenderJob::local_lights`]). A measured choice (docs/trackers.md, "Equiangular
-/// points on the chord through a ball around the light"), not a derived optimum.
+/// ([`RenderJob::local_lights`]). A measured choice (docs/trackers.md, "A ball of three
+/// mean free paths, and a roulette past it"), not a derived optimum.
 pub const CHORD_FREE_PATHS: f64 = 3.0;
 
 pub struct RenderJob<'a> {
@@ -118,11 +118,11 @@ impl RenderJob<'_> {
     }
 
     /// The radius of the ball around a sphere light in a grid whose chords get
-    /// equiangular points under `auto` (never less than the light's own): [`CHORD_FREE_PATHS`] mean free paths at the
-    /// densest medium's largest extinction. A collision's light estimate at distance r
-    /// has a second moment ∝ ∫ (1/r²)² r² dr past the ball, ∝ 1/radius; inside it the
-    /// equiangular points bound it, at the price of a transmittance estimate per
-    /// segment that crosses the ball.
+    /// equiangular points under `auto` (never less than the light's own):
+    /// [`CHORD_FREE_PATHS`] mean free paths at the densest medium's largest extinction.
+    /// A collision's light estimate at distance r has a second moment
+    /// ∝ ∫ (1/r²)² r² dr past the ball, ∝ 1/radius; inside it the equiangular points
+    /// bound it, at the price of a transmittance estimate per segment that crosses it.
     fn chord_radius(&self) -> f64 {
         let densest = self
             .media
