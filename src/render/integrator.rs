@@ -583,7 +583,8 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                     path.g = medium.g as f64;
                     let last = path.depth >= self.max_depth;
                     let seg = segment.as_ref();
-                    self.next_event(p, id, dir, &path, last, seg, &mut radiance, rng, counters);
+                    let chosen =
+                        self.next_event(p, id, dir, &path, last, seg, &mut radiance, rng, counters);
                     if last {
                         break;
                     }
@@ -600,7 +601,10 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                         None => sample_hg(path.g, dir, rng.gen(), rng.gen()),
                         Some(lobes) => {
                             let u = [rng.gen(), rng.gen(), rng.gen()];
-                            let (omega, weight, pdf) = lobes.sample(p, dir, path.g, u);
+                            let (omega, weight, pdf) = match lobes.one_lobe() {
+                                true => lobes.sample_towards(p, dir, path.g, chosen, u),
+                                false => lobes.sample(p, dir, path.g, u),
+                            };
                             for w in path.throughput.iter_mut() {
                                 *w *= weight as f32;
                             }
@@ -749,7 +753,8 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
     /// environment. A light whose `collection:lightLink` leaves medium `id` out adds
     /// nothing here (its [`Link`]). On a `segment` that also sampled a scattering
     /// point towards the local lights, each local light's estimate here carries the
-    /// tracker's MIS weight.
+    /// tracker's MIS weight. Returns the local light chosen to stand for all of them
+    /// where a stage has many ([`LightChoice`]; `None` otherwise).
     #[allow(clippy::too_many_arguments)]
     fn next_event<C: Tally>(
         &self,
@@ -762,7 +767,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
         radiance: &mut Radiance,
         rng: &mut Sampler,
         counters: &mut C,
-    ) {
+    ) -> Option<usize> {
         let (g, throughput) = (path.g, path.throughput);
         let tracked = (path.tracked, path.time);
         let (events, sources) = (path.depth, &self.lights.sources);
@@ -927,6 +932,7 @@ impl<F: FreePathSampler, E: TransmittanceEstimator> Integrator<'_, F, E> {
                 radiance.add(sources.linked_dome(i), events, v);
             }
         }
+        chosen.flatten().map(|(k, _)| k)
     }
 
     /// Russian roulette on the next event towards local light `k` from a vertex `p`
