@@ -290,13 +290,20 @@ mod tests {
         let h = |w: DVec3| (4.0 * (w.dot(axis) - 1.0)).exp() + 0.1;
         let exact = sphere_integral(axis, 2000, |w| hg(g, dir.dot(w)) * h(w));
         let mut rng = Pcg64::seed_from_u64(44);
-        let n = 400_000;
-        let (mut s, mut s2) = (0.0, 0.0);
-        for _ in 0..n {
+        assert_mean_within_4_se(400_000, exact, |_| {
             let (w, weight, q) = lobes.sample(p, dir, g, [rng.gen(), rng.gen(), rng.gen()]);
             assert!(weight <= 1.0 / (1.0 - LOBE_SHARE) + 1e-9 && q > 0.0);
             assert!((weight - hg(g, dir.dot(w)) / lobes.pdf(p, dir, g, w)).abs() < 1e-12);
-            let v = weight * h(w);
+            weight * h(w)
+        });
+    }
+
+    /// The mean of `draw(i)` over i < `n` lies within 4 of its standard errors (the
+    /// draws' own sample deviation / √n) of `exact`.
+    fn assert_mean_within_4_se(n: usize, exact: f64, mut draw: impl FnMut(usize) -> f64) {
+        let (mut s, mut s2) = (0.0, 0.0);
+        for i in 0..n {
+            let v = draw(i);
             s += v;
             s2 += v * v;
         }
@@ -334,23 +341,15 @@ mod tests {
         let h = |w: DVec3| (4.0 * (w.dot(axis) - 1.0)).exp() + 0.1;
         let exact = sphere_integral(axis, 2000, |w| hg(g, dir.dot(w)) * h(w));
         let mut rng = Pcg64::seed_from_u64(45);
-        let n = 400_000;
-        let (mut s, mut s2) = (0.0, 0.0);
-        for i in 0..n {
+        assert_mean_within_4_se(400_000, exact, |i| {
             let chosen = [Some(3), Some(20), Some(39), None][i % 4];
             let u = [rng.gen(), rng.gen(), rng.gen()];
             let (w, weight, pdf) = lobes.sample_towards(p, dir, g, chosen, u);
             let phase = hg(g, dir.dot(w));
             assert!((pdf - phase).abs() < 1e-12 && (lobes.pdf(p, dir, g, w) - phase).abs() < 1e-12);
             assert!(weight > 0.0 && weight <= 1.0 / (1.0 - LOBE_SHARE) + 1e-9);
-            let v = weight * h(w);
-            s += v;
-            s2 += v * v;
-        }
-        let mean = s / n as f64;
-        let se = ((s2 / n as f64 - mean * mean) / n as f64).sqrt();
-        let z = (mean - exact) / se;
-        assert!(z.abs() < 4.0, "mean {mean}, exact {exact}, z {z}");
+            weight * h(w)
+        });
     }
 
     #[test]
