@@ -109,13 +109,12 @@ impl LightLobes {
             return (omega, 1.0, hg(g, dir.dot(omega)));
         };
         let axis = (center - p).normalize();
-        let omega = if u[0] < LOBE_SHARE {
-            sample_vmf(axis, KAPPA, u[1], u[2])
-        } else {
-            sample_hg(g, dir, u[1], u[2])
+        let omega = match u[0] < LOBE_SHARE {
+            true => sample_vmf(axis, KAPPA, u[1], u[2]),
+            false => sample_hg(g, dir, u[1], u[2]),
         };
         let phase = hg(g, dir.dot(omega));
-        let q = (1.0 - LOBE_SHARE) * phase + LOBE_SHARE * vmf_pdf(omega.dot(axis), KAPPA);
+        let q = mix(phase, vmf_pdf(omega.dot(axis), KAPPA));
         (omega, phase / q, phase)
     }
 
@@ -150,7 +149,6 @@ impl LightLobes {
     pub fn pdf(&self, p: DVec3, dir: DVec3, g: f64, omega: DVec3) -> f64 {
         let phase = hg(g, dir.dot(omega));
         match self.one_lobe() {
-            // The MIS stand-in of `sample_towards`.
             true => phase,
             false => self.mixture(p, phase, omega),
         }
@@ -160,7 +158,7 @@ impl LightLobes {
     fn mixture(&self, p: DVec3, phase: f64, omega: DVec3) -> f64 {
         match self.lobes_pdf(p, omega) {
             0.0 => phase,
-            lobes => (1.0 - LOBE_SHARE) * phase + LOBE_SHARE * lobes,
+            lobes => mix(phase, lobes),
         }
     }
 
@@ -199,6 +197,13 @@ impl LightLobes {
         let q = self.mixture(p, phase, omega);
         (omega, phase / q, q)
     }
+}
+
+/// The mixture (1 − α) · phase + α · lobes of the phase function's density and the
+/// lobes' at one direction.
+#[inline]
+fn mix(phase: f64, lobes: f64) -> f64 {
+    (1.0 - LOBE_SHARE) * phase + LOBE_SHARE * lobes
 }
 
 /// A light's unnormalised importance at a point `d2` (squared distance) from its

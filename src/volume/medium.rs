@@ -626,9 +626,7 @@ impl Medium {
         self.shader = Some(Arc::new(shader));
         self.constant = false;
         self.set_majorants(spec);
-        let max = self.majorants.max_density();
-        let mu_max = max as f64 * self.sigma.t_max as f64;
-        if !(mu_max < f32::MAX as f64) {
+        if !(self.max_extinction() < f32::MAX as f64) {
             return Err(MediumError::Invalid {
                 prim: self.prim_path.clone(),
                 message: format!(
