@@ -882,6 +882,56 @@ fn one_light_chosen_among_many_agrees_with_every_light() {
     }
 }
 
+/// Past `TREE_LIGHTS` local lights with power the light is chosen by descending a light
+/// tree (src/render/light_choice.rs): the same image as sampling every light at every
+/// vertex. A hundred sphere lights (radii 0.03–0.07, radiances 0–30, every tenth without
+/// power) on a spiral through and around the cube of a medium with albedo 0.5; delta at
+/// max depth 64, continuations from the phase function; N = 100,000 each (seeds 141,
+/// 151); two-sample |z| < 4 per channel.
+#[test]
+fn lights_chosen_through_the_tree_agree_with_every_light() {
+    let mut lights = Lights::default();
+    for i in 0..100 {
+        let a = i as f64 * 0.37;
+        let r = [0.2, 0.6, 1.4][i % 3];
+        let radiance = if i % 10 == 3 {
+            0.0
+        } else {
+            (i * 13 % 30) as f64 + 0.5
+        };
+        lights.spheres.push(SphereEmitter {
+            center: DVec3::new(r * a.cos(), r * a.sin(), -1.5 + 0.03 * i as f64),
+            radius: 0.03 + 0.01 * (i % 5) as f64,
+            radiance: [radiance, 0.7 * radiance, 0.4 * radiance],
+            ..Default::default()
+        });
+    }
+    let choice = LightChoice::new(&lights.locals());
+    assert!(choice.as_ref().is_some_and(LightChoice::walks_a_tree));
+    let medium = common::unit_cube(1.0, [0.5; 3], [2.0, 1.0, 0.5], 0.5);
+    let cam = camera(DVec3::new(0.0, 0.0, 10.0), 0.1, 1e6);
+    let n = 100_000;
+    let off = SelectSegments::Off;
+    let run = |choice, seed| {
+        samples_with_locals(
+            &medium,
+            &lights,
+            &cam,
+            64,
+            n,
+            seed,
+            off,
+            Vec::new(),
+            None,
+            choice,
+        )
+    };
+    let a = run(choice, 141);
+    let b = run(None, 151);
+    let z = two_sample_z(&a, &b);
+    assert!(z.iter().all(|z| z.abs() < 4.0), "z = {z:?}");
+}
+
 /// Past `ONE_LOBE_LIGHTS` local lights a continuation is guided towards the one light
 /// the vertex's next event chose (`LightLobes::sample_towards`), not the mixture of
 /// every lobe: the same image as sampling every light at every vertex with directions
