@@ -17,6 +17,10 @@
 //! compiles it. The float graph is compiled node by node ([`NODES`] lists the ids read);
 //! `ND_position_vector3` is the position in object space, `ND_geompropvalue_float` the
 //! value of the volume's field of that name (one field per graph).
+//!
+//! A MaterialX `volume`'s emission, its `edf`, is read the same way
+//! ([`volume_emission`]): a `uniform_edf` whose `color` is a constant colour, a colour
+//! times one field, or a colour times a float graph, taken as the source term.
 
 use super::attrs::{prim_error, prim_error_str, read_value, shader_id, split_property, SceneError};
 use super::shader_network::{Input, ParamValue, ShaderNetwork, ShaderNode};
@@ -195,13 +199,7 @@ pub fn vdf_density(
             "the volume shader is not in its network",
         ));
     };
-    let mut reader = GraphReader {
-        network,
-        builder: Builder::default(),
-        done: HashMap::new(),
-        geomprop: None,
-        depth: 0,
-    };
+    let mut reader = GraphReader::new(network);
     let abs = reader.coefficient(shader, "absorption")?;
     let sca = reader.coefficient(shader, "scattering")?;
     let graph = match (&abs, &sca) {
@@ -239,6 +237,118 @@ pub fn vdf_density(
     }))
 }
 
+/// A MaterialX `volume`'s emission: its `edf`, a `uniform_edf` whose `color` is read
+/// like a vdf coefficient (a constant colour, or a constant colour times a float graph).
+/// MaterialX does not say what a volume's emission is per; Nimbus reads the colour as
+/// the source term, radiance per unit length (`EmissionKind::Source`), as Cycles reads
+/// an Emission closure in a volume.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MaterialXEmission {
+    /// The edf node: where the emission was read from.
+    pub edf: String,
+    /// The colour, times the field or the graph below where there is one.
+    pub color: [f64; 3],
+    /// The volume's field of this name (the float graph is one `ND_geompropvalue_float`).
+    pub field: Option<String>,
+    /// The colour times a float graph of the position (one reading no field), as a
+    /// colour program.
+    pub program: Option<Program>,
+}
+
+impl MaterialXEmission {
+    /// The volume's emission: the source term `color`, times `field` (the volume's
+    /// field [`Self::field`] names, resolved by the caller) or the colour program
+    /// (in the prim's object space; placed in the world by the caller, as the density
+    /// graph is).
+    pub fn volume_emission(
+        self,
+        field: Option<(String, super::description::Field)>,
+    ) -> super::description::VolumeEmission {
+        let source = format!("{} (ND_uniform_edf)", self.edf);
+        super::description::VolumeEmission {
+            emission: field,
+            emission_color: self.color,
+            emission_scale: 1.0,
+            kind: crate::volume::emission::EmissionKind::Source,
+            color_graph: self
+                .program
+                .map(|program| super::description::DensityGraph {
+                    program,
+                    shading_to_world: glam::DMat4::IDENTITY,
+                    source,
+                }),
+            ..Default::default()
+        }
+    }
+}
+
+/// The emission of the MaterialX `volume` node at `volume`: `None` when its `edf` is
+/// not connected or emits nothing (a black colour). An edf other than `uniform_edf`, a
+/// colour Nimbus cannot read as a colour times a float graph, or a graph reading a
+/// field anywhere but as the whole graph is an error naming the node.
+pub fn volume_emission(
+    network: &ShaderNetwork,
+    volume: &str,
+) -> Result<Option<MaterialXEmission>, SceneError> {
+    let Some(node) = network.node(volume) else {
+        return Err(prim_error_str(
+            volume,
+            "the volume node is not in its network",
+        ));
+    };
+    let Source::Output((edf_path, _)) = GraphReader::input(node, "edf") else {
+        return Ok(None);
+    };
+    let Some(edf) = network.node(&edf_path) else {
+        return Err(prim_error_str(&edf_path, "the edf is not in its network"));
+    };
+    if edf.id != "ND_uniform_edf" {
+        return Err(prim_error_str(
+            &edf.path,
+            format!(
+                "`{}` drives `inputs:edf` of {volume}; Nimbus reads a volume's emission from ND_uniform_edf only",
+                edf.id
+            ),
+        ));
+    }
+    let mut reader = GraphReader::new(network);
+    // MaterialX's default colour is white.
+    let colour = match GraphReader::input(edf, "color") {
+        Source::Value(None) => Coefficient::Constant([1.0; 3]),
+        _ => reader.coefficient(edf, "color")?,
+    };
+    let emission = |color, field, program| MaterialXEmission {
+        edf: edf.path.clone(),
+        color,
+        field,
+        program,
+    };
+    let (k, graph) = match colour {
+        Coefficient::Constant(k) if k.iter().all(|&c| c == 0.0) => return Ok(None),
+        Coefficient::Constant(k) => return Ok(Some(emission(k, None, None))),
+        Coefficient::Graph(k, graph) => (k, graph),
+    };
+    let node = reader.node(&graph.0)?;
+    if node.id == "ND_geompropvalue_float" {
+        let name = GraphReader::text(node, "geomprop")?.unwrap_or_default();
+        return Ok(Some(emission(k, Some(name), None)));
+    }
+    let g = reader.output(&graph)?;
+    if let Some(field) = &reader.geomprop {
+        return Err(prim_error_str(
+            &edf.path,
+            format!("its colour's graph ({}) reads the field `{field}` inside it; Nimbus reads an emission field only as a colour times one ND_geompropvalue_float", graph.0),
+        ));
+    }
+    let err = |e| prim_error_str(&edf.path, e);
+    let k32 = k.map(|c| c as f32);
+    let kv = reader.builder.vector3(k32).map_err(err)?;
+    let g3 = reader.builder.splat3(g).map_err(err)?;
+    let rgb = reader.builder.binary(Binary::Mul, kv, g3).map_err(err)?;
+    let program = reader.builder.finish_rgb(rgb).map_err(err)?;
+    Ok(Some(emission(k, None, Some(program))))
+}
+
 /// A node output: the node's path and the output's name.
 type Output = (String, String);
 
@@ -272,6 +382,16 @@ impl<'a> GraphReader<'a> {
                 "a connection names this node, which is not in the material's network",
             )
         })
+    }
+
+    fn new(network: &'a ShaderNetwork) -> GraphReader<'a> {
+        GraphReader {
+            network,
+            builder: Builder::default(),
+            done: HashMap::new(),
+            geomprop: None,
+            depth: 0,
+        }
     }
 
     fn input<'n>(node: &'n ShaderNode, name: &str) -> Source<'n> {

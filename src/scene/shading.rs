@@ -33,9 +33,8 @@ pub struct MaterialVolume {
     /// A MaterialX graph driving the coefficients: the density is its value, the
     /// coefficients above are per unit of it.
     pub density_graph: Option<super::materialx_graph::MaterialXDensity>,
-    /// Connected inputs on the way to the shader that Nimbus does not read, as (prim,
-    /// attribute): a MaterialX `volume`'s `edf` (its emission). The caller warns.
-    pub unread: Vec<(String, String)>,
+    /// A MaterialX `volume`'s emission (its `edf`), when it has one.
+    pub emission: Option<super::materialx_graph::MaterialXEmission>,
 }
 
 /// Material outputs a volume shader hangs from, by renderer context, most specific
@@ -67,10 +66,14 @@ pub fn bound_volume_material(
             .connections()
             .map_err(|e| prim_error(material.path(), format!("{output}: {e}")))?;
         if let Some(source) = sources.first() {
-            let mut unread = Vec::new();
-            let shader = volume_shader(stage, &material, source, &mut unread)?;
+            let mut volume_node = None;
+            let shader = volume_shader(stage, &material, source, &mut volume_node)?;
             let mut m = read_shader(&shader, time)?;
-            m.unread = unread;
+            if let Some(volume) = volume_node {
+                let network = super::materialx_graph::usd_network(&volume, time)?;
+                m.emission =
+                    super::materialx_graph::volume_emission(&network, volume.path().as_str())?;
+            }
             return Ok(Some(m));
         }
     }
@@ -113,13 +116,13 @@ fn bound_material(stage: &Stage, volume: &Prim) -> Result<Option<Prim>, SceneErr
 }
 
 /// Follows `source` (a material output's connection) to a volume shader Nimbus
-/// reads, through MaterialX's `volumematerial` and `volume` nodes; a `volume`'s
-/// connected `edf` (emission, not read) goes into `unread`.
+/// reads, through MaterialX's `volumematerial` and `volume` nodes; the `volume` node
+/// passed (whose `edf` is the emission) goes into `volume_node`.
 fn volume_shader(
     stage: &Stage,
     material: &Prim,
     source: &sdf::Path,
-    unread: &mut Vec<(String, String)>,
+    volume_node: &mut Option<Prim>,
 ) -> Result<Prim, SceneError> {
     let mut source = source.clone();
     for _ in 0..MAX_HOPS {
@@ -132,13 +135,7 @@ fn volume_shader(
             "PxrVolume" | "ND_anisotropic_vdf" => return Ok(shader),
             "ND_volumematerial" => "inputs:volumeshader".to_string(),
             "ND_volume" => {
-                let edf = shader
-                    .attribute("inputs:edf")
-                    .connections()
-                    .map_err(|e| prim_error(shader.path(), e))?;
-                if !edf.is_empty() {
-                    unread.push((shader.path().to_string(), "inputs:edf".to_string()));
-                }
+                *volume_node = Some(shader.clone());
                 "inputs:vdf".to_string()
             }
             // No id: a NodeGraph (or Material) output forwarding to a shader.
@@ -190,7 +187,7 @@ fn read_shader(shader: &Prim, time: Option<TimeCode>) -> Result<MaterialVolume, 
             scattering,
             anisotropy,
             density_graph: None,
-            unread: Vec::new(),
+            emission: None,
         };
     if id == "PxrVolume" {
         // RenderMan: extinction `densityFloat` (overridden by the primvar when one is

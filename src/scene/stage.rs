@@ -483,8 +483,19 @@ impl Loader<'_> {
         let Some(m) = shading::bound_volume_material(self.stage, prim, t)? else {
             return Ok(None);
         };
-        unsupported::unread_material_inputs(&m.unread, &mut self.warnings.borrow_mut());
         let source = format!("{} ({})", m.shader, m.shader_id);
+        let emission = match m.emission.clone() {
+            None => VolumeEmission::default(),
+            Some(e) => {
+                if let Some(field) = &e.field {
+                    return Err(prim_error(
+                        prim.path(),
+                        format!("{}: its emission colour reads the field `{field}` (ND_geompropvalue_float); fog has no fields", e.edf),
+                    ));
+                }
+                e.volume_emission(None)
+            }
+        };
         // Placed in the gprim's space by the caller (world fog refuses it).
         let density_graph = m.density_graph.map(|g| DensityGraph {
             program: g.program,
@@ -516,7 +527,7 @@ impl Loader<'_> {
             absorption: m.absorption,
             scattering: m.scattering,
             anisotropy: m.anisotropy,
-            emission: VolumeEmission::default(),
+            emission,
             material_shader: Some(source),
             density_graph,
             albedo_graph: None,
@@ -767,9 +778,22 @@ impl Loader<'_> {
             }
         }
         if let Some(m) = material {
-            unsupported::unread_material_inputs(&m.unread, &mut self.warnings.borrow_mut());
             let density = self.density_field(prim, &m.density_field, &fields)?;
             let (volume_to_world, motion) = self.blurred_transform(prim)?;
+            let emission = match m.emission.clone() {
+                None => VolumeEmission::default(),
+                Some(e) => {
+                    let field = match &e.field {
+                        None => None,
+                        Some(name) => Some(self.material_field(prim, &e.edf, name, &fields)?),
+                    };
+                    let mut emission = e.volume_emission(field);
+                    if let Some(g) = &mut emission.color_graph {
+                        g.shading_to_world = volume_to_world;
+                    }
+                    emission
+                }
+            };
             let velocity = self.velocity(prim, &fields)?;
             let source = format!("{} ({})", m.shader, m.shader_id);
             return Ok(Volume {
@@ -783,7 +807,7 @@ impl Loader<'_> {
                 scattering: m.scattering,
                 anisotropy: m.anisotropy,
                 fields,
-                emission: VolumeEmission::default(),
+                emission,
                 albedo: None,
                 albedo_graph: None,
                 velocity,
@@ -1022,6 +1046,28 @@ impl Loader<'_> {
                 prim.path(),
                 format!(
                     "density field `{rel}` targets {target}, which is not an OpenVDBAsset prim"
+                ),
+            )),
+        }
+    }
+
+    /// The field a material's shader `shader` reads by `name` (a MaterialX
+    /// `geompropvalue`): one of the volume's `field:*` relationships, or an error
+    /// naming the shader and listing them.
+    fn material_field(
+        &self,
+        prim: &Prim,
+        shader: &str,
+        name: &str,
+        fields: &[(String, Field)],
+    ) -> Result<(String, Field), SceneError> {
+        match fields.iter().find(|(n, _)| n == name) {
+            Some(f) => Ok(f.clone()),
+            None => Err(prim_error(
+                prim.path(),
+                format!(
+                    "{shader} reads the field `{name}`, which the volume does not have (its fields: {})",
+                    fields.iter().map(|(n, _)| n.as_str()).collect::<Vec<_>>().join(", ")
                 ),
             )),
         }

@@ -83,22 +83,6 @@ pub(super) fn unread_field(
     Ok(())
 }
 
-/// The inputs of a bound volume material Nimbus does not read ([`MaterialVolume::unread`]):
-/// a MaterialX `volume`'s `edf`, its emission.
-///
-/// [`MaterialVolume::unread`]: super::shading::MaterialVolume::unread
-pub(super) fn unread_material_inputs(unread: &[(String, String)], warnings: &mut Diagnostics) {
-    for (prim, attribute) in unread {
-        warnings.warn(
-            "volume material",
-            prim.clone(),
-            Some(attribute.as_str()),
-            "a MaterialX volume's emission (its edf) is not read: the volume renders \
-             without it (give the volume nimbus:emissionColor with NimbusVolumeAPI)",
-        );
-    }
-}
-
 /// A material bound to `volume` that has no volume output Nimbus reads.
 pub(super) fn unread_material(volume: &Prim, material: &str, warnings: &mut Diagnostics) {
     warnings.warn(

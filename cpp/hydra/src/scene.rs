@@ -479,17 +479,15 @@ struct Material<'a> {
 }
 
 impl<'a> Material<'a> {
-    /// Warns for each MaterialX `volume` node of the network whose `edf` (its
-    /// emission) is connected: not read, the warning the USD reader gives
-    /// (`nimbus::scene::shading`), naming the prim at `path`, the node and the input.
-    fn warn_unread_emission(&self, path: &str, warnings: &mut Vec<String>) {
-        for n in self.network.iter().filter(|n| n.id == "ND_volume") {
-            if n.connections.iter().any(|c| c.input == "edf") {
-                warnings.push(format!(
-                    "{path}: material {}: {} inputs:edf: a MaterialX volume's emission (its edf) is not read: the volume renders without it",
-                    self.path, n.path
-                ));
-            }
+    /// The emission of the network's MaterialX `volume` node (its `edf`), read as the
+    /// USD reader reads it (`nimbus::scene::materialx_graph::volume_emission`).
+    fn emission(&self) -> Result<Option<materialx_graph::MaterialXEmission>> {
+        match self.network.iter().find(|n| n.id == "ND_volume") {
+            None => Ok(None),
+            Some(n) => Ok(materialx_graph::volume_emission(
+                &self.shader_network(),
+                &n.path,
+            )?),
         }
     }
 
@@ -691,7 +689,18 @@ fn fog_medium(
     let Some(m) = material.coefficients()? else {
         return Ok(None);
     };
-    material.warn_unread_emission(path, warnings);
+    let emission = match material.emission()? {
+        None => VolumeEmission::default(),
+        Some(e) => {
+            if let Some(field) = &e.field {
+                bail!(
+                    "{path}: {}: its emission colour reads the field `{field}` (ND_geompropvalue_float); fog has no fields",
+                    e.edf
+                );
+            }
+            e.volume_emission(None)
+        }
+    };
     if let (Some(field), Some(_)) = (&m.density_field, &m.density_graph) {
         bail!(
             "{path}: {}: its density graph reads the field `{field}` (ND_geompropvalue_float); fog has no fields",
@@ -709,7 +718,7 @@ fn fog_medium(
         absorption: m.absorption,
         scattering: m.scattering,
         anisotropy: m.anisotropy,
-        emission: VolumeEmission::default(),
+        emission,
         albedo_graph: None,
         material_shader: Some(material.shader_name()),
         // Placed in the mesh's object space by `mesh` (world fog refuses it).
@@ -864,10 +873,11 @@ fn volume(
             "the schema's fallback coefficients are used",
         ));
     }
-    if coefficients.is_some() {
-        material.warn_unread_emission(path, warnings);
-    }
     let volume_to_world = finite_matrix(path, &v.xform)?;
+    let material_emission = match coefficients.is_some() {
+        false => None,
+        true => material.emission()?,
+    };
     let motion = motion(path, &v.xform_samples, shutter)?;
     // A velocity field (as the USD reader finds one) is not read through Hydra.
     let velocity = text(&v.primvars, tokens::VELOCITY_FIELD).or_else(|| {
@@ -885,6 +895,20 @@ fn volume(
     let light_group = text(pv, tokens::LIGHT_GROUP).map(str::to_string);
     if let Some(m) = coefficients {
         let density_name = m.density_field.unwrap_or_else(|| "density".to_string());
+        let emission = match material_emission {
+            None => VolumeEmission::default(),
+            Some(e) => {
+                let field = match &e.field {
+                    None => None,
+                    Some(name) => Some((name.clone(), named(name)?)),
+                };
+                let mut emission = e.volume_emission(field);
+                if let Some(g) = &mut emission.color_graph {
+                    g.shading_to_world = volume_to_world;
+                }
+                emission
+            }
+        };
         return Ok(Volume {
             prim_path: v.path.clone(),
             light_group,
@@ -896,7 +920,7 @@ fn volume(
             scattering: m.scattering,
             anisotropy: m.anisotropy,
             fields,
-            emission: VolumeEmission::default(),
+            emission,
             albedo: None,
             albedo_graph: None,
             velocity: None,
@@ -977,8 +1001,12 @@ fn mesh(m: &MeshDesc, scene: &mut Scene, warnings: &mut Vec<String>) -> Result<(
     }
     let light_group = text(&m.primvars, tokens::LIGHT_GROUP).map(str::to_string);
     let mut medium = medium;
+    let to_world = finite_matrix(path, &m.xform)?;
     if let Some(g) = &mut medium.density_graph {
-        g.shading_to_world = finite_matrix(path, &m.xform)?;
+        g.shading_to_world = to_world;
+    }
+    if let Some(g) = &mut medium.emission.color_graph {
+        g.shading_to_world = to_world;
     }
     scene
         .volumes
