@@ -1966,7 +1966,7 @@ fn emitting_material(edf: Option<&str>) -> String {
 /// constant colour is the emission colour, an unauthored one white (MaterialX's
 /// default), a black one no emission, no edf the schema's default; and a conical edf, a
 /// field on fog, or a field inside a graph are errors naming the edf. No warning says
-/// the emission is not read.
+/// the emission is not read; `nimbus info` names the edf's colour graph.
 #[test]
 fn a_materialx_volume_emission_is_read_from_its_edf() {
     use nimbus::volume::emission::EmissionKind;
@@ -2003,6 +2003,13 @@ fn a_materialx_volume_emission_is_read_from_its_edf() {
     assert!(v.emission.emission.is_none());
     let colour = v.emission.color_graph.as_ref().expect("an emission graph");
     assert!(colour.source.contains("/Mat/glow"), "{}", colour.source);
+    let info = nimbus(&["info", path.to_str().unwrap()]);
+    let said = String::from_utf8_lossy(&info.stdout);
+    assert!(
+        said.contains("emission: colour graph from /Mat/glow (ND_uniform_edf)")
+            && said.contains("S(x) = 1 * colour(x)"),
+        "{said}"
+    );
     let density = v.density_graph.as_ref().expect("the density graph");
     assert_eq!(colour.shading_to_world, density.shading_to_world);
     let mut rng = rand_pcg::Pcg64::seed_from_u64(47);

@@ -138,12 +138,23 @@ fn print_stage(d: &StageDescription) {
             ),
             None => println!("  emission: no emissionField"),
         }
+        if let Some(source) = &v.emission_graph {
+            println!(
+                "  emission: colour graph from {source} in place of emissionColor: colour(x) * emissionScale {} * field",
+                v.emission_scale
+            );
+        }
         if v.emission_kind == "source" {
-            if v.emission_field.is_none() {
-                println!(
+            match (&v.emission_field, &v.emission_graph) {
+                (Some(_), _) => {}
+                (None, Some(_)) => println!(
+                    "  emission: constant field 1 (emissionKind source): S(x) = {} * colour(x)",
+                    v.emission_scale
+                ),
+                (None, None) => println!(
                     "  emission: constant field 1 (emissionKind source): S = {:?}",
                     v.emission_color.map(|c| c * v.emission_scale)
-                );
+                ),
             }
             println!("  emission source term (emissionKind source): S itself, per unit length, independent of density (nothing where absorption * density is 0)");
         } else if v.temperature_field.is_some() || v.emission_field.is_some() {

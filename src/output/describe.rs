@@ -247,6 +247,9 @@ pub struct VolumeDescription {
     pub emission_scale: f64,
     /// `nimbus:emissionKind`: "radiance" or "source".
     pub emission_kind: &'static str,
+    /// The colour graph in place of `emission_color` (`nimbus:emissionColor`
+    /// connected, or a MaterialX edf's colour graph), as its source shader.
+    pub emission_graph: Option<String>,
     pub albedo_field: Option<String>,
     /// The colour graph `nimbus:albedo` is connected to, as its source shader.
     pub albedo_graph: Option<String>,
@@ -642,6 +645,7 @@ fn volume(v: &crate::scene::Volume, depth: u32) -> VolumeDescription {
         emission_color: e.emission_color,
         emission_scale: e.emission_scale,
         emission_kind: e.kind.token(),
+        emission_graph: e.color_graph.as_ref().map(|g| g.source.clone()),
         albedo_field: albedo.clone(),
         albedo_graph: v.albedo_graph.as_ref().map(|g| g.source.clone()),
         motion_keys: v.motion.as_ref().map_or(0, |m| m.keys().len()),
