@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::cli::{assert_clean_error, channels, nimbus, stats_json, stderr};
+use common::cli::{assert_clean_error, channel, channels, nimbus, stats_json, stderr};
 use glam::DVec3;
 use nimbus::render::job::media_for_scene_with;
 use nimbus::scene::{load_stage, LoadOptions};
@@ -2171,10 +2171,7 @@ fn a_materialx_field_emission_renders_as_nimbus_source_emission() {
         images.push(channels(&out));
     }
     let rgb = |c: &[(String, Vec<f32>)]| -> Vec<Vec<f32>> {
-        ["R", "G", "B"]
-            .iter()
-            .map(|n| c.iter().find(|(k, _)| k == n).unwrap().1.clone())
-            .collect()
+        ["R", "G", "B"].map(|n| channel(c, n).to_vec()).to_vec()
     };
     let (a, b) = (rgb(&images[0]), rgb(&images[1]));
     assert_eq!(a, b);

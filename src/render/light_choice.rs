@@ -50,13 +50,15 @@ pub struct LightChoice {
 impl LightChoice {
     /// `None` for [`MANY_LIGHTS`] local lights or fewer: every light is sampled.
     pub fn new(locals: &[LocalLight]) -> Option<LightChoice> {
-        let lights: Vec<_> = locals
-            .iter()
-            .map(|l| (l.center, l.power.max(0.0), l.radius * l.radius))
-            .collect();
-        (locals.len() > MANY_LIGHTS).then(|| LightChoice {
-            tree: LightTree::new(&lights),
-            lights,
+        (locals.len() > MANY_LIGHTS).then(|| {
+            let lights: Vec<_> = locals
+                .iter()
+                .map(|l| (l.center, l.power.max(0.0), l.radius * l.radius))
+                .collect();
+            LightChoice {
+                tree: LightTree::new(&lights),
+                lights,
+            }
         })
     }
 
