@@ -1031,7 +1031,8 @@ mod hydra_host {
     /// `nimbus:denoise` through Hydra: the host hands the stage's RenderSettings
     /// attributes to hdNimbus as render settings, hdNimbus denoises the color AOV
     /// after the last pass, and the image matches `nimbus render`'s denoised one of the
-    /// same stage, while it does not match the noisy render (the check has power). The
+    /// same stage, while it does not match the noisy render where that has noise (the
+    /// check has power). The
     /// noisy images agree in all but a few pixels (see the file comment), and the
     /// denoiser spreads those few over their neighbourhood: measured, the denoised
     /// images differ by 2.8e-5 relative at the median pixel, 2.2e-3 at the 99th
@@ -1083,15 +1084,21 @@ mod hydra_host {
                 "channel {c}: means {ma}, {mb}"
             );
         }
-        let close = hydra[0]
+        // Where every sample was the same (the sky around the cloud: variance 0) the
+        // noisy value is exact and the mix keeps it; the cloud's pixels (755 of 3,072)
+        // are denoised.
+        let den = common::cli::channels(&out.join("nimbus.exr"));
+        let varied: Vec<usize> = (0..hydra[0].len())
+            .filter(|&i| common::cli::channel(&den, "beauty_variance.R")[i] > 0.0)
+            .collect();
+        let close = varied
             .iter()
-            .zip(&noisy[0])
-            .filter(|(p, q)| (*p - *q).abs() <= 1e-5 * q.abs().max(1e-6))
+            .filter(|&&i| (hydra[0][i] - noisy[0][i]).abs() <= 1e-5 * noisy[0][i].abs().max(1e-6))
             .count();
         assert!(
-            close * 2 < hydra[0].len(),
-            "{close} of {} pixels as the noisy render: not denoised; {log}",
-            hydra[0].len()
+            varied.len() > 500 && close * 2 < varied.len(),
+            "{close} of {} pixels with noise as the noisy render: not denoised; {log}",
+            varied.len()
         );
     }
 

@@ -132,8 +132,9 @@ pub struct RenderArgs {
     pub no_specialise: bool,
     /// AOVs to write besides R, G, B, A (comma-separated): lookups, residual_lookups,
     /// real_collisions, null_collisions, control_collisions, max_throughput, variance,
-    /// samples (per pixel: adaptive sampling stops pixels early), albedo.R, albedo.G,
-    /// albedo.B (the albedo at the first scattering event; --denoise adds them);
+    /// samples (per pixel: adaptive sampling stops pixels early), beauty_variance.R, .G,
+    /// .B (the variance of each pixel's value), albedo.R, albedo.G, albedo.B (the
+    /// albedo at the first scattering event; --denoise adds these and samples);
     /// and the RGB splits of the beauty: emission (light reaching the camera unscattered),
     /// direct (scattered once), indirect (twice or more), lightgroup:GROUP (the lights,
     /// or emissive volumes, whose nimbus:lightGroup or prim path is GROUP).
@@ -152,8 +153,8 @@ pub struct RenderArgs {
     /// budget is kept to within one pass.
     #[arg(long, value_name = "SECONDS")]
     pub time_limit: Option<f64>,
-    /// Adaptive sampling: each pixel stops once its noise estimate (Cycles' measure:
-    /// the two halves of its samples compared; 0.01 is Cycles' default) is below T,
+    /// Adaptive sampling: each pixel stops once its noise estimate (what Cycles'
+    /// measure estimates, from each channel's sample variance; 0.01 is Cycles' default) is below T,
     /// checked every 4 samples after --min-spp; 0 = off (overrides
     /// nimbus:noiseThreshold). The `samples` AOV shows where samples went.
     #[arg(long, value_name = "T")]
@@ -163,8 +164,10 @@ pub struct RenderArgs {
     #[arg(long, value_name = "N")]
     pub min_spp: Option<u32>,
     /// Denoise with Open Image Denoise (its RT filter, guided by the albedo AOV, which
-    /// is written too): R, G, B are the denoised beauty, the noisy one is kept as
-    /// noisy.R/G/B, each split layer is denoised on its own; a --tile is not denoised
+    /// is written too): R, G, B are the denoised beauty, mixed back towards the noisy
+    /// one where the pixel's variance (beauty_variance, written too) says that is
+    /// closer; the noisy one is kept as noisy.R/G/B, each split layer is denoised on
+    /// its own and mixed with the beauty's weights; a --tile is not denoised
     /// (`merge` denoises the frame). As nimbus:denoise; --no-denoise turns it off.
     #[arg(long, conflicts_with = "no_denoise")]
     pub denoise: bool,

@@ -14,6 +14,7 @@
 //! `merge` of a farm's tiles denoise the same numbers and give the same image: tiles
 //! are never denoised, the merge denoises the merged frame.
 
+use super::denoise_mix;
 use std::ffi::{c_char, c_void, CStr, CString};
 use std::sync::OnceLock;
 use std::time::Instant;
@@ -22,6 +23,16 @@ use std::time::Instant;
 pub const ALBEDO: [&str; 3] = ["albedo.R", "albedo.G", "albedo.B"];
 /// The layer the noisy beauty is kept in.
 pub const NOISY: &str = "noisy";
+/// The channels of the beauty's variance ([`crate::render::film::Aov::BeautyVarianceR`]):
+/// the denoised values are mixed back towards the noisy ones by it
+/// ([`super::denoise_mix`]).
+pub const BEAUTY_VARIANCE: [&str; 3] = [
+    "beauty_variance.R",
+    "beauty_variance.G",
+    "beauty_variance.B",
+];
+/// The sample-count channel ([`crate::render::film::Aov::Samples`]).
+pub const SAMPLES: &str = "samples";
 
 /// Whether this build can denoise: build.rs found OIDN (it may still fail to load).
 pub fn built_in() -> bool {
@@ -45,8 +56,12 @@ pub struct Denoised {
 /// Denoises the `width` × `height` `channels` (row-major f32, named as the EXR
 /// writes them) in place: R, G, B become the denoised beauty, the noisy one is kept
 /// as `noisy.R/G/B`, and every split layer `NAME.R/G/B` (not the albedo) is
-/// replaced by its own denoise (a layer black everywhere stays black). A (alpha) and every other channel stay as they are.
-/// Needs the albedo AOV ([`ALBEDO`]). Deterministic: the same channels give the
+/// replaced by its own denoise (a layer black everywhere stays black). Each denoised
+/// value is then mixed back towards its noisy one where the beauty's variance says
+/// the denoiser's error is the larger ([`super::denoise_mix`]), with the beauty's
+/// weights for every layer. A (alpha) and every other channel stay as they are.
+/// Needs the albedo AOV ([`ALBEDO`]), the beauty variance ([`BEAUTY_VARIANCE`]) and
+/// the sample counts ([`SAMPLES`]). Deterministic: the same channels give the
 /// same result on the same machine (the input scale is computed here, not by OIDN's
 /// threaded auto-exposure).
 pub fn denoise_channels(
@@ -64,6 +79,16 @@ pub fn denoise_channels(
     let albedo = match rgb_of(channels, ALBEDO) {
         [Some(r), Some(g), Some(b)] => interleave(channels, [r, g, b]),
         _ => return Err("denoising needs the albedo AOV (albedo.R, .G, .B)".into()),
+    };
+    let (variance, samples) = match (rgb_of(channels, BEAUTY_VARIANCE), find(channels, SAMPLES)) {
+        ([Some(r), Some(g), Some(b)], Some(s)) => ([r, g, b], s),
+        _ => {
+            return Err(
+                "denoising needs the beauty_variance AOV (.R, .G, .B) and the samples AOV \
+                 (a tile written by a build before them cannot be merged denoised)"
+                    .into(),
+            )
+        }
     };
     if let Some(c) = channels.iter().find(|c| c.0.starts_with("noisy.")) {
         return Err(format!(
@@ -84,8 +109,21 @@ pub fn denoise_channels(
     let albedo = device.prefilter_albedo(&albedo, width, height)?;
     let mut images = 1;
     let out = device.denoise(&noisy, &albedo, width, height, scale, "the beauty")?;
+    let mut weights = Vec::with_capacity(3);
     for (c, name) in ["R", "G", "B"].into_iter().enumerate() {
-        let kept = std::mem::replace(&mut channels[beauty[c]].1, deinterleave(&out, c));
+        let mut denoised = deinterleave(&out, c);
+        let kept = &channels[beauty[c]].1;
+        let w = denoise_mix::noisy_weights(
+            width,
+            height,
+            kept,
+            &denoised,
+            &channels[variance[c]].1,
+            &channels[samples].1,
+        );
+        denoise_mix::mix(&mut denoised, kept, &w);
+        weights.push(w);
+        let kept = std::mem::replace(&mut channels[beauty[c]].1, denoised);
         channels.push((format!("{NOISY}.{name}"), kept));
     }
     for layer in split_layers(channels) {
@@ -107,7 +145,9 @@ pub fn denoise_channels(
             &what,
         )?;
         for (c, &i) in idx.iter().enumerate() {
-            channels[i].1 = deinterleave(&out, c);
+            let mut denoised = deinterleave(&out, c);
+            denoise_mix::mix(&mut denoised, &channels[i].1, &weights[c]);
+            channels[i].1 = denoised;
         }
         images += 1;
     }
@@ -128,6 +168,8 @@ pub fn denoise_film(
     let mut channels: Vec<(String, Vec<f32>)> = [Aov::R, Aov::G, Aov::B, Aov::A]
         .into_iter()
         .chain(Aov::ALBEDO)
+        .chain(Aov::BEAUTY_VARIANCE)
+        .chain([Aov::Samples])
         .map(|a| (a.channel_name().to_string(), film.channel(a)))
         .collect();
     for (i, name) in layers.iter().enumerate() {
@@ -156,7 +198,8 @@ fn split_layers(channels: &[(String, Vec<f32>)]) -> Vec<String> {
         let complete = layer_names(layer)
             .iter()
             .all(|n| channels.iter().any(|c| &c.0 == n));
-        if complete && layer != "albedo" && layer != NOISY && !layers.iter().any(|l| l == layer) {
+        let auxiliary = ["albedo", "beauty_variance", NOISY].contains(&layer);
+        if complete && !auxiliary && !layers.iter().any(|l| l == layer) {
             layers.push(layer.to_string());
         }
     }
@@ -476,7 +519,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn split_layers_are_complete_rgb_triples_but_albedo_and_noisy() {
+    fn split_layers_are_complete_rgb_triples_but_albedo_variance_and_noisy() {
         let c = |n: &str| (n.to_string(), vec![0.0f32]);
         let chans = vec![
             c("R"),
@@ -486,6 +529,9 @@ mod tests {
             c("albedo.R"),
             c("albedo.G"),
             c("albedo.B"),
+            c("beauty_variance.R"),
+            c("beauty_variance.G"),
+            c("beauty_variance.B"),
             c("key.R"),
             c("key.G"),
             c("key.B"),

@@ -9,6 +9,7 @@ pub mod deep;
 #[cfg(nimbus_openexr)]
 mod deep_bridge;
 pub mod denoise;
+pub mod denoise_mix;
 pub mod describe;
 pub mod exr;
 pub mod merge;

@@ -165,7 +165,9 @@ impl Outputs {
     }
 
     /// Denoises the flat EXRs when `denoise` (the session's): each gets the albedo AOV
-    /// (the denoiser's auxiliary image; a tile carries it for its merge), and a frame
+    /// (the denoiser's auxiliary image), the beauty variance and the sample counts
+    /// (which mix the denoised values back towards the noisy ones; a tile carries all
+    /// three for its merge), and a frame
     /// that is not a tile checks that Open Image Denoise loads, before anything
     /// renders (a build without it fails here, in one line).
     pub fn set_denoise(&mut self, denoise: bool) -> Result<()> {
@@ -177,7 +179,11 @@ impl Outputs {
             super::denoise::check_available().map_err(anyhow::Error::msg)?;
         }
         for o in self.products.iter_mut().filter(|o| o.denoised()) {
-            for a in Aov::ALBEDO {
+            for a in Aov::ALBEDO
+                .into_iter()
+                .chain(Aov::BEAUTY_VARIANCE)
+                .chain([Aov::Samples])
+            {
                 if !o.aovs.contains(&a) {
                     o.aovs.push(a);
                 }

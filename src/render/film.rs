@@ -58,6 +58,19 @@ impl Pixel {
         ((self.lum_sq - self.lum * self.lum / n) / (n - 1.0)).max(0.0)
     }
 
+    /// The estimated variance of the pixel's mean in channel `c`: the sample variance
+    /// of the finite samples over their count; with fewer than two unknown, said by
+    /// the largest float (finite: every AOV is, and the EXR writer would write an
+    /// infinity as it).
+    pub fn mean_variance(&self, c: usize) -> f32 {
+        let n = (self.samples - self.nonfinite) as f64;
+        if n < 2.0 {
+            return f32::MAX;
+        }
+        let variance = (self.rgb_sq[c] - self.rgb[c] * self.rgb[c] / n) / (n - 1.0);
+        (variance.max(0.0) / n) as f32
+    }
+
     fn per_sample(&self, v: f64) -> f32 {
         if self.samples == 0 {
             0.0
@@ -87,6 +100,12 @@ pub enum Aov {
     Variance,
     /// Samples taken in this pixel (adaptive sampling stops pixels early).
     Samples,
+    /// The estimated variance of the pixel's value in each channel: the channel's
+    /// sample variance over the sample count (the largest float, meaning unknown, with
+    /// fewer than two samples). Denoising reads it ([`crate::output::denoise_mix`]).
+    BeautyVarianceR,
+    BeautyVarianceG,
+    BeautyVarianceB,
     /// Mean over samples of the single-scattering albedo σs/σt (times the albedo
     /// field) at the camera path's first scattering event, 0 where it had none: the
     /// auxiliary image of denoising (docs/sampling.md, "Denoising").
@@ -107,13 +126,16 @@ impl Aov {
                 | Aov::A
                 | Aov::Variance
                 | Aov::Samples
+                | Aov::BeautyVarianceR
+                | Aov::BeautyVarianceG
+                | Aov::BeautyVarianceB
                 | Aov::AlbedoR
                 | Aov::AlbedoG
                 | Aov::AlbedoB
         )
     }
 
-    pub const ALL: [Aov; 15] = [
+    pub const ALL: [Aov; 18] = [
         Aov::R,
         Aov::G,
         Aov::B,
@@ -126,12 +148,21 @@ impl Aov {
         Aov::MaxThroughput,
         Aov::Variance,
         Aov::Samples,
+        Aov::BeautyVarianceR,
+        Aov::BeautyVarianceG,
+        Aov::BeautyVarianceB,
         Aov::AlbedoR,
         Aov::AlbedoG,
         Aov::AlbedoB,
     ];
     /// The albedo AOV's channels (`albedo.R`, `.G`, `.B`).
     pub const ALBEDO: [Aov; 3] = [Aov::AlbedoR, Aov::AlbedoG, Aov::AlbedoB];
+    /// The beauty variance's channels (`beauty_variance.R`, `.G`, `.B`).
+    pub const BEAUTY_VARIANCE: [Aov; 3] = [
+        Aov::BeautyVarianceR,
+        Aov::BeautyVarianceG,
+        Aov::BeautyVarianceB,
+    ];
     /// What a render writes unless asked otherwise.
     pub const DEFAULT: [Aov; 5] = [Aov::R, Aov::G, Aov::B, Aov::A, Aov::Lookups];
 
@@ -150,6 +181,9 @@ impl Aov {
             Aov::MaxThroughput => "max_throughput",
             Aov::Variance => "variance",
             Aov::Samples => "samples",
+            Aov::BeautyVarianceR => "beauty_variance.R",
+            Aov::BeautyVarianceG => "beauty_variance.G",
+            Aov::BeautyVarianceB => "beauty_variance.B",
             Aov::AlbedoR => "albedo.R",
             Aov::AlbedoG => "albedo.G",
             Aov::AlbedoB => "albedo.B",
@@ -174,6 +208,9 @@ impl Aov {
             Aov::MaxThroughput => p.per_sample(p.counters.max_throughput),
             Aov::Variance => p.luminance_variance() as f32,
             Aov::Samples => p.samples as f32,
+            Aov::BeautyVarianceR => p.mean_variance(0),
+            Aov::BeautyVarianceG => p.mean_variance(1),
+            Aov::BeautyVarianceB => p.mean_variance(2),
             Aov::AlbedoR => p.per_sample(p.albedo[0]),
             Aov::AlbedoG => p.per_sample(p.albedo[1]),
             Aov::AlbedoB => p.per_sample(p.albedo[2]),
