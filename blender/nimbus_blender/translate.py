@@ -190,6 +190,7 @@ _GRAPH_NODES = {
     "ShaderNodeMapRange": ("data_type", "interpolation_type", "clamp"),
     "ShaderNodeVectorMath": ("operation",),
     "ShaderNodeMapping": ("vector_type",),
+    "ShaderNodeVectorRotate": ("rotation_type", "invert"),
     "ShaderNodeSeparateXYZ": (),
     "ShaderNodeAttribute": ("attribute_name",),
     "ShaderNodeValue": (),
@@ -247,6 +248,8 @@ _COMPILED = {
     ("ShaderNodeMapRange", "interpolation_type"): {"LINEAR", "STEPPED", "SMOOTHSTEP",
                                                    "SMOOTHERSTEP"},
     ("ShaderNodeMapping", "vector_type"): {"POINT", "TEXTURE", "VECTOR", "NORMAL"},
+    ("ShaderNodeVectorRotate", "rotation_type"): {"AXIS_ANGLE", "X_AXIS", "Y_AXIS", "Z_AXIS",
+                                                  "EULER_XYZ"},
     ("ShaderNodeMix", "data_type"): {"FLOAT", "VECTOR", "RGBA"},
     # Read only where data_type is RGBA (_IRRELEVANT); every blend type compiles
     # (src/scene/blender_color.rs), listed to catch one a later Blender adds.
@@ -380,8 +383,6 @@ def _check_inputs(node):
         unlinked_value(name, None)
     if node.bl_idname == "ShaderNodeMapRange" and node.interpolation_type == "STEPPED":
         unlinked_value("Steps", 4.0)
-    if node.bl_idname == "ShaderNodeMapping":
-        unlinked_value("Rotation", (0.0, 0.0, 0.0))
     if node.bl_idname == "ShaderNodeTexWave":
         detail = unlinked_value("Detail", 2.0)
         roughness = unlinked_value("Detail Roughness", 0.5)

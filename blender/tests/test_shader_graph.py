@@ -478,6 +478,15 @@ def _mapped_material(name, vector_type):
         mapping.inputs["Location"].default_value = (0.2, 0.0, -0.3)
     mapping.inputs["Rotation"].default_value = (0.4, -0.9, 1.3)
     mapping.inputs["Scale"].default_value = (3.0, 1.0, 0.5)
+    nt.links.new(coords.outputs["Object"], mapping.inputs["Vector"])
+    _shaped_noise_density(nt, mapping.outputs["Vector"], pv)
+    nt.links.new(pv.outputs["Volume"], out.inputs["Volume"])
+    return m
+
+
+def _shaped_noise_density(nt, vector, pv):
+    """`pv`'s Density = Map Range of a Noise Texture (Scale 2, Detail 2) at `vector` from
+    [0.42, 0.62] to [0, 5], clamped."""
     noise = nt.nodes.new("ShaderNodeTexNoise")
     noise.inputs["Scale"].default_value = 2.0
     noise.inputs["Detail"].default_value = 2.0
@@ -486,12 +495,9 @@ def _mapped_material(name, vector_type):
     shape.inputs["From Max"].default_value = 0.62
     shape.inputs["To Min"].default_value = 0.0
     shape.inputs["To Max"].default_value = 5.0
-    nt.links.new(coords.outputs["Object"], mapping.inputs["Vector"])
-    nt.links.new(mapping.outputs["Vector"], noise.inputs["Vector"])
+    nt.links.new(vector, noise.inputs["Vector"])
     nt.links.new(noise.outputs["Fac"], shape.inputs["Value"])
     nt.links.new(shape.outputs["Result"], pv.inputs["Density"])
-    nt.links.new(pv.outputs["Volume"], out.inputs["Volume"])
-    return m
 
 
 @pytest.mark.parametrize("vector_type", ["POINT", "TEXTURE"])
@@ -507,6 +513,56 @@ def test_a_rotated_mapping_noise_cube_against_cycles(addon, tmp_path, vector_typ
     _graph_cube_against_cycles(scene, tmp_path,
                                [f'"{vector_type}"', "float3 inputs:Rotation = (0.4"],
                                f"noise cube through a rotated Mapping ({vector_type})")
+
+
+def _swirled_material(name, kind):
+    """Density = the Map Range of _mapped_material (Noise Scale 2, Detail 2, [0.42, 0.62]
+    -> [0, 5]) at the cube's Object coordinates turned per point: with kind "SWIRL" by a
+    Vector Rotate about Z through an Angle of 2.5 x the point's distance from the
+    centre (a twist, Center (0.1, 0, 0)); with "MAPPING" by a Mapping (Point) whose
+    Rotation is linked, 1.5 x the Object coordinates (Vector Math Scale). Turned the
+    wrong way or about the wrong axis, the noise's streaks move; Color 0.8."""
+    m, nt, out = _node_material(name)
+    pv = nt.nodes.new("ShaderNodeVolumePrincipled")
+    pv.inputs["Color"].default_value = (0.8, 0.8, 0.8, 1.0)
+    coords = nt.nodes.new("ShaderNodeTexCoord").outputs["Object"]
+    vm = nt.nodes.new("ShaderNodeVectorMath")
+    nt.links.new(coords, vm.inputs[0])
+    if kind == "SWIRL":
+        vm.operation = "LENGTH"
+        angle = nt.nodes.new("ShaderNodeMath")
+        angle.operation = "MULTIPLY"
+        angle.inputs[1].default_value = 2.5
+        nt.links.new(vm.outputs["Value"], angle.inputs[0])
+        turn = nt.nodes.new("ShaderNodeVectorRotate")
+        turn.rotation_type = "Z_AXIS"
+        turn.inputs["Center"].default_value = (0.1, 0.0, 0.0)
+        nt.links.new(angle.outputs["Value"], turn.inputs["Angle"])
+    else:
+        vm.operation = "SCALE"
+        vm.inputs["Scale"].default_value = 1.5
+        turn = nt.nodes.new("ShaderNodeMapping")
+        turn.vector_type = "POINT"
+        nt.links.new(vm.outputs["Vector"], turn.inputs["Rotation"])
+    turn.name = "turn"
+    nt.links.new(coords, turn.inputs["Vector"])
+    _shaped_noise_density(nt, turn.outputs["Vector"], pv)
+    nt.links.new(pv.outputs["Volume"], out.inputs["Volume"])
+    return m
+
+
+@pytest.mark.parametrize("kind", ["SWIRL", "MAPPING"])
+def test_a_swirled_noise_cube_against_cycles(addon, tmp_path, kind):
+    """A rotation that changes from point to point (stop 74; tests/blender_math.rs checks
+    Vector Rotate's values against Geometry Nodes'): a Vector Rotate whose Angle is
+    linked, or a Mapping whose Rotation is, feeding the noise of a cube
+    (_swirled_material) through the add-on, against Cycles 5.0.1 as above: no warning
+    says a node drives the Density, the overlay links the angle, 4 seeds x 32 spp,
+    image and 8 x 8 block means within 5 combined standard errors + 0.5 %."""
+    scene = _cube_scene(f"swirled {kind}", _swirled_material(f"swirl {kind}", kind))
+    linked = {"SWIRL": "inputs:Angle.connect", "MAPPING": "inputs:Rotation.connect"}[kind]
+    _graph_cube_against_cycles(scene, tmp_path, [linked],
+                               f"noise cube turned per point ({kind})")
 
 
 def _power_material(name="cubed", operation="POWER"):
@@ -570,8 +626,8 @@ def test_every_property_value_either_compiles_or_warns(addon, nimbus_bin, tmp_pa
     listed there) and translates with no warning, or it is not and the add-on warns
     naming the node. Then `nimbus info` reads the whole stage: a value the add-on
     writes but the reader refuses fails here, not at a user's F12. So do linked
-    constant inputs (a Value node into a Noise Texture's Scale) and a Mapping whose
-    Rotation is linked, which must warn; a Mapping with a constant Rotation and a
+    constant inputs (a Value node into a Noise Texture's Scale), which must warn; a
+    Mapping with a constant Rotation, one whose Rotation is linked (stop 74) and a
     Voronoi with Detail 2 (stop 65) translate."""
     from nimbus_blender import translate
 
@@ -638,7 +694,7 @@ def test_every_property_value_either_compiles_or_warns(addon, nimbus_bin, tmp_pa
         value = nt.nodes.new("ShaderNodeCombineXYZ")
         nt.links.new(value.outputs[0], node.inputs["Rotation"])
 
-    cube("mapping_linked_rotation", "ShaderNodeMapping", linked_rotation, False)
+    cube("mapping_linked_rotation", "ShaderNodeMapping", linked_rotation, True)
     # A float Mix ignores its blend type, whatever it is; Volume Info has no grids on a
     # fog mesh (Cycles reads 0).
     cube("mix_float_hue", "ShaderNodeMix",

@@ -43,6 +43,7 @@ pub const NODES: &[&str] = &[
     "ShaderNodeMapRange",
     "ShaderNodeVectorMath",
     "ShaderNodeMapping",
+    "ShaderNodeVectorRotate",
     "ShaderNodeSeparateXYZ",
     "ShaderNodeAttribute",
     "ShaderNodeValue",
@@ -366,55 +367,202 @@ pub fn euler_xyz(e: [f32; 3]) -> [[f32; 3]; 3] {
 /// column) with `v`, summed x + y, then + z as Cycles' `transform_direction`. The range
 /// analysis bounds each component exactly: a constant times an interval, summed.
 fn rotate(bl: &mut Builder, m: [[f32; 3]; 3], v: Reg, transposed: bool) -> Result<Reg, GraphError> {
-    let mut out = [v; 3];
-    for (i, o) in out.iter_mut().enumerate() {
-        let row = match transposed {
-            false => m[i],
-            true => [m[0][i], m[1][i], m[2][i]],
+    let mut rows = [v; 3];
+    for (i, r) in rows.iter_mut().enumerate() {
+        *r = match transposed {
+            false => bl.vector3(m[i])?,
+            true => bl.vector3([m[0][i], m[1][i], m[2][i]])?,
         };
-        let row = bl.vector3(row)?;
+    }
+    times_rows(bl, rows, v)
+}
+
+/// The vector of the dot products of each of `rows` with `v`.
+fn times_rows(bl: &mut Builder, rows: [Reg; 3], v: Reg) -> Result<Reg, GraphError> {
+    let mut out = [v; 3];
+    for (o, row) in out.iter_mut().zip(rows) {
         *o = bl.dot(v, row)?;
     }
     bl.combine3(out[0], out[1], out[2])
 }
 
+/// A rotation by Euler angles (XYZ, radians): constant, a matrix computed once; or
+/// the value of a linked socket, a matrix computed per lookup.
+#[derive(Clone, Copy, Debug)]
+pub enum Rotation {
+    Constant([f32; 3]),
+    Linked(Reg),
+}
+
+impl Rotation {
+    /// `v` rotated (by the inverse, the transposed matrix, with `inverse`). A zero
+    /// constant rotation is left out (Cycles multiplies by the identity, which changes
+    /// no finite value).
+    fn apply(self, bl: &mut Builder, v: Reg, inverse: bool) -> Result<Reg, GraphError> {
+        match self {
+            Rotation::Constant(e) if e == [0.0; 3] => Ok(v),
+            Rotation::Constant(e) => rotate(bl, euler_xyz(e), v, inverse),
+            Rotation::Linked(e) => {
+                let m = euler_xyz_of(bl, e)?;
+                let mut rows = [v; 3];
+                for (i, r) in rows.iter_mut().enumerate() {
+                    *r = match inverse {
+                        false => bl.combine3(m[i][0], m[i][1], m[i][2])?,
+                        true => bl.combine3(m[0][i], m[1][i], m[2][i])?,
+                    };
+                }
+                times_rows(bl, rows, v)
+            }
+        }
+    }
+}
+
+/// [`euler_xyz`] of angles the graph computes: the same products in the same order,
+/// per lookup (the range analysis bounds them through sine, cosine and the products'
+/// intervals).
+fn euler_xyz_of(bl: &mut Builder, e: Reg) -> Result<[[Reg; 3]; 3], GraphError> {
+    let e = bl.splat3(e)?;
+    let mut sin = [e; 3];
+    let mut cos = [e; 3];
+    for k in 0..3 {
+        let a = bl.component(e, k as u16)?;
+        sin[k] = bl.unary(Unary::Sin, a)?;
+        cos[k] = bl.unary(Unary::Cos, a)?;
+    }
+    let ([sx, sy, sz], [cx, cy, cz]) = (sin, cos);
+    let mul = |bl: &mut Builder, a: Reg, b: Reg| bl.binary(Binary::Mul, a, b);
+    let cy_cz = mul(bl, cy, cz)?;
+    let sy_sx = mul(bl, sy, sx)?;
+    let sy_cx = mul(bl, sy, cx)?;
+    let (t, u) = (mul(bl, sy_sx, cz)?, mul(bl, cx, sz)?);
+    let m01 = bl.binary(Binary::Sub, t, u)?;
+    let (t, u) = (mul(bl, sy_cx, cz)?, mul(bl, sx, sz)?);
+    let m02 = bl.binary(Binary::Add, t, u)?;
+    let m10 = mul(bl, cy, sz)?;
+    let (t, u) = (mul(bl, sy_sx, sz)?, mul(bl, cx, cz)?);
+    let m11 = bl.binary(Binary::Add, t, u)?;
+    let (t, u) = (mul(bl, sy_cx, sz)?, mul(bl, sx, cz)?);
+    let m12 = bl.binary(Binary::Sub, t, u)?;
+    let m20 = bl.unary(Unary::Neg, sy)?;
+    let m21 = mul(bl, cy, sx)?;
+    let m22 = mul(bl, cy, cx)?;
+    Ok([[cy_cz, m01, m02], [m10, m11, m12], [m20, m21, m22]])
+}
+
+/// `p` rotated by `angle` about the unit `axis` as Cycles' `rotate_around_axis`: each
+/// entry (1 − cos)·a_i·a_j ± a_k·sin (cos + (1 − cos)·a_i² on the diagonal), each row's
+/// products summed x + y, then + z.
+fn rotate_around_axis(bl: &mut Builder, p: Reg, axis: Reg, angle: Reg) -> Result<Reg, GraphError> {
+    let c = bl.unary(Unary::Cos, angle)?;
+    let s = bl.unary(Unary::Sin, angle)?;
+    let one = bl.constant(1.0)?;
+    let k = bl.binary(Binary::Sub, one, c)?;
+    let a = [
+        bl.component(axis, 0)?,
+        bl.component(axis, 1)?,
+        bl.component(axis, 2)?,
+    ];
+    let entry = |bl: &mut Builder, i: usize, j: usize| -> Result<Reg, GraphError> {
+        // (1 − cos)·a_x·a_y, never ·a_y·a_x: the lower axis first, as Cycles writes
+        // both entries (the same rounding on each side of the diagonal).
+        let ka = bl.binary(Binary::Mul, k, a[i.min(j)])?;
+        let kaa = bl.binary(Binary::Mul, ka, a[i.max(j)])?;
+        if i == j {
+            return bl.binary(Binary::Add, c, kaa);
+        }
+        // The sine term, a_k·sin (k the third axis): added at (x, z), (y, x), (z, y),
+        // subtracted at the others, a right-handed rotation by `angle`.
+        let other = 3 - i - j;
+        let sine = bl.binary(Binary::Mul, a[other], s)?;
+        let plus = matches!((i, j), (1, 0) | (2, 1) | (0, 2));
+        let op = if plus { Binary::Add } else { Binary::Sub };
+        bl.binary(op, kaa, sine)
+    };
+    let mut rows = [p; 3];
+    for (i, row) in rows.iter_mut().enumerate() {
+        let r = [entry(bl, i, 0)?, entry(bl, i, 1)?, entry(bl, i, 2)?];
+        *row = bl.combine3(r[0], r[1], r[2])?;
+    }
+    times_rows(bl, rows, p)
+}
+
+/// Blender's Vector Rotate node of `rotation_type` `ty` on `v` about `center`, as
+/// Cycles' `svm_node_vector_rotate`: Euler XYZ rotates v − center by the matrix of
+/// `rotation` (its transpose with `invert`); Axis Angle about `axis` normalized (v
+/// itself where the axis has no length), X, Y and Z Axis about those, by `angle`
+/// (−angle with `invert`); then + center. `None` for another type.
+#[allow(clippy::too_many_arguments)]
+pub fn vector_rotate(
+    bl: &mut Builder,
+    ty: &str,
+    invert: bool,
+    v: Reg,
+    center: Reg,
+    axis: Reg,
+    angle: Reg,
+    rotation: Rotation,
+) -> Result<Option<Reg>, GraphError> {
+    let fixed = match ty {
+        "X_AXIS" => Some([1.0, 0.0, 0.0]),
+        "Y_AXIS" => Some([0.0, 1.0, 0.0]),
+        "Z_AXIS" => Some([0.0, 0.0, 1.0]),
+        "AXIS_ANGLE" | "EULER_XYZ" => None,
+        _ => return Ok(None),
+    };
+    let d = bl.binary(Binary::Sub, v, center)?;
+    if ty == "EULER_XYZ" {
+        let r = rotation.apply(bl, d, invert)?;
+        return Ok(Some(bl.binary(Binary::Add, r, center)?));
+    }
+    let angle = match invert {
+        true => bl.unary(Unary::Neg, angle)?,
+        false => angle,
+    };
+    if let Some(a) = fixed {
+        let a = bl.vector3(a)?;
+        let r = rotate_around_axis(bl, d, a, angle)?;
+        return Ok(Some(bl.binary(Binary::Add, r, center)?));
+    }
+    let length = bl.magnitude(axis)?;
+    let unit = bl.binary(Binary::SafeDiv, axis, length)?;
+    let r = rotate_around_axis(bl, d, unit, angle)?;
+    let r = bl.binary(Binary::Add, r, center)?;
+    let zero = bl.constant(0.0)?;
+    let some = bl.binary(Binary::Greater, length, zero)?;
+    Ok(Some(select(bl, some, r, v)?))
+}
+
 /// Blender's Mapping node of type `ty` (its `vector_type`) on `v`, as Cycles'
-/// `svm_mapping`, with R the rotation of the Euler angles `rotation`:
+/// `svm_mapping`, with R the rotation `rotation`:
 /// Point R(v × scale) + location; Texture R⁻¹(v − location) ÷ scale (0 where a scale is
-/// 0); Vector R(v × scale); Normal the unit vector of R(v ÷ scale) (0 stays 0). A zero
-/// rotation is left out (Cycles multiplies by the identity, which changes no finite
-/// value). `None` for another type. tests/blender_math.rs checks each against bpy 5.0.1.
+/// 0); Vector R(v × scale); Normal the unit vector of R(v ÷ scale) (0 stays 0). `None`
+/// for another type. tests/blender_math.rs checks each against bpy 5.0.1.
 pub fn mapping(
     bl: &mut Builder,
     ty: &str,
     v: Reg,
     location: Reg,
-    rotation: [f32; 3],
+    rotation: Rotation,
     scale: Reg,
 ) -> Result<Option<Reg>, GraphError> {
-    let m = euler_xyz(rotation);
-    let turn = |bl: &mut Builder, v: Reg, transposed: bool| match rotation == [0.0; 3] {
-        true => Ok(v),
-        false => rotate(bl, m, v, transposed),
-    };
     Ok(Some(match ty {
         "POINT" => {
             let vs = bl.binary(Binary::Mul, v, scale)?;
-            let r = turn(bl, vs, false)?;
+            let r = rotation.apply(bl, vs, false)?;
             bl.binary(Binary::Add, r, location)?
         }
         "TEXTURE" => {
             let d = bl.binary(Binary::Sub, v, location)?;
-            let r = turn(bl, d, true)?;
+            let r = rotation.apply(bl, d, true)?;
             bl.binary(Binary::SafeDiv, r, scale)?
         }
         "VECTOR" => {
             let vs = bl.binary(Binary::Mul, v, scale)?;
-            turn(bl, vs, false)?
+            rotation.apply(bl, vs, false)?
         }
         "NORMAL" => {
             let vs = bl.binary(Binary::SafeDiv, v, scale)?;
-            let r = turn(bl, vs, false)?;
+            let r = rotation.apply(bl, vs, false)?;
             safe_normalize(bl, r)?
         }
         _ => return Ok(None),
@@ -1064,6 +1212,18 @@ impl<'a> Reader<'a> {
             .map_err(Self::graph_error(&node.path))
     }
 
+    /// A node's `Rotation` (Euler XYZ): a constant matrix where the socket has a value
+    /// (or none: no rotation), the graph's value per lookup where it is linked.
+    fn rotation(&mut self, node: &ShaderNode) -> Result<Rotation, SceneError> {
+        Ok(match node.input("Rotation") {
+            None => Rotation::Constant([0.0; 3]),
+            Some(Input::Value(v)) => {
+                Rotation::Constant(colour(node, "Rotation", v)?.map(|x| x as f32))
+            }
+            Some(_) => Rotation::Linked(self.vector(node, "Rotation", None)?),
+        })
+    }
+
     /// The register of the volume's field `name` (an Attribute or Volume Info node):
     /// one field per graph.
     fn field(&mut self, node: &ShaderNode, name: String) -> Result<Reg, SceneError> {
@@ -1452,18 +1612,7 @@ impl<'a> Reader<'a> {
                     return Err(wrong_output());
                 }
                 let ty = Self::text(node, "vector_type", "POINT")?;
-                // A constant rotation is a constant matrix; a linked one would be a
-                // rotation per lookup, which no volume graph seen so far needs.
-                let rotation = match node.input("Rotation") {
-                    None => [0.0; 3],
-                    Some(Input::Value(v)) => colour(node, "Rotation", v)?.map(|x| x as f32),
-                    Some(_) => {
-                        return Err(prim_error_str(
-                            &node.path,
-                            "ShaderNodeMapping: a linked Rotation is not compiled (only a constant one)",
-                        ))
-                    }
-                };
+                let rotation = self.rotation(node)?;
                 let p = self.vector(node, "Vector", None)?;
                 let s = self.vector(node, "Scale", Some([1.0; 3]))?;
                 // Vector and Normal have no Location (Blender hides the socket).
@@ -1475,6 +1624,32 @@ impl<'a> Reader<'a> {
                 mapping(&mut self.builder, &ty, p, l, rotation, s)
                     .map_err(&err)?
                     .ok_or_else(|| Self::refuse(node, "vector_type", &ty))?
+            }
+            "ShaderNodeVectorRotate" => {
+                if output != "Vector" {
+                    return Err(wrong_output());
+                }
+                let ty = Self::text(node, "rotation_type", "AXIS_ANGLE")?;
+                let invert = self.constant(node, "invert", 0.0)? != 0.0;
+                // Blender's Vector socket here has no implicit coordinates: unlinked, 0.
+                let v = self.vector(node, "Vector", Some([0.0; 3]))?;
+                let center = self.vector(node, "Center", Some([0.0; 3]))?;
+                let axis = self.vector(node, "Axis", Some([0.0, 0.0, 1.0]))?;
+                let angle = self.float(node, "Angle", 0.0)?;
+                let rotation = self.rotation(node)?;
+                self.builder.node(&at);
+                vector_rotate(
+                    &mut self.builder,
+                    &ty,
+                    invert,
+                    v,
+                    center,
+                    axis,
+                    angle,
+                    rotation,
+                )
+                .map_err(&err)?
+                .ok_or_else(|| Self::refuse(node, "rotation_type", &ty))?
             }
             "ShaderNodeSeparateXYZ" => {
                 let k = match output {
