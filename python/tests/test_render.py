@@ -83,6 +83,17 @@ def test_a_progress_callback_that_raises_stops_the_render(stage):
 
 
 def test_keyboard_interrupt_stops_a_long_render_within_a_second(stage):
+    # Python raises KeyboardInterrupt on SIGINT only if SIGINT was not ignored when it
+    # started; a test runner launched as a shell's background job inherits it ignored
+    # (and this render would then never stop): install Python's handler for the test.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        _interrupt_a_long_render(stage)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _interrupt_a_long_render(stage):
     sent = []
     timers = []
 
