@@ -56,6 +56,41 @@ pub trait Boundary: Send + Sync {
 
     /// How the crossings are read.
     fn rule(&self) -> InsideRule;
+
+    /// Whether every ray meets the inside in one interval at most (a convex surface
+    /// read by orientation): its walk is then the cells over [`convex_span`], with no
+    /// crossing buffer and no clipping per segment.
+    fn is_convex(&self) -> bool {
+        false
+    }
+}
+
+/// The inside interval of `origin + t·dir`, `t` in `[tmin, tmax)`, of a convex
+/// `boundary` ([`Boundary::is_convex`]): the one interval [`Inside`] would hand out, by
+/// the same orientation rule and the same rounding to f32, from its first two crossings.
+pub fn convex_span(
+    boundary: &dyn Boundary,
+    origin: DVec3,
+    dir: DVec3,
+    tmin: f32,
+    tmax: f32,
+) -> Option<(f32, f32)> {
+    let mut buf = [Crossing::default(); 2];
+    let (n, _) = boundary.crossings(origin, dir, tmin as f64, &mut buf);
+    let crossings = &buf[..n];
+    let end_of_ray = tmax as f64;
+    // Inside before the first crossing exactly when it leaves.
+    let start = match crossings.first() {
+        Some(c) if !c.entering => tmin as f64,
+        Some(c) if c.t < end_of_ray => c.t,
+        _ => return None,
+    };
+    let end = crossings
+        .iter()
+        .find(|c| !c.entering)
+        .map_or(end_of_ray, |c| c.t.min(end_of_ray));
+    let (a, b) = (start as f32, (end as f32).min(tmax));
+    (a < b).then_some((a, b))
 }
 
 /// Keeps the `out.len()` nearest crossings seen so far sorted in `out[..*n]`
@@ -221,6 +256,9 @@ pub enum MediumRegion {
 /// everywhere. Segments keep their cell's bounds; only `t0`, `t1` move.
 pub enum MediumWalk<'a> {
     Cells(TreeWalk<'a>),
+    /// The cells of a medium of constant density, already clipped to its convex
+    /// boundary's one interval: each segment carries the cell's top as both bounds.
+    Constant(TreeWalk<'a>),
     Clipped {
         cells: TreeWalk<'a>,
         inside: Inside<'a>,
@@ -241,6 +279,10 @@ impl Iterator for MediumWalk<'_> {
     fn next(&mut self) -> Option<Segment> {
         match self {
             MediumWalk::Cells(cells) => cells.next(),
+            MediumWalk::Constant(cells) => cells.next().map(|seg| Segment {
+                dmin: seg.dmax,
+                ..seg
+            }),
             MediumWalk::Everywhere(seg) => seg.take(),
             MediumWalk::Clipped {
                 cells,

@@ -150,10 +150,14 @@ impl Boundary for ConvexHull {
     fn rule(&self) -> InsideRule {
         InsideRule::Orientation
     }
+
+    fn is_convex(&self) -> bool {
+        true
+    }
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// The cube [-1, 1]³ as 12 outward triangles.
