@@ -107,20 +107,6 @@ impl GraphCost {
     fn of(m: &Medium) -> Option<GraphCost> {
         let shader = m.shader.as_ref()?;
         let (lo, hi) = m.majorants.index_region()?;
-        let dims = m.majorants.dims();
-        let (mut dmin, mut dmax) = (0.0f64, 0.0f64);
-        for x in 0..dims[0] {
-            for y in 0..dims[1] {
-                for z in 0..dims[2] {
-                    if let Some((a, b)) = m.majorants.leaf_bounds([x, y, z]) {
-                        if b > 0.0 {
-                            dmin += a as f64;
-                            dmax += b as f64;
-                        }
-                    }
-                }
-            }
-        }
         // Fixed points (a Weyl sequence): the same lookups on every run.
         let points: Vec<glam::Vec3> = (0..1024)
             .map(|k| {
@@ -142,12 +128,48 @@ impl GraphCost {
             prim_path: m.prim_path.clone(),
             instructions: shader.program.len(),
             ns_per_lookup: times[2],
-            control_share: if dmax > 0.0 { dmin / dmax } else { 0.0 },
+            control_share: Self::control_share(m),
         })
+    }
+
+    /// Σ minorant / Σ majorant over `m`'s leaf majorant cells with a non-zero majorant.
+    fn control_share(m: &Medium) -> f64 {
+        let dims = m.majorants.dims();
+        let (mut dmin, mut dmax) = (0.0f64, 0.0f64);
+        for x in 0..dims[0] {
+            for y in 0..dims[1] {
+                for z in 0..dims[2] {
+                    if let Some((a, b)) = m.majorants.leaf_bounds([x, y, z]) {
+                        if b > 0.0 {
+                            dmin += a as f64;
+                            dmax += b as f64;
+                        }
+                    }
+                }
+            }
+        }
+        if dmax > 0.0 {
+            dmin / dmax
+        } else {
+            0.0
+        }
     }
 }
 
 impl Analysis {
+    /// Counts the density graph's control share again over `media`'s majorants: `auto`
+    /// builds the structure the render walks after the analysis, and until then a
+    /// medium holds a coarse placeholder whose minorants are near 0 (the smoke of
+    /// issue 47's scene (b): 0 % over the placeholder, 38 % over the octree it renders
+    /// with).
+    pub fn recount_control_share(&mut self, media: &[Medium]) {
+        if let Some(g) = &mut self.density_graph {
+            if let Some(m) = media.iter().find(|m| m.prim_path == g.prim_path) {
+                g.control_share = GraphCost::control_share(m);
+            }
+        }
+    }
+
     /// The analysis of a stage with several volumes (one medium each).
     pub fn of_media(
         media: &[Medium],
@@ -247,8 +269,10 @@ impl Analysis {
             let mut reason = self.ratio_select(&mut t, given).to_string();
             if let Some(g) = &self.density_graph {
                 // Measured on benches/shader_graph (docs/shaders.md): with minorants
-                // near 0, decomposition took 0.95-1.06x delta's lookups and no less
-                // time, so the graph's cost does not change the choice.
+                // near 0 (4 % on the fractal box), decomposition took 0.95-1.06x
+                // delta's lookups and no less time; with a floor (60-67 %) 0.41x the
+                // lookups but 2.7-3.7x ratio-select's error in equal time. So the
+                // graph's cost does not change the choice.
                 reason.push_str(&format!(
                     "; density graph of {} ({} instructions, {:.0} ns per lookup measured at load): its minorants carry {:.0}% of its majorants, the most decomposition could take from the control without a lookup, so the graph's cost does not change the choice",
                     g.prim_path,

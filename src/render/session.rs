@@ -305,7 +305,7 @@ impl Session {
             false => Holdouts::build(&scene.holdouts),
         };
         let camera = CameraRays::new(&scene.camera, width, height);
-        let analysis = Analysis::of_media(&media, &lights, &camera, (width, height));
+        let mut analysis = Analysis::of_media(&media, &lights, &camera, (width, height));
         let mut tracking = request.settings;
         if analysis.emissive && tracking.options.no_absorption_events {
             bail!(
@@ -315,16 +315,17 @@ impl Session {
         }
         let mut auto_reason = None;
         if request.auto {
-            let (t, reason) = analysis.choose(tracking, request.given);
-            tracking = t;
-            auto_reason = Some(reason);
             if let Some(majorants) = analysis.majorants(request.given) {
                 let trees = per_grid(&media, |m| m.build_majorants(majorants, 0.0, false));
                 for (medium, tree) in media.iter_mut().zip(trees) {
                     medium.replace_majorants(tree);
                 }
                 spec = majorants;
+                analysis.recount_control_share(&media);
             }
+            let (t, reason) = analysis.choose(tracking, request.given);
+            tracking = t;
+            auto_reason = Some(reason);
             if let Some(cost) = analysis.majorant_prune(request.given) {
                 prune = o.octree_prune.unwrap_or(cost);
             }
