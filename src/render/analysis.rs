@@ -157,12 +157,14 @@ impl GraphCost {
 }
 
 impl Analysis {
-    /// Counts the density graph's control share again over `media`'s majorants: `auto`
-    /// builds the structure the render walks after the analysis, and until then a
-    /// medium holds a coarse placeholder whose minorants are near 0 (the smoke of
-    /// issue 47's scene (b): 0 % over the placeholder, 38 % over the octree it renders
-    /// with).
-    pub fn recount_control_share(&mut self, media: &[Medium]) {
+    /// Counts what depends on the majorant cells again over `media`'s: `auto` builds
+    /// the structure the render walks after the analysis, and until then a medium holds
+    /// a coarse placeholder. Its minorants are near 0 (the smoke of issue 47's scene
+    /// (b): a control share of 0 % over the placeholder, 38 % over the octree it renders
+    /// with); the estimated cells are counted again with it (the octree is built only
+    /// where the placeholder has none, but a finer cell's range analysis may differ).
+    pub fn recount_majorants(&mut self, media: &[Medium]) {
+        self.estimated_majorants = EstimatedMajorants::of(media);
         if let Some(g) = &mut self.density_graph {
             if let Some(m) = media.iter().find(|m| m.prim_path == g.prim_path) {
                 g.control_share = GraphCost::control_share(m);

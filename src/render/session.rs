@@ -321,7 +321,7 @@ impl Session {
                     medium.replace_majorants(tree);
                 }
                 spec = majorants;
-                analysis.recount_control_share(&media);
+                analysis.recount_majorants(&media);
             }
             let (t, reason) = analysis.choose(tracking, request.given);
             tracking = t;
