@@ -279,10 +279,7 @@ impl Iterator for MediumWalk<'_> {
     fn next(&mut self) -> Option<Segment> {
         match self {
             MediumWalk::Cells(cells) => cells.next(),
-            MediumWalk::Constant(cells) => cells.next().map(|seg| Segment {
-                dmin: seg.dmax,
-                ..seg
-            }),
+            MediumWalk::Constant(cells) => cells.next().map(constant_segment),
             MediumWalk::Everywhere(seg) => seg.take(),
             MediumWalk::Clipped {
                 cells,
@@ -292,14 +289,21 @@ impl Iterator for MediumWalk<'_> {
             } => {
                 let seg = clipped_next(cells, inside, pending)?;
                 Some(match constant {
-                    true => Segment {
-                        dmin: seg.dmax,
-                        ..seg
-                    },
+                    true => constant_segment(seg),
                     false => seg,
                 })
             }
         }
+    }
+}
+
+/// A cell segment of a medium of constant density: the cell's top is its density, so
+/// both bounds.
+#[inline(always)]
+fn constant_segment(seg: Segment) -> Segment {
+    Segment {
+        dmin: seg.dmax,
+        ..seg
     }
 }
 
